@@ -1,0 +1,248 @@
+//! Motion profiles of the simulated scene: how the deck turns and where the quadrotor's camera is,
+//! as functions of time. Deterministic for a seed.
+
+use crate::rng::SplitMix64;
+use deckwatch_common::{Rpy, Viewpoint};
+use std::f64::consts::TAU;
+
+/// The scene at one instant.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MotionSample {
+    pub t_s: f64,
+    /// True deck attitude (X-Y-Z roll/pitch/yaw, NOTES.md conventions).
+    pub attitude: Rpy,
+    /// True camera position over the deck.
+    pub viewpoint: Viewpoint,
+}
+
+/// A deck-and-camera trajectory.
+pub trait MotionProfile {
+    fn sample(&self, t_s: f64) -> MotionSample;
+}
+
+/// The paper's Case 1: every angle changes in one direction, linearly over `duration_s`:
+/// roll -20 -> 20 deg, pitch -10 -> 10 deg, yaw -5 -> 5 deg.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Case1Sweep {
+    pub duration_s: f64,
+    /// Where the camera is (the paper: hovering centred at 5 m).
+    pub tracking: TrackingError,
+}
+
+impl Case1Sweep {
+    /// The paper's setting: 5 m altitude; a 20 s sweep (the paper does not give the duration).
+    pub fn paper() -> Self {
+        Self {
+            duration_s: 20.0,
+            tracking: TrackingError::hover(5.0),
+        }
+    }
+
+    pub fn with_tracking(mut self, tracking: TrackingError) -> Self {
+        self.tracking = tracking;
+        self
+    }
+}
+
+impl MotionProfile for Case1Sweep {
+    fn sample(&self, t_s: f64) -> MotionSample {
+        let u = (t_s / self.duration_s).clamp(0.0, 1.0);
+        let lerp = |a: f64, b: f64| a + (b - a) * u;
+        MotionSample {
+            t_s,
+            attitude: Rpy::from_degrees(lerp(-20.0, 20.0), lerp(-10.0, 10.0), lerp(-5.0, 5.0)),
+            viewpoint: self.tracking.at(t_s),
+        }
+    }
+}
+
+/// One sinusoid: amplitude (degrees or metres), period (s), phase (rad).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sinusoid {
+    pub amplitude: f64,
+    pub period_s: f64,
+    pub phase: f64,
+}
+
+impl Sinusoid {
+    pub fn at(&self, t_s: f64) -> f64 {
+        self.amplitude * (TAU * t_s / self.period_s + self.phase).sin()
+    }
+}
+
+fn sum(components: &[Sinusoid], t_s: f64) -> f64 {
+    components.iter().map(|c| c.at(t_s)).sum()
+}
+
+/// Ship rotation as a sum of sinusoids per axis (degrees). |angle| never exceeds the sum of its
+/// amplitudes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ShipMotion {
+    pub roll_deg: Vec<Sinusoid>,
+    pub pitch_deg: Vec<Sinusoid>,
+    pub yaw_deg: Vec<Sinusoid>,
+    /// Where the camera is (tracking error of the quadrotor).
+    pub tracking: TrackingError,
+}
+
+/// (amplitude deg, period s) of the sea-state-6-like model; phases come from the seed.
+///
+/// Roll: a frigate-size ship rolls near its natural period (about 10-12 s) with energy spread
+/// over 8-15 s wave periods; the amplitudes sum to 25 deg, the "up to about +-25"
+/// (the paper's introduction quotes about +-30 deg at sea state 6). Pitch: shorter periods
+/// (5-9 s), sum 8 deg. Yaw: slow, 9-17 s, sum 5 deg.
+pub const SEA_STATE_6_ROLL: [(f64, f64); 3] = [(13.0, 11.0), (8.0, 8.3), (4.0, 14.7)];
+pub const SEA_STATE_6_PITCH: [(f64, f64); 3] = [(4.5, 6.4), (2.5, 8.9), (1.0, 5.1)];
+pub const SEA_STATE_6_YAW: [(f64, f64); 3] = [(3.0, 12.6), (1.5, 17.3), (0.5, 9.4)];
+
+impl ShipMotion {
+    /// The sea-state-6-like model with phases drawn from `seed`, camera hovering centred at 5 m.
+    pub fn sea_state_6(seed: u64) -> Self {
+        Self::scaled(seed, 1.0)
+    }
+
+    /// The same spectrum with every amplitude multiplied by `scale` (a calmer or rougher sea).
+    pub fn scaled(seed: u64, scale: f64) -> Self {
+        let mut rng = SplitMix64::new(seed);
+        let mut axis = |table: &[(f64, f64)]| -> Vec<Sinusoid> {
+            table
+                .iter()
+                .map(|&(a, p)| Sinusoid {
+                    amplitude: a * scale,
+                    period_s: p,
+                    phase: TAU * rng.next_f64(),
+                })
+                .collect()
+        };
+        Self {
+            roll_deg: axis(&SEA_STATE_6_ROLL),
+            pitch_deg: axis(&SEA_STATE_6_PITCH),
+            yaw_deg: axis(&SEA_STATE_6_YAW),
+            tracking: TrackingError::hover(5.0),
+        }
+    }
+
+    pub fn with_tracking(mut self, tracking: TrackingError) -> Self {
+        self.tracking = tracking;
+        self
+    }
+
+    /// Bound on |roll|, |pitch|, |yaw| (degrees).
+    pub fn amplitude_bounds_deg(&self) -> [f64; 3] {
+        let b = |c: &[Sinusoid]| c.iter().map(|s| s.amplitude.abs()).sum();
+        [b(&self.roll_deg), b(&self.pitch_deg), b(&self.yaw_deg)]
+    }
+}
+
+impl MotionProfile for ShipMotion {
+    fn sample(&self, t_s: f64) -> MotionSample {
+        MotionSample {
+            t_s,
+            attitude: Rpy::from_degrees(
+                sum(&self.roll_deg, t_s),
+                sum(&self.pitch_deg, t_s),
+                sum(&self.yaw_deg, t_s),
+            ),
+            viewpoint: self.tracking.at(t_s),
+        }
+    }
+}
+
+/// The quadrotor's tracking error: its camera circles the deck centre at a fixed horizontal
+/// offset and bobs in altitude.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackingError {
+    /// Horizontal distance of the camera from the deck centre (m).
+    pub offset_m: f64,
+    /// Period of one circle around the centre (s); the direction starts at `phase`.
+    pub offset_period_s: f64,
+    pub altitude_mean_m: f64,
+    /// Altitude varies within mean +- this (m).
+    pub altitude_amplitude_m: f64,
+    pub altitude_period_s: f64,
+    pub phase: f64,
+}
+
+impl TrackingError {
+    /// Perfect hover over the deck centre.
+    pub fn hover(altitude_m: f64) -> Self {
+        Self {
+            offset_m: 0.0,
+            offset_period_s: 1.0,
+            altitude_mean_m: altitude_m,
+            altitude_amplitude_m: 0.0,
+            altitude_period_s: 1.0,
+            phase: 0.0,
+        }
+    }
+
+    /// 0.3 m from the deck centre, altitude 4.5-5.5 m: the offset case.
+    pub fn offset_0_3m(seed: u64) -> Self {
+        Self {
+            offset_m: 0.3,
+            offset_period_s: 23.0,
+            altitude_mean_m: 5.0,
+            altitude_amplitude_m: 0.5,
+            altitude_period_s: 9.0,
+            phase: TAU * SplitMix64::new(seed ^ 0x7261_636b).next_f64(),
+        }
+    }
+
+    pub fn at(&self, t_s: f64) -> Viewpoint {
+        let a = TAU * t_s / self.offset_period_s + self.phase;
+        Viewpoint {
+            offset_x_m: self.offset_m * a.cos(),
+            offset_y_m: self.offset_m * a.sin(),
+            altitude_m: self.altitude_mean_m
+                + self.altitude_amplitude_m * (TAU * t_s / self.altitude_period_s + self.phase).sin(),
+        }
+    }
+}
+
+/// Samples a profile at `rate_hz` for `n` frames starting at t = 0.
+pub fn sample_series(profile: &dyn MotionProfile, rate_hz: f64, n: usize) -> Vec<MotionSample> {
+    (0..n).map(|k| profile.sample(k as f64 / rate_hz)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn case1_spans_the_paper_ranges() {
+        let c = Case1Sweep::paper();
+        assert_eq!(c.sample(0.0).attitude.to_degrees(), [-20.0, -10.0, -5.0]);
+        let end = c.sample(20.0).attitude.to_degrees();
+        assert!(
+            (end[0] - 20.0).abs() < 1e-12 && (end[1] - 10.0).abs() < 1e-12 && (end[2] - 5.0).abs() < 1e-12
+        );
+        let mid = c.sample(10.0).attitude.to_degrees();
+        assert_eq!(mid, [0.0, 0.0, 0.0], "the sweep passes through the level deck");
+    }
+
+    #[test]
+    fn ship_motion_is_deterministic_and_bounded() {
+        let a = ShipMotion::sea_state_6(7);
+        assert_eq!(a, ShipMotion::sea_state_6(7));
+        assert_ne!(a, ShipMotion::sea_state_6(8));
+        assert_eq!(a.amplitude_bounds_deg(), [25.0, 8.0, 5.0]);
+        let series = sample_series(&a, 10.0, 36_000); // one hour at 10 Hz
+        let max = |f: fn(&MotionSample) -> f64| series.iter().map(f).fold(0.0f64, |m, v| m.max(v.abs()));
+        let roll = max(|s| s.attitude.roll.to_degrees());
+        let pitch = max(|s| s.attitude.pitch.to_degrees());
+        let yaw = max(|s| s.attitude.yaw.to_degrees());
+        assert!(roll <= 25.0 && roll > 20.0, "roll {roll}");
+        assert!(pitch <= 8.0 && pitch > 6.0, "pitch {pitch}");
+        assert!(yaw <= 5.0 && yaw > 4.0, "yaw {yaw}");
+    }
+
+    #[test]
+    fn offset_tracking_stays_in_its_box() {
+        let t = TrackingError::offset_0_3m(1);
+        for k in 0..1000 {
+            let v = t.at(k as f64 * 0.1);
+            assert!((v.offset_x_m.hypot(v.offset_y_m) - 0.3).abs() < 1e-12);
+            assert!((4.5..=5.5).contains(&v.altitude_m));
+        }
+    }
+}

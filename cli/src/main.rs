@@ -1,0 +1,184 @@
+//! `deckwatch`: the command line of the deck-attitude pipeline.
+//!
+//! - `deckwatch sweep`: simulate a scenario at the level of marker points and run every variant of
+//!   the paper's estimator on it, side by side (accuracy and per-frame cost).
+//! - `deckwatch recording check DIR`: validate a recording (camera.json, frames.csv, every image).
+
+use clap::{Parser, Subcommand};
+use deckwatch_capture::motion::sample_series;
+use deckwatch_capture::{MarkerSimulator, Scenario};
+use deckwatch_common::rotation::rpy_error_deg;
+use deckwatch_common::stats::{ErrorStats, Percentiles};
+use deckwatch_common::{CameraModel, DeckLayout, Recording};
+use deckwatch_estimate::{PaperEstimator, PaperVariant};
+use std::process::ExitCode;
+use std::time::Instant;
+
+#[derive(Parser)]
+#[command(
+    name = "deckwatch",
+    version,
+    about = "Deck attitude from camera frames for landing a quadrotor on a ship"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Simulate a scenario (exact marker pixels, optional noise) and compare the estimator variants.
+    Sweep(SweepArgs),
+    /// Work with recordings.
+    Recording {
+        #[command(subcommand)]
+        command: RecordingCommand,
+    },
+}
+
+#[derive(Subcommand)]
+enum RecordingCommand {
+    /// Read camera.json, frames.csv and decode every image; report the first problem with its
+    /// file, line and field.
+    Check { dir: std::path::PathBuf },
+}
+
+#[derive(clap::Args)]
+struct SweepArgs {
+    /// Scenario: case1, ship or offset.
+    #[arg(long, default_value = "ship")]
+    scenario: String,
+    /// Number of frames.
+    #[arg(long, default_value_t = 600)]
+    frames: usize,
+    /// Frame rate (Hz).
+    #[arg(long, default_value_t = 10.0)]
+    rate: f64,
+    /// Camera preset (paper, rpi-v2); default: the scenario's.
+    #[arg(long)]
+    camera: Option<String>,
+    /// Seed of the sea's phases and the pixel noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Gaussian pixel noise on the marker centres (standard deviation per axis, pixels).
+    #[arg(long, default_value_t = 0.0)]
+    noise_px: f64,
+    /// Relative altimeter error, e.g. 0.001 for a reading 0.1 % high.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    altimeter_error: f64,
+}
+
+fn sweep(a: SweepArgs) -> Result<(), String> {
+    let scenario = Scenario::from_name(&a.scenario)
+        .ok_or_else(|| format!("--scenario: unknown `{}` (case1, ship, offset)", a.scenario))?;
+    let cam_name = a.camera.as_deref().unwrap_or(scenario.default_camera());
+    let camera = CameraModel::preset(cam_name)
+        .ok_or_else(|| format!("--camera: unknown `{cam_name}` (paper, rpi-v2)"))?;
+    if !(a.rate.is_finite() && a.rate > 0.0) {
+        return Err(format!("--rate: must be a positive number of Hz, got {}", a.rate));
+    }
+    if !(a.noise_px.is_finite() && a.noise_px >= 0.0) {
+        return Err(format!("--noise-px: must be >= 0, got {}", a.noise_px));
+    }
+    if !(a.altimeter_error.is_finite() && a.altimeter_error > -1.0) {
+        return Err(format!(
+            "--altimeter-error: must be > -1, got {}",
+            a.altimeter_error
+        ));
+    }
+    let deck = DeckLayout::paper();
+    let profile = scenario.profile(a.seed);
+    let mut sim = MarkerSimulator::new(camera, deck, a.noise_px, a.seed);
+    let rows: Vec<_> = sample_series(profile.as_ref(), a.rate, a.frames)
+        .iter()
+        .enumerate()
+        .map(|(k, s)| sim.row(k as u64, s))
+        .collect();
+    println!(
+        "scenario {}, camera {cam_name}, {} frames at {} Hz, seed {}, pixel noise {} px, altimeter error {:+.3} %",
+        scenario.name(),
+        a.frames,
+        a.rate,
+        a.seed,
+        a.noise_px,
+        100.0 * a.altimeter_error
+    );
+    println!(
+        "{:<18} {:>10}  {:>30}  {:>30}  {:>17}",
+        "variant", "estimated", "RMSE roll/pitch/yaw (deg)", "max roll/pitch/yaw (deg)", "us p50/p99"
+    );
+    for v in PaperVariant::ALL {
+        let est = PaperEstimator::new(camera, deck, v);
+        let mut stats = ErrorStats::default();
+        let mut times = Vec::with_capacity(rows.len());
+        for row in &rows {
+            let alt = row.truth.alt_m.map(|h| h * (1.0 + a.altimeter_error));
+            let t0 = Instant::now();
+            let r = est.estimate(&row.markers, alt);
+            times.push(t0.elapsed().as_secs_f64() * 1e6);
+            if let (Ok(e), Some(truth)) = (r, row.truth.attitude()) {
+                stats.add(rpy_error_deg(&e.attitude.rpy, &truth));
+            }
+        }
+        let [r0, r1, r2] = stats.rmse();
+        let [m0, m1, m2] = stats.max;
+        let t = Percentiles::of(&mut times).expect("at least one frame");
+        println!(
+            "{:<18} {:>10}  {:>9.2e} {:>9.2e} {:>9.2e}  {:>9.2e} {:>9.2e} {:>9.2e}  {:>8.1} {:>8.1}",
+            v.name(),
+            format!("{}/{}", stats.n, rows.len()),
+            r0,
+            r1,
+            r2,
+            m0,
+            m1,
+            m2,
+            t.p50,
+            t.p99
+        );
+    }
+    Ok(())
+}
+
+fn check_recording(dir: &std::path::Path) -> Result<(), String> {
+    let rec = Recording::open(dir).map_err(|e| e.to_string())?;
+    let mut img = deckwatch_common::GrayImage::new(rec.camera.width as usize, rec.camera.height as usize);
+    for f in &rec.frames {
+        rec.read_image_into(f, &mut img.data)
+            .map_err(|e| format!("{e} (frames.csv line {})", f.line))?;
+    }
+    let no_deck = rec.frames.iter().filter(|f| f.truth.attitude().is_none()).count();
+    println!(
+        "{}: {} frames of {}x{} (fx {:.2}, fy {:.2}), deck {} ring markers on {} m; attitude truth: {}",
+        dir.display(),
+        rec.frames.len(),
+        rec.camera.width,
+        rec.camera.height,
+        rec.camera.fx,
+        rec.camera.fy,
+        rec.deck.n_ring,
+        rec.deck.ring_radius_m,
+        if rec.has_attitude_truth() {
+            format!("yes ({no_deck} frames without deck)")
+        } else {
+            "no".into()
+        }
+    );
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let result = match Cli::parse().command {
+        Command::Sweep(a) => sweep(a),
+        Command::Recording {
+            command: RecordingCommand::Check { dir },
+        } => check_recording(&dir),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("deckwatch: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

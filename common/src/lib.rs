@@ -1,0 +1,22 @@
+//! What every part of deckwatch shares, defined once: the frame and angle conventions, the camera
+//! and deck models, image views and the recording format.
+//!
+//! Conventions (NOTES.md): world frame W at the deck centre, x = bow of the level deck, y = port,
+//! z = up; `P_world = R * P_deck`; `R = Rz(alpha) Rx(beta) Rz(gamma) = Rx(roll) Ry(pitch) Rz(yaw)`;
+//! level camera looking down, image up = bow, image left = port; pixel centres at integers.
+
+pub mod camera;
+pub mod deck;
+pub mod image;
+pub mod marker_table;
+pub mod recording;
+pub mod rotation;
+pub mod scene;
+pub mod stats;
+
+pub use camera::{CameraModel, Distortion};
+pub use deck::DeckLayout;
+pub use image::{GrayImage, GrayView, GrayViewMut};
+pub use recording::{GroundTruth, Recording, RecordingError, RecordingWriter};
+pub use rotation::{Attitude, Euler313, Quaternion, RotationMatrix, Rpy};
+pub use scene::{SceneGeometry, Viewpoint};

@@ -1,0 +1,864 @@
+//! The recording format (NOTES.md): a folder with
+//! - `camera.json`: `width, height, fx, fy, cx, cy, distortion` (`[k1,k2,p1,p2,k3]`) and `deck`
+//!   (`ring_radius_m, marker_radius_m, bow_marker_radius_m, n_ring, markers_deck_xyz_m`);
+//!   unknown extra keys are ignored;
+//! - `frames.csv`: a header row, then `index,timestamp_ns,file` and optionally
+//!   `roll_deg,pitch_deg,yaw_deg,alt_m,offset_x_m,offset_y_m` (ground truth / altimeter), in any
+//!   column order, further columns ignored; `nan` (or an empty field) where a value is unknown,
+//!   e.g. the attitude when no deck is in view;
+//! - 8-bit grayscale PNG images at the relative paths named in `file`.
+//!
+//! Every error names the file and, where it applies, the line and the field.
+
+use crate::camera::{CameraModel, Distortion};
+use crate::deck::DeckLayout;
+use crate::image::{GrayImage, GrayView};
+use crate::rotation::Rpy;
+use serde::{Deserialize, Serialize};
+use std::fmt;
+use std::fs::File;
+use std::io::{BufReader, BufWriter, Write};
+use std::path::{Component, Path, PathBuf};
+
+pub const CAMERA_FILE: &str = "camera.json";
+pub const FRAMES_FILE: &str = "frames.csv";
+/// Folder (inside the recording) the writer puts images in.
+pub const IMAGES_DIR: &str = "frames";
+
+/// A problem with a recording, located as precisely as possible.
+#[derive(Debug)]
+pub struct RecordingError {
+    pub path: PathBuf,
+    /// 1-based line in the file, where it applies.
+    pub line: Option<u64>,
+    /// The field (JSON key or CSV column), where it applies.
+    pub field: Option<String>,
+    pub message: String,
+}
+
+impl RecordingError {
+    fn new(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+        Self {
+            path: path.into(),
+            line: None,
+            field: None,
+            message: message.into(),
+        }
+    }
+    /// An error at an optional line and field.
+    pub(crate) fn at(
+        path: impl Into<PathBuf>,
+        line: Option<u64>,
+        field: Option<&str>,
+        message: impl Into<String>,
+    ) -> Self {
+        Self {
+            path: path.into(),
+            line,
+            field: field.map(str::to_string),
+            message: message.into(),
+        }
+    }
+
+    /// A CSV syntax error (e.g. a row with the wrong number of fields), at its line.
+    pub(crate) fn csv(path: &Path, e: &csv::Error) -> Self {
+        Self::at(path, e.position().map(|p| p.line()), None, format!("{e}"))
+    }
+
+    fn at_line(mut self, line: u64) -> Self {
+        self.line = Some(line);
+        self
+    }
+    fn field(mut self, field: impl Into<String>) -> Self {
+        self.field = Some(field.into());
+        self
+    }
+}
+
+impl fmt::Display for RecordingError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.path.display())?;
+        if let Some(line) = self.line {
+            write!(f, ":{line}")?;
+        }
+        if let Some(field) = &self.field {
+            write!(f, ": field `{field}`")?;
+        }
+        write!(f, ": {}", self.message)
+    }
+}
+
+impl std::error::Error for RecordingError {}
+
+// ---------------------------------------------------------------------------------------------
+// camera.json
+
+#[derive(Serialize, Deserialize)]
+struct CameraJson {
+    width: u32,
+    height: u32,
+    fx: f64,
+    fy: f64,
+    cx: f64,
+    cy: f64,
+    distortion: Vec<f64>,
+    deck: DeckJson,
+}
+
+#[derive(Serialize, Deserialize)]
+struct DeckJson {
+    ring_radius_m: f64,
+    marker_radius_m: f64,
+    bow_marker_radius_m: f64,
+    n_ring: usize,
+    markers_deck_xyz_m: Vec<[f64; 3]>,
+}
+
+/// Writes `camera.json` for a camera and deck.
+pub fn write_camera_json(dir: &Path, camera: &CameraModel, deck: &DeckLayout) -> Result<(), RecordingError> {
+    let path = dir.join(CAMERA_FILE);
+    let json = CameraJson {
+        width: camera.width,
+        height: camera.height,
+        fx: camera.fx,
+        fy: camera.fy,
+        cx: camera.cx,
+        cy: camera.cy,
+        distortion: camera.distortion.to_array().to_vec(),
+        deck: DeckJson {
+            ring_radius_m: deck.ring_radius_m,
+            marker_radius_m: deck.marker_radius_m,
+            bow_marker_radius_m: deck.bow_marker_radius_m,
+            n_ring: deck.n_ring,
+            markers_deck_xyz_m: deck.marker_positions().iter().map(|p| [p.x, p.y, p.z]).collect(),
+        },
+    };
+    let text = serde_json::to_string_pretty(&json).expect("camera.json serialises");
+    std::fs::write(&path, text + "\n").map_err(|e| RecordingError::new(&path, format!("cannot write: {e}")))
+}
+
+/// Reads and validates `camera.json` in `dir`.
+pub fn read_camera_json(dir: &Path) -> Result<(CameraModel, DeckLayout), RecordingError> {
+    let path = dir.join(CAMERA_FILE);
+    let text = std::fs::read_to_string(&path)
+        .map_err(|e| RecordingError::new(&path, format!("cannot read: {e}")))?;
+    parse_camera_json(&path, &text)
+}
+
+fn parse_camera_json(path: &Path, text: &str) -> Result<(CameraModel, DeckLayout), RecordingError> {
+    let json: CameraJson = serde_json::from_str(text).map_err(|e| {
+        // serde_json names missing and mistyped keys in its message and knows the line.
+        RecordingError::new(path, format!("{e}")).at_line(e.line() as u64)
+    })?;
+    if json.distortion.len() != 5 {
+        return Err(RecordingError::new(
+            path,
+            format!(
+                "expected 5 coefficients [k1, k2, p1, p2, k3], got {}",
+                json.distortion.len()
+            ),
+        )
+        .field("distortion"));
+    }
+    let camera = CameraModel {
+        width: json.width,
+        height: json.height,
+        fx: json.fx,
+        fy: json.fy,
+        cx: json.cx,
+        cy: json.cy,
+        distortion: Distortion::from_array(json.distortion.as_slice().try_into().expect("length checked")),
+    };
+    camera.validate().map_err(|m| RecordingError::new(path, m))?;
+    let d = &json.deck;
+    let deck = DeckLayout {
+        ring_radius_m: d.ring_radius_m,
+        marker_radius_m: d.marker_radius_m,
+        bow_marker_radius_m: d.bow_marker_radius_m,
+        n_ring: d.n_ring,
+    };
+    deck.validate()
+        .map_err(|m| RecordingError::new(path, format!("in `deck`: {m}")))?;
+    // The explicit marker list is for readers in other languages; it must agree with the layout.
+    if d.markers_deck_xyz_m.len() != deck.marker_count() {
+        return Err(RecordingError::new(
+            path,
+            format!(
+                "{} markers listed, the layout has {}",
+                d.markers_deck_xyz_m.len(),
+                deck.marker_count()
+            ),
+        )
+        .field("deck.markers_deck_xyz_m"));
+    }
+    for (i, listed) in d.markers_deck_xyz_m.iter().enumerate() {
+        let p = deck.marker_position(i);
+        let dist = ((listed[0] - p.x).powi(2) + (listed[1] - p.y).powi(2) + (listed[2] - p.z).powi(2)).sqrt();
+        if !(dist <= 1e-6) {
+            return Err(RecordingError::new(
+                path,
+                format!(
+                    "{listed:?} does not match the ring layout's [{:.6}, {:.6}, {:.6}] (marker index order: \
+                     0 centre, 1 bow, then counter-clockwise)",
+                    p.x, p.y, p.z
+                ),
+            )
+            .field(format!("deck.markers_deck_xyz_m[{i}]")));
+        }
+    }
+    Ok((camera, deck))
+}
+
+// ---------------------------------------------------------------------------------------------
+// frames.csv
+
+/// Ground truth and altimeter columns of one frame; None where the column is absent or the value
+/// is unknown (`nan`).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct GroundTruth {
+    pub roll_deg: Option<f64>,
+    pub pitch_deg: Option<f64>,
+    pub yaw_deg: Option<f64>,
+    pub alt_m: Option<f64>,
+    pub offset_x_m: Option<f64>,
+    pub offset_y_m: Option<f64>,
+}
+
+impl GroundTruth {
+    /// The true attitude, when all three angles are known.
+    pub fn attitude(&self) -> Option<Rpy> {
+        Some(Rpy::from_degrees(self.roll_deg?, self.pitch_deg?, self.yaw_deg?))
+    }
+
+    fn values(&self) -> [Option<f64>; 6] {
+        [
+            self.roll_deg,
+            self.pitch_deg,
+            self.yaw_deg,
+            self.alt_m,
+            self.offset_x_m,
+            self.offset_y_m,
+        ]
+    }
+
+    fn set(&mut self, column: usize, v: Option<f64>) {
+        match column {
+            0 => self.roll_deg = v,
+            1 => self.pitch_deg = v,
+            2 => self.yaw_deg = v,
+            3 => self.alt_m = v,
+            4 => self.offset_x_m = v,
+            _ => self.offset_y_m = v,
+        }
+    }
+}
+
+/// Names of the optional ground-truth columns, in [`GroundTruth`] order.
+pub const TRUTH_COLUMNS: [&str; 6] = [
+    "roll_deg",
+    "pitch_deg",
+    "yaw_deg",
+    "alt_m",
+    "offset_x_m",
+    "offset_y_m",
+];
+
+/// One row of `frames.csv`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameRecord {
+    pub index: u64,
+    pub timestamp_ns: u64,
+    /// Image path relative to the recording folder.
+    pub file: String,
+    pub truth: GroundTruth,
+    /// Line of `frames.csv` the row came from (for error messages).
+    pub line: u64,
+}
+
+/// A recording opened for reading: camera, deck and the frame list; images are decoded on demand.
+#[derive(Debug, Clone)]
+pub struct Recording {
+    pub dir: PathBuf,
+    pub camera: CameraModel,
+    pub deck: DeckLayout,
+    pub frames: Vec<FrameRecord>,
+    /// Which optional ground-truth columns the recording has (in [`TRUTH_COLUMNS`] order).
+    pub truth_columns: [bool; 6],
+}
+
+impl Recording {
+    /// Opens a recording folder: reads and validates `camera.json` and `frames.csv` (images are
+    /// not decoded here).
+    pub fn open(dir: impl AsRef<Path>) -> Result<Self, RecordingError> {
+        let dir = dir.as_ref().to_path_buf();
+        if !dir.is_dir() {
+            return Err(RecordingError::new(
+                &dir,
+                "not a recording folder (no such directory)",
+            ));
+        }
+        let (camera, deck) = read_camera_json(&dir)?;
+        let path = dir.join(FRAMES_FILE);
+        let file = File::open(&path).map_err(|e| RecordingError::new(&path, format!("cannot read: {e}")))?;
+        let (frames, truth_columns) = parse_frames_csv(&path, BufReader::new(file))?;
+        Ok(Self {
+            dir,
+            camera,
+            deck,
+            frames,
+            truth_columns,
+        })
+    }
+
+    /// True when the recording says whether a deck is in view (it has the attitude columns).
+    pub fn has_attitude_truth(&self) -> bool {
+        self.truth_columns[..3].iter().all(|&c| c)
+    }
+
+    /// Full path of a frame's image.
+    pub fn image_path(&self, frame: &FrameRecord) -> PathBuf {
+        self.dir.join(&frame.file)
+    }
+
+    /// Decodes a frame's image into `out` (tightly packed, `width * height` bytes, sized from
+    /// `camera.json`); checks it is an 8-bit grayscale PNG of the recording's size.
+    pub fn read_image_into(&self, frame: &FrameRecord, out: &mut [u8]) -> Result<(), RecordingError> {
+        let path = self.image_path(frame);
+        let (w, h) = (self.camera.width as usize, self.camera.height as usize);
+        if out.len() != w * h {
+            return Err(RecordingError::new(
+                &path,
+                format!("output buffer has {} bytes, the frame needs {}", out.len(), w * h),
+            ));
+        }
+        decode_gray_png(&path, Some((w, h)), out).map(|_| ())
+    }
+
+    /// Decodes a frame's image into a new buffer.
+    pub fn read_image(&self, frame: &FrameRecord) -> Result<GrayImage, RecordingError> {
+        let mut img = GrayImage::new(self.camera.width as usize, self.camera.height as usize);
+        self.read_image_into(frame, &mut img.data)?;
+        Ok(img)
+    }
+}
+
+/// A number that may be unknown: `nan` or an empty field give None; anything else must be a
+/// finite number.
+pub(crate) fn parse_optional_number(
+    path: &Path,
+    line: Option<u64>,
+    field: &str,
+    raw: &str,
+) -> Result<Option<f64>, RecordingError> {
+    let t = raw.trim();
+    if t.is_empty() || t.eq_ignore_ascii_case("nan") {
+        return Ok(None);
+    }
+    match t.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(Some(v)),
+        _ => Err(RecordingError::at(
+            path,
+            line,
+            Some(field),
+            format!("`{t}` is not a finite number (write nan for unknown)"),
+        )),
+    }
+}
+
+fn check_relative_path(path: &Path, line: u64, file: &str) -> Result<(), RecordingError> {
+    let p = Path::new(file);
+    let bad = file.is_empty()
+        || p.components()
+            .any(|c| !matches!(c, Component::Normal(_) | Component::CurDir));
+    if bad {
+        return Err(RecordingError::new(
+            path,
+            format!("`{file}` must be a relative path inside the recording folder"),
+        )
+        .at_line(line)
+        .field("file"));
+    }
+    Ok(())
+}
+
+/// Parses `frames.csv` from any reader; `path` is used in error messages.
+pub fn parse_frames_csv(
+    path: &Path,
+    reader: impl std::io::Read,
+) -> Result<(Vec<FrameRecord>, [bool; 6]), RecordingError> {
+    let mut rdr = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .flexible(false)
+        .trim(csv::Trim::All)
+        .from_reader(reader);
+    let csv_err = |e: csv::Error| RecordingError::csv(path, &e);
+    let headers = rdr.headers().map_err(csv_err)?.clone();
+    let find = |name: &str| -> Result<Option<usize>, RecordingError> {
+        let hits: Vec<usize> = headers
+            .iter()
+            .enumerate()
+            .filter(|(_, h)| *h == name)
+            .map(|(i, _)| i)
+            .collect();
+        match hits.len() {
+            0 => Ok(None),
+            1 => Ok(Some(hits[0])),
+            _ => Err(RecordingError::new(path, "column appears more than once")
+                .at_line(1)
+                .field(name)),
+        }
+    };
+    let required = |name: &str| -> Result<usize, RecordingError> {
+        find(name)?.ok_or_else(|| {
+            RecordingError::new(path, "required column missing from the header")
+                .at_line(1)
+                .field(name)
+        })
+    };
+    let (c_index, c_ts, c_file) = (required("index")?, required("timestamp_ns")?, required("file")?);
+    let mut truth_cols = [None; 6];
+    for (i, name) in TRUTH_COLUMNS.iter().enumerate() {
+        truth_cols[i] = find(name)?;
+    }
+    let mut frames = Vec::new();
+    let mut record = csv::StringRecord::new();
+    let mut prev: Option<(u64, u64)> = None;
+    while rdr.read_record(&mut record).map_err(csv_err)? {
+        let line = record.position().map(|p| p.line()).unwrap_or(0);
+        let get = |c: usize| record.get(c).unwrap_or("");
+        let index: u64 = get(c_index).parse().map_err(|_| {
+            RecordingError::new(path, format!("`{}` is not a non-negative integer", get(c_index)))
+                .at_line(line)
+                .field("index")
+        })?;
+        let timestamp_ns: u64 = get(c_ts).parse().map_err(|_| {
+            RecordingError::new(
+                path,
+                format!("`{}` is not a non-negative integer (nanoseconds)", get(c_ts)),
+            )
+            .at_line(line)
+            .field("timestamp_ns")
+        })?;
+        if let Some((pi, pt)) = prev {
+            if index <= pi {
+                return Err(RecordingError::new(
+                    path,
+                    format!("{index} does not follow the previous index {pi}"),
+                )
+                .at_line(line)
+                .field("index"));
+            }
+            if timestamp_ns < pt {
+                return Err(RecordingError::new(
+                    path,
+                    format!("{timestamp_ns} is earlier than the previous frame's {pt}"),
+                )
+                .at_line(line)
+                .field("timestamp_ns"));
+            }
+        }
+        prev = Some((index, timestamp_ns));
+        let file = get(c_file).to_string();
+        check_relative_path(path, line, &file)?;
+        let mut truth = GroundTruth::default();
+        for (i, col) in truth_cols.iter().enumerate() {
+            if let Some(c) = col {
+                truth.set(
+                    i,
+                    parse_optional_number(path, Some(line), TRUTH_COLUMNS[i], get(*c))?,
+                );
+            }
+        }
+        frames.push(FrameRecord {
+            index,
+            timestamp_ns,
+            file,
+            truth,
+            line,
+        });
+    }
+    Ok((frames, truth_cols.map(|c| c.is_some())))
+}
+
+// ---------------------------------------------------------------------------------------------
+// PNG
+
+/// Decodes an 8-bit grayscale PNG into `out` (tightly packed). With `expect`, the image must have
+/// that size. Any other PNG kind is an error: recordings are 8-bit grayscale by definition.
+pub fn decode_gray_png(
+    path: &Path,
+    expect: Option<(usize, usize)>,
+    out: &mut [u8],
+) -> Result<(usize, usize), RecordingError> {
+    let file = File::open(path).map_err(|e| RecordingError::new(path, format!("cannot read image: {e}")))?;
+    let mut decoder = png::Decoder::new(BufReader::new(file));
+    decoder.set_transformations(png::Transformations::IDENTITY);
+    let mut reader = decoder
+        .read_info()
+        .map_err(|e| RecordingError::new(path, format!("not a readable PNG: {e}")))?;
+    let info = reader.info();
+    let (w, h) = (info.width as usize, info.height as usize);
+    if info.color_type != png::ColorType::Grayscale || info.bit_depth != png::BitDepth::Eight {
+        return Err(RecordingError::new(
+            path,
+            format!(
+                "PNG is {:?} {:?}; recordings hold 8-bit grayscale",
+                info.bit_depth, info.color_type
+            ),
+        ));
+    }
+    if let Some((ew, eh)) = expect {
+        if (w, h) != (ew, eh) {
+            return Err(RecordingError::new(
+                path,
+                format!("image is {w}x{h}, camera.json says {ew}x{eh}"),
+            ));
+        }
+    }
+    if out.len() < w * h {
+        return Err(RecordingError::new(
+            path,
+            format!("output buffer has {} bytes, the image needs {}", out.len(), w * h),
+        ));
+    }
+    reader
+        .next_frame(&mut out[..w * h])
+        .map_err(|e| RecordingError::new(path, format!("corrupt PNG data: {e}")))?;
+    Ok((w, h))
+}
+
+/// Encodes an 8-bit grayscale image as PNG (fast compression: recordings are written live).
+pub fn encode_gray_png(path: &Path, image: GrayView<'_>) -> Result<(), RecordingError> {
+    let err = |e: &dyn fmt::Display| RecordingError::new(path, format!("cannot write image: {e}"));
+    let file = File::create(path).map_err(|e| err(&e))?;
+    let mut enc = png::Encoder::new(BufWriter::new(file), image.width() as u32, image.height() as u32);
+    enc.set_color(png::ColorType::Grayscale);
+    enc.set_depth(png::BitDepth::Eight);
+    enc.set_compression(png::Compression::Fast);
+    let mut writer = enc.write_header().map_err(|e| err(&e))?;
+    {
+        // Row by row, so a strided view (e.g. shared memory) needs no packed copy.
+        let mut stream = writer.stream_writer().map_err(|e| err(&e))?;
+        for y in 0..image.height() {
+            stream.write_all(image.row(y)).map_err(|e| err(&e))?;
+        }
+        stream.finish().map_err(|e| err(&e))?;
+    }
+    writer.finish().map_err(|e| err(&e))
+}
+
+// ---------------------------------------------------------------------------------------------
+// Writer
+
+/// Writes a recording: `camera.json` at creation, then one PNG and one `frames.csv` row per frame.
+/// Each row is flushed after its image is complete, so an interrupted recording stays readable.
+pub struct RecordingWriter {
+    dir: PathBuf,
+    camera: CameraModel,
+    csv: csv::Writer<BufWriter<File>>,
+    truth_columns: [bool; 6],
+    last: Option<(u64, u64)>,
+    frames_written: u64,
+}
+
+impl RecordingWriter {
+    /// Creates the folder (it must not hold a recording already) and writes `camera.json` and
+    /// the header of `frames.csv` with the chosen ground-truth columns.
+    pub fn create(
+        dir: impl AsRef<Path>,
+        camera: &CameraModel,
+        deck: &DeckLayout,
+        truth_columns: [bool; 6],
+    ) -> Result<Self, RecordingError> {
+        let dir = dir.as_ref().to_path_buf();
+        camera.validate().map_err(|m| RecordingError::new(&dir, m))?;
+        deck.validate().map_err(|m| RecordingError::new(&dir, m))?;
+        if dir.join(FRAMES_FILE).exists() {
+            return Err(RecordingError::new(
+                &dir,
+                "already holds a recording (frames.csv exists); choose a new folder",
+            ));
+        }
+        std::fs::create_dir_all(dir.join(IMAGES_DIR))
+            .map_err(|e| RecordingError::new(&dir, format!("cannot create: {e}")))?;
+        write_camera_json(&dir, camera, deck)?;
+        let path = dir.join(FRAMES_FILE);
+        let file =
+            File::create(&path).map_err(|e| RecordingError::new(&path, format!("cannot create: {e}")))?;
+        let mut csv = csv::Writer::from_writer(BufWriter::new(file));
+        let mut header = vec!["index", "timestamp_ns", "file"];
+        header.extend(
+            TRUTH_COLUMNS
+                .iter()
+                .zip(truth_columns)
+                .filter(|(_, on)| *on)
+                .map(|(n, _)| *n),
+        );
+        csv.write_record(&header)
+            .and_then(|_| csv.flush().map_err(csv::Error::from))
+            .map_err(|e| RecordingError::new(&path, format!("cannot write: {e}")))?;
+        Ok(Self {
+            dir,
+            camera: *camera,
+            csv,
+            truth_columns,
+            last: None,
+            frames_written: 0,
+        })
+    }
+
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    pub fn frames_written(&self) -> u64 {
+        self.frames_written
+    }
+
+    /// Writes one frame: its PNG, then its row (indices must increase, timestamps not decrease).
+    pub fn write_frame(
+        &mut self,
+        index: u64,
+        timestamp_ns: u64,
+        image: GrayView<'_>,
+        truth: &GroundTruth,
+    ) -> Result<(), RecordingError> {
+        let csv_path = self.dir.join(FRAMES_FILE);
+        if (image.width(), image.height()) != (self.camera.width as usize, self.camera.height as usize) {
+            return Err(RecordingError::new(
+                &csv_path,
+                format!(
+                    "frame {index} is {}x{}, the recording's camera is {}x{}",
+                    image.width(),
+                    image.height(),
+                    self.camera.width,
+                    self.camera.height
+                ),
+            ));
+        }
+        if let Some((pi, pt)) = self.last {
+            if index <= pi || timestamp_ns < pt {
+                return Err(RecordingError::new(
+                    &csv_path,
+                    format!("frame {index} at {timestamp_ns} ns does not follow frame {pi} at {pt} ns"),
+                ));
+            }
+        }
+        let file = format!("{IMAGES_DIR}/{index:06}.png");
+        encode_gray_png(&self.dir.join(&file), image)?;
+        let mut row = vec![index.to_string(), timestamp_ns.to_string(), file];
+        for (v, on) in truth.values().iter().zip(self.truth_columns) {
+            if on {
+                // Shortest representation that round-trips exactly.
+                row.push(v.map_or_else(|| "nan".to_string(), |x| format!("{x:?}")));
+            }
+        }
+        self.csv
+            .write_record(&row)
+            .and_then(|_| self.csv.flush().map_err(csv::Error::from))
+            .map_err(|e| RecordingError::new(&csv_path, format!("cannot write: {e}")))?;
+        self.last = Some((index, timestamp_ns));
+        self.frames_written += 1;
+        Ok(())
+    }
+
+    /// Flushes and closes the recording.
+    pub fn finish(mut self) -> Result<u64, RecordingError> {
+        let path = self.dir.join(FRAMES_FILE);
+        self.csv
+            .flush()
+            .map_err(|e| RecordingError::new(&path, format!("cannot write: {e}")))?;
+        Ok(self.frames_written)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<(Vec<FrameRecord>, [bool; 6]), RecordingError> {
+        parse_frames_csv(Path::new("rec/frames.csv"), text.as_bytes())
+    }
+
+    #[test]
+    fn round_trip_with_truth_and_no_deck_frames() {
+        let dir = tempfile::tempdir().unwrap();
+        let rec_dir = dir.path().join("rec");
+        let cam = CameraModel::rpi_v2().scaled_to(64, 48);
+        let deck = DeckLayout::paper();
+        let mut w = RecordingWriter::create(&rec_dir, &cam, &deck, [true; 6]).unwrap();
+        let mut img = GrayImage::new(64, 48);
+        for (i, px) in img.data.iter_mut().enumerate() {
+            *px = (i * 7 % 251) as u8;
+        }
+        let t0 = GroundTruth {
+            roll_deg: Some(0.1 + 0.2),
+            pitch_deg: Some(-7.25),
+            yaw_deg: Some(1e-17),
+            alt_m: Some(5.0),
+            offset_x_m: Some(0.3),
+            offset_y_m: Some(-0.3),
+        };
+        let t1 = GroundTruth {
+            alt_m: Some(5.5),
+            ..GroundTruth::default()
+        };
+        w.write_frame(0, 1_000, img.view(), &t0).unwrap();
+        w.write_frame(3, 2_000, img.view(), &t1).unwrap();
+        // Out of order frames are refused.
+        assert!(w.write_frame(3, 3_000, img.view(), &t1).is_err());
+        assert!(w.write_frame(4, 1_999, img.view(), &t1).is_err());
+        assert_eq!(w.finish().unwrap(), 2);
+
+        let rec = Recording::open(&rec_dir).unwrap();
+        assert_eq!(rec.camera, cam);
+        assert_eq!(rec.deck, deck);
+        assert!(rec.has_attitude_truth());
+        assert_eq!(rec.frames.len(), 2);
+        assert_eq!(rec.frames[0].truth, t0, "floats round-trip exactly");
+        assert_eq!(rec.frames[1].truth, t1);
+        assert!(rec.frames[1].truth.attitude().is_none(), "nan attitude = no deck");
+        assert_eq!(rec.frames[1].index, 3);
+        assert_eq!(rec.read_image(&rec.frames[1]).unwrap(), img);
+        // A second writer refuses to overwrite.
+        assert!(RecordingWriter::create(&rec_dir, &cam, &deck, [true; 6]).is_err());
+    }
+
+    #[test]
+    fn strided_images_are_written_row_by_row() {
+        let dir = tempfile::tempdir().unwrap();
+        let cam = CameraModel::rpi_v2().scaled_to(5, 3);
+        let mut w = RecordingWriter::create(dir.path(), &cam, &DeckLayout::paper(), [false; 6]).unwrap();
+        let buf: Vec<u8> = (0..8 * 3).map(|i| i as u8).collect();
+        let view = GrayView::new(&buf, 5, 3, 8).unwrap();
+        w.write_frame(0, 0, view, &GroundTruth::default()).unwrap();
+        w.finish().unwrap();
+        let rec = Recording::open(dir.path()).unwrap();
+        assert!(!rec.has_attitude_truth());
+        let img = rec.read_image(&rec.frames[0]).unwrap();
+        assert_eq!(img.data, [0, 1, 2, 3, 4, 8, 9, 10, 11, 12, 16, 17, 18, 19, 20]);
+    }
+
+    #[test]
+    fn columns_in_any_order_and_extra_columns_ignored() {
+        let (frames, cols) =
+            parse("file,comment,timestamp_ns,index,yaw_deg\na.png,hi,10,0,nan\nb.png,,20,1,2.5\n").unwrap();
+        assert_eq!(cols, [false, false, true, false, false, false]);
+        assert_eq!(frames[1].file, "b.png");
+        assert_eq!(frames[1].truth.yaw_deg, Some(2.5));
+        assert_eq!(frames[0].truth.yaw_deg, None);
+        assert_eq!(frames[1].line, 3);
+    }
+
+    #[test]
+    fn csv_errors_name_line_and_field() {
+        let msg = |t: &str| parse(t).unwrap_err().to_string();
+        let e = msg("index,file\n0,a.png\n");
+        assert!(
+            e.contains("rec/frames.csv:1: field `timestamp_ns`: required column"),
+            "{e}"
+        );
+        let e = msg("index,timestamp_ns,file,roll_deg\n0,5,a.png,1\n1,6,b.png,abc\n");
+        assert!(
+            e.contains(":3: field `roll_deg`: `abc` is not a finite number"),
+            "{e}"
+        );
+        let e = msg("index,timestamp_ns,file\n0,5,a.png\n0,6,b.png\n");
+        assert!(e.contains(":3: field `index`"), "{e}");
+        let e = msg("index,timestamp_ns,file\n0,5,a.png\n1,4,b.png\n");
+        assert!(e.contains(":3: field `timestamp_ns`"), "{e}");
+        let e = msg("index,timestamp_ns,file\n-1,5,a.png\n");
+        assert!(e.contains(":2: field `index`"), "{e}");
+        let e = msg("index,timestamp_ns,file\n0,5,../etc/passwd\n");
+        assert!(e.contains(":2: field `file`"), "{e}");
+        let e = msg("index,timestamp_ns,file\n0,5,/abs.png\n");
+        assert!(e.contains(":2: field `file`"), "{e}");
+        let e = msg("index,timestamp_ns,file\n0,5,a.png,extra\n");
+        assert!(e.contains("rec/frames.csv:2"), "{e}");
+        let e = msg("index,timestamp_ns,file,index\n");
+        assert!(e.contains("field `index`: column appears more than once"), "{e}");
+        let e = msg("index,timestamp_ns,file,alt_m\n0,5,a.png,inf\n");
+        assert!(e.contains("field `alt_m`"), "{e}");
+    }
+
+    #[test]
+    fn camera_json_errors_name_the_field() {
+        let good = {
+            let dir = tempfile::tempdir().unwrap();
+            write_camera_json(dir.path(), &CameraModel::paper(), &DeckLayout::paper()).unwrap();
+            std::fs::read_to_string(dir.path().join(CAMERA_FILE)).unwrap()
+        };
+        let p = Path::new("rec/camera.json");
+        let (cam, deck) = parse_camera_json(p, &good).unwrap();
+        assert_eq!(cam, CameraModel::paper());
+        assert_eq!(deck, DeckLayout::paper());
+        // Unknown keys are ignored.
+        let extra = good.replacen('{', "{\n  \"sensor\": \"imx219\",", 1);
+        assert!(parse_camera_json(p, &extra).is_ok());
+        let e = parse_camera_json(p, &good.replace("\"fx\"", "\"focal\""))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("missing field `fx`") && e.starts_with("rec/camera.json"),
+            "{e}"
+        );
+        let e = parse_camera_json(p, &good.replace("\"width\": 3280", "\"width\": \"wide\"")).unwrap_err();
+        assert_eq!(e.line, Some(2), "{e}");
+        let e = parse_camera_json(p, &good.replace("\"n_ring\": 8", "\"n_ring\": 7"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`n_ring`"), "{e}");
+        let e = parse_camera_json(
+            p,
+            &good.replace("\"ring_radius_m\": 0.5", "\"ring_radius_m\": 0.6"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("field `deck.markers_deck_xyz_m[1]`"), "{e}");
+        let mut cam = CameraModel::paper();
+        cam.fx = 0.0;
+        let dir = tempfile::tempdir().unwrap();
+        write_camera_json(dir.path(), &cam, &DeckLayout::paper()).unwrap();
+        let e = read_camera_json(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("field `fx`"), "{e}");
+        let e = parse_camera_json(
+            p,
+            &good.replacen("0.0,\n    0.0,\n    0.0,\n    0.0,\n    0.0", "0.0", 1),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("field `distortion`"), "{e}");
+    }
+
+    #[test]
+    fn bad_images_are_reported_with_their_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let cam = CameraModel::rpi_v2().scaled_to(4, 4);
+        let mut w = RecordingWriter::create(dir.path(), &cam, &DeckLayout::paper(), [false; 6]).unwrap();
+        let img = GrayImage::new(4, 4);
+        w.write_frame(0, 0, img.view(), &GroundTruth::default()).unwrap();
+        w.write_frame(1, 1, img.view(), &GroundTruth::default()).unwrap();
+        w.write_frame(2, 2, img.view(), &GroundTruth::default()).unwrap();
+        w.finish().unwrap();
+        // Corrupt one image, make another the wrong size, remove the third.
+        std::fs::write(dir.path().join("frames/000000.png"), b"not a png").unwrap();
+        let small = GrayImage::new(2, 2);
+        encode_gray_png(&dir.path().join("frames/000001.png"), small.view()).unwrap();
+        std::fs::remove_file(dir.path().join("frames/000002.png")).unwrap();
+        let rec = Recording::open(dir.path()).unwrap();
+        let e = rec.read_image(&rec.frames[0]).unwrap_err().to_string();
+        assert!(
+            e.contains("000000.png") && e.contains("not a readable PNG"),
+            "{e}"
+        );
+        let e = rec.read_image(&rec.frames[1]).unwrap_err().to_string();
+        assert!(e.contains("000001.png") && e.contains("2x2"), "{e}");
+        let e = rec.read_image(&rec.frames[2]).unwrap_err().to_string();
+        assert!(e.contains("000002.png"), "{e}");
+        // Missing folder and missing camera.json.
+        assert!(Recording::open(dir.path().join("nope")).is_err());
+        std::fs::remove_file(dir.path().join(CAMERA_FILE)).unwrap();
+        let e = Recording::open(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("camera.json"), "{e}");
+    }
+}

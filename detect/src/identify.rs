@@ -1,0 +1,246 @@
+//! Geometric identification: which blob is which marker (NOTES.md indices: 0 centre, 1 bow, then
+//! counter-clockwise as seen from above). Centre = the blob nearest the centroid of the others,
+//! bow = the clearly largest ring blob, the rest by their angle from the bow around the centre.
+
+use deckwatch_common::{CameraModel, DeckLayout};
+use std::f64::consts::TAU;
+
+/// A bright blob: centre (pixels) and area (pixels, any consistent measure).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Blob {
+    pub u: f64,
+    pub v: f64,
+    pub area: f64,
+}
+
+/// Why blobs could not be identified as the deck's markers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum IdentifyError {
+    /// Fewer than the centre, the bow and 4 more ring markers.
+    TooFewBlobs(usize),
+    /// More blobs than the deck has markers (glints must be filtered first).
+    TooManyBlobs(usize),
+    /// A blob has a non-finite position or a non-positive area.
+    InvalidBlob(usize),
+    /// No ring blob is clearly larger than the others.
+    AmbiguousBow,
+    /// Two blobs fall in the same ring slot, or a blob lies between slots.
+    RingMismatch,
+}
+
+impl std::fmt::Display for IdentifyError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::TooFewBlobs(n) => write!(f, "{n} blobs, at least 6 needed (centre, bow, 4 ring markers)"),
+            Self::TooManyBlobs(n) => write!(f, "{n} blobs, more than the deck's markers"),
+            Self::InvalidBlob(i) => write!(f, "blob {i} has an invalid position or area"),
+            Self::AmbiguousBow => write!(f, "no ring blob is clearly the (larger) bow marker"),
+            Self::RingMismatch => write!(f, "the ring blobs do not fall into distinct ring positions"),
+        }
+    }
+}
+
+impl std::error::Error for IdentifyError {}
+
+/// The bow disc must be at least this much larger (area) than the median ring blob. The paper
+/// deck's ratio is (0.08 / 0.05)^2 = 2.56; perspective changes areas by tens of percent.
+const BOW_AREA_RATIO: f64 = 1.5;
+/// A ring blob must lie within this fraction of the slot spacing from its slot's angle.
+const SLOT_TOLERANCE: f64 = 0.35;
+
+/// Identifies blobs as markers. Returns, by marker index, the index of the blob (None for a
+/// marker not among the blobs).
+pub fn identify(
+    blobs: &[Blob],
+    deck: &DeckLayout,
+    camera: &CameraModel,
+) -> Result<Vec<Option<usize>>, IdentifyError> {
+    let n = blobs.len();
+    if n < 6 {
+        return Err(IdentifyError::TooFewBlobs(n));
+    }
+    if n > deck.marker_count() {
+        return Err(IdentifyError::TooManyBlobs(n));
+    }
+    if let Some(i) = blobs
+        .iter()
+        .position(|b| !(b.u.is_finite() && b.v.is_finite() && b.area.is_finite() && b.area > 0.0))
+    {
+        return Err(IdentifyError::InvalidBlob(i));
+    }
+    // Normalised coordinates, so that non-square pixels do not distort angles.
+    let xy = |b: &Blob| (b.u / camera.fx, b.v / camera.fy);
+    let (sx, sy) = blobs
+        .iter()
+        .map(xy)
+        .fold((0.0, 0.0), |(a, c), (x, y)| (a + x, c + y));
+    let centre = (0..n)
+        .min_by(|&a, &b| {
+            let d = |i: usize| {
+                let (x, y) = xy(&blobs[i]);
+                let k = (n - 1) as f64;
+                ((sx - x) / k - x).powi(2) + ((sy - y) / k - y).powi(2)
+            };
+            d(a).total_cmp(&d(b))
+        })
+        .expect("n >= 6");
+    let ring: Vec<usize> = (0..n).filter(|&i| i != centre).collect();
+    let bow = *ring
+        .iter()
+        .max_by(|&&a, &&b| blobs[a].area.total_cmp(&blobs[b].area))
+        .expect("ring not empty");
+    let mut areas: Vec<f64> = ring
+        .iter()
+        .filter(|&&i| i != bow)
+        .map(|&i| blobs[i].area)
+        .collect();
+    areas.sort_by(f64::total_cmp);
+    let median = areas[areas.len() / 2];
+    if !(blobs[bow].area >= BOW_AREA_RATIO * median) {
+        return Err(IdentifyError::AmbiguousBow);
+    }
+    // Angle from the deck's +x (image up) toward +y (image left), seen from above.
+    let (cx, cy) = xy(&blobs[centre]);
+    let angle = |i: usize| {
+        let (x, y) = xy(&blobs[i]);
+        (-(x - cx)).atan2(-(y - cy))
+    };
+    let spacing = TAU / deck.n_ring as f64;
+    let a_bow = angle(bow);
+    let mut out = vec![None; deck.marker_count()];
+    out[0] = Some(centre);
+    for &i in &ring {
+        let rel = (angle(i) - a_bow).rem_euclid(TAU) / spacing;
+        let slot = rel.round();
+        if (rel - slot).abs() > SLOT_TOLERANCE {
+            return Err(IdentifyError::RingMismatch);
+        }
+        let index = deck.ring_index(slot as usize % deck.n_ring);
+        if out[index].is_some() {
+            return Err(IdentifyError::RingMismatch);
+        }
+        out[index] = Some(i);
+    }
+    Ok(out)
+}
+
+/// Marker pixels by marker index, from blobs and an identification.
+pub fn marker_pixels(blobs: &[Blob], ids: &[Option<usize>]) -> Vec<Option<[f64; 2]>> {
+    ids.iter()
+        .map(|id| id.map(|i| [blobs[i].u, blobs[i].v]))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use deckwatch_common::{Rpy, SceneGeometry, Viewpoint};
+    use proptest::prelude::*;
+
+    /// Blobs at the exact marker images, with areas from the projected disc size.
+    fn blobs_for(rpy: Rpy, vp: Viewpoint, cam: &CameraModel) -> Vec<Blob> {
+        let deck = DeckLayout::paper();
+        let scene = SceneGeometry {
+            attitude: rpy.to_matrix(),
+            viewpoint: vp,
+        };
+        let normal_z = rpy.to_matrix()[(2, 2)];
+        (0..deck.marker_count())
+            .map(|i| {
+                let p = scene.deck_to_camera(&deck.marker_position(i));
+                let uv = cam.project(&p).unwrap();
+                let r = deck.disc_radius(i);
+                let area = std::f64::consts::PI * r * r * cam.fx * cam.fy / (p.z * p.z) * normal_z;
+                Blob {
+                    u: uv[0],
+                    v: uv[1],
+                    area,
+                }
+            })
+            .collect()
+    }
+
+    fn shuffle(v: &mut [Blob], seed: u64) -> Vec<usize> {
+        // Fisher-Yates with a tiny LCG; returns the permutation (new position -> old index).
+        let mut perm: Vec<usize> = (0..v.len()).collect();
+        let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1);
+        for i in (1..v.len()).rev() {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let j = (s >> 33) as usize % (i + 1);
+            v.swap(i, j);
+            perm.swap(i, j);
+        }
+        perm
+    }
+
+    proptest! {
+        #[test]
+        fn identifies_shuffled_markers(roll in -25.0..25.0f64, pitch in -10.0..10.0f64, yaw in -180.0..180.0f64,
+                                       ox in -0.3..0.3f64, oy in -0.3..0.3f64, h in 4.0..6.0f64,
+                                       seed in 0u64..1000, hide in 0usize..10, paper_cam in any::<bool>()) {
+            let cam = if paper_cam { CameraModel::paper() } else { CameraModel::rpi_v2() };
+            let vp = Viewpoint { offset_x_m: ox, offset_y_m: oy, altitude_m: h };
+            let mut blobs = blobs_for(Rpy::from_degrees(roll, pitch, yaw), vp, &cam);
+            let mut original: Vec<usize> = (0..blobs.len()).collect();
+            // Hide one ring marker other than the bow (hide >= 9: hide none).
+            if (2..9).contains(&hide) {
+                blobs.remove(hide);
+                original.remove(hide);
+            }
+            let perm = shuffle(&mut blobs, seed);
+            let ids = identify(&blobs, &DeckLayout::paper(), &cam).unwrap();
+            for (marker, id) in ids.iter().enumerate() {
+                match id {
+                    Some(b) => prop_assert_eq!(original[perm[*b]], marker),
+                    None => prop_assert_eq!(marker, hide),
+                }
+            }
+        }
+
+        #[test]
+        fn never_panics_on_garbage(pts in proptest::collection::vec((-1e4..1e4f64, -1e4..1e4f64, -1.0..1e3f64), 0..12)) {
+            let blobs: Vec<Blob> = pts.iter().map(|&(u, v, area)| Blob { u, v, area }).collect();
+            let _ = identify(&blobs, &DeckLayout::paper(), &CameraModel::rpi_v2());
+        }
+    }
+
+    #[test]
+    fn refuses_what_it_cannot_identify() {
+        let cam = CameraModel::rpi_v2();
+        let deck = DeckLayout::paper();
+        let blobs = blobs_for(Rpy::from_degrees(5.0, 3.0, 1.0), Viewpoint::centred(5.0), &cam);
+        assert_eq!(
+            identify(&blobs[..5], &deck, &cam),
+            Err(IdentifyError::TooFewBlobs(5))
+        );
+        let mut extra = blobs.clone();
+        extra.push(Blob {
+            u: 10.0,
+            v: 10.0,
+            area: 50.0,
+        });
+        assert_eq!(
+            identify(&extra, &deck, &cam),
+            Err(IdentifyError::TooManyBlobs(10))
+        );
+        // Without the bow, no blob is clearly larger.
+        let mut no_bow = blobs.clone();
+        no_bow.remove(1);
+        assert_eq!(identify(&no_bow, &deck, &cam), Err(IdentifyError::AmbiguousBow));
+        let mut bad = blobs.clone();
+        bad[3].u = f64::NAN;
+        assert_eq!(identify(&bad, &deck, &cam), Err(IdentifyError::InvalidBlob(3)));
+        // Two ring blobs in one slot.
+        let mut twins = blobs.clone();
+        twins[4] = Blob {
+            u: twins[3].u + 1.0,
+            ..twins[3]
+        };
+        assert_eq!(identify(&twins, &deck, &cam), Err(IdentifyError::RingMismatch));
+        let ids = identify(&blobs, &deck, &cam).unwrap();
+        let px = marker_pixels(&blobs, &ids);
+        assert_eq!(px[1], Some([blobs[1].u, blobs[1].v]));
+    }
+}

@@ -1,0 +1,10 @@
+//! Deck attitude estimators: pure algorithms, no IPC and no logging.
+//!
+//! - [`paper`]: the paper's ellipse method with the corrections of NOTES.md.
+//! - [`ellipse`]: the eq. (3) conic fit both use.
+
+pub mod ellipse;
+pub mod paper;
+
+pub use ellipse::{Ellipse, EllipseFit, EllipseFitError};
+pub use paper::{NotEstimable, PaperEstimate, PaperEstimator, PaperVariant};

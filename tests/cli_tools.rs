@@ -1,0 +1,150 @@
+//! The command-line tools end to end: the capture -> estimate pipe, bad input rows, recording
+//! checks and the sweep.
+
+use deckwatch_common::{CameraModel, DeckLayout, GrayImage, GroundTruth, RecordingWriter};
+use deckwatch_tests::workspace_binary;
+use std::io::Write;
+use std::process::{Command, Stdio};
+
+fn run_with_input(bin: &str, args: &[&str], input: &[u8]) -> std::process::Output {
+    let mut child = Command::new(workspace_binary(bin))
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child.stdin.take().unwrap().write_all(input).unwrap();
+    child.wait_with_output().unwrap()
+}
+
+#[test]
+fn capture_pipes_into_estimate_exactly() {
+    let table = Command::new(workspace_binary("deckwatch-capture"))
+        .args(["--scenario", "offset", "--frames", "200", "--seed", "3"])
+        .output()
+        .unwrap();
+    assert!(
+        table.status.success(),
+        "{}",
+        String::from_utf8_lossy(&table.stderr)
+    );
+    let out = run_with_input("deckwatch-estimate", &["--variant", "atan2"], &table.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let mut rows = 0;
+    for line in lines {
+        let f: Vec<&str> = line.split(',').collect();
+        assert_eq!(f[col("status")], "ok", "{line}");
+        for c in ["err_roll_deg", "err_pitch_deg", "err_yaw_deg"] {
+            let e: f64 = f[col(c)].parse().unwrap();
+            assert!(e < 1e-9, "{c} = {e} in {line}");
+        }
+        rows += 1;
+    }
+    assert_eq!(rows, 200);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("200 frames, 200 estimated"), "{stderr}");
+}
+
+#[test]
+fn bad_rows_are_reported_counted_and_skipped() {
+    let table = Command::new(workspace_binary("deckwatch-capture"))
+        .args(["--frames", "5"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8(table.stdout).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    // Line 3 of the file (the second data row): corrupt marker 2's u.
+    let mut f: Vec<String> = lines[2].split(',').map(str::to_string).collect();
+    f[7] = "oops".into();
+    lines[2] = f.join(",");
+    // Line 5: hide marker 0 (the centre): a valid row that is not estimable.
+    let mut f: Vec<String> = lines[4].split(',').map(str::to_string).collect();
+    f[3] = "nan".into();
+    f[4] = "nan".into();
+    lines[4] = f.join(",");
+    let input = lines.join("\n") + "\n";
+    let out = run_with_input("deckwatch-estimate", &[], input.as_bytes());
+    assert_eq!(out.status.code(), Some(2), "bad rows make the exit code 2");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("stdin:3: field `m2_u`: `oops` is not a finite number"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("4 frames, 3 estimated"), "{stderr}");
+    assert!(stderr.contains("the centre marker is not visible"), "{stderr}");
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert_eq!(stdout.lines().count(), 5, "header + 4 frames");
+    assert!(stdout
+        .lines()
+        .any(|l| l.starts_with("3,") && l.contains("not_estimable")));
+}
+
+#[test]
+fn recording_check_reads_every_image_and_names_bad_ones() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("rec");
+    let cam = CameraModel::rpi_v2().scaled_to(32, 24);
+    let mut w = RecordingWriter::create(&rec, &cam, &DeckLayout::paper(), [true; 6]).unwrap();
+    let img = GrayImage::new(32, 24);
+    for i in 0..3 {
+        let truth = GroundTruth {
+            roll_deg: (i != 1).then_some(1.0),
+            pitch_deg: (i != 1).then_some(2.0),
+            yaw_deg: (i != 1).then_some(3.0),
+            ..GroundTruth::default()
+        };
+        w.write_frame(i, i * 100_000_000, img.view(), &truth).unwrap();
+    }
+    w.finish().unwrap();
+    let deckwatch = workspace_binary("deckwatch");
+    let out = Command::new(&deckwatch)
+        .args(["recording", "check"])
+        .arg(&rec)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("3 frames of 32x24") && stdout.contains("1 frames without deck"),
+        "{stdout}"
+    );
+    std::fs::write(rec.join("frames/000002.png"), b"junk").unwrap();
+    let out = Command::new(&deckwatch)
+        .args(["recording", "check"])
+        .arg(&rec)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("000002.png") && stderr.contains("frames.csv line 4"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn sweep_compares_the_variants() {
+    let out = Command::new(workspace_binary("deckwatch"))
+        .args(["sweep", "--scenario", "case1", "--frames", "101", "--rate", "5"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for v in ["printed", "fitted-major-axis", "atan2"] {
+        assert!(
+            stdout.lines().any(|l| l.starts_with(v) && l.contains("101/101")),
+            "{stdout}"
+        );
+    }
+    let out = Command::new(workspace_binary("deckwatch"))
+        .args(["sweep", "--scenario", "storm"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--scenario: unknown `storm`"));
+}

@@ -52,6 +52,78 @@ impl Scenario {
     }
 }
 
+/// The command-line choice of a simulation, shared by every tool that simulates.
+#[derive(Debug, Clone, clap::Args)]
+pub struct SimulationArgs {
+    /// Scenario: case1, ship or offset.
+    #[arg(long, default_value = "ship")]
+    pub scenario: String,
+    /// Number of frames.
+    #[arg(long, default_value_t = 600)]
+    pub frames: usize,
+    /// Frame rate (Hz).
+    #[arg(long, default_value_t = 10.0)]
+    pub rate: f64,
+    /// Camera preset (paper, rpi-v2); default: the scenario's.
+    #[arg(long)]
+    pub camera: Option<String>,
+    /// Seed of the sea's phases and of the pixel noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Gaussian pixel noise on the marker centres (standard deviation per axis, pixels).
+    #[arg(long, default_value_t = 0.0)]
+    pub noise_px: f64,
+}
+
+/// A validated [`SimulationArgs`].
+pub struct Simulation {
+    pub scenario: Scenario,
+    pub camera_name: String,
+    pub camera: CameraModel,
+    pub deck: DeckLayout,
+}
+
+impl SimulationArgs {
+    /// Checks the choice; errors name the option.
+    pub fn resolve(&self) -> Result<Simulation, String> {
+        let scenario = Scenario::from_name(&self.scenario)
+            .ok_or_else(|| format!("--scenario: unknown `{}` (case1, ship, offset)", self.scenario))?;
+        let camera_name = self
+            .camera
+            .as_deref()
+            .unwrap_or(scenario.default_camera())
+            .to_string();
+        let camera = CameraModel::preset(&camera_name)
+            .ok_or_else(|| format!("--camera: unknown `{camera_name}` (paper, rpi-v2)"))?;
+        if !(self.rate.is_finite() && self.rate > 0.0) {
+            return Err(format!(
+                "--rate: must be a positive number of Hz, got {}",
+                self.rate
+            ));
+        }
+        if !(self.noise_px.is_finite() && self.noise_px >= 0.0) {
+            return Err(format!("--noise-px: must be >= 0, got {}", self.noise_px));
+        }
+        Ok(Simulation {
+            scenario,
+            camera_name,
+            camera,
+            deck: DeckLayout::paper(),
+        })
+    }
+
+    /// The simulated marker rows (with ground truth) of the whole run.
+    pub fn marker_rows(&self, sim: &Simulation) -> Vec<MarkerRow> {
+        let mut markers = MarkerSimulator::new(sim.camera, sim.deck, self.noise_px, self.seed);
+        let profile = sim.scenario.profile(self.seed);
+        crate::motion::sample_series(profile.as_ref(), self.rate, self.frames)
+            .iter()
+            .enumerate()
+            .map(|(k, s)| markers.row(k as u64, s))
+            .collect()
+    }
+}
+
 /// Simulates marker detections at the level of points: exact projected marker centres, plus
 /// independent Gaussian noise of `noise_px` (standard deviation, per axis) when non-zero.
 pub struct MarkerSimulator {

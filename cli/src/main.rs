@@ -5,11 +5,10 @@
 //! - `deckwatch recording check DIR`: validate a recording (camera.json, frames.csv, every image).
 
 use clap::{Parser, Subcommand};
-use deckwatch_capture::motion::sample_series;
-use deckwatch_capture::{MarkerSimulator, Scenario};
+use deckwatch_capture::scenario::SimulationArgs;
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::{ErrorStats, Percentiles};
-use deckwatch_common::{CameraModel, DeckLayout, Recording};
+use deckwatch_common::Recording;
 use deckwatch_estimate::{PaperEstimator, PaperVariant};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -45,62 +44,30 @@ enum RecordingCommand {
 
 #[derive(clap::Args)]
 struct SweepArgs {
-    /// Scenario: case1, ship or offset.
-    #[arg(long, default_value = "ship")]
-    scenario: String,
-    /// Number of frames.
-    #[arg(long, default_value_t = 600)]
-    frames: usize,
-    /// Frame rate (Hz).
-    #[arg(long, default_value_t = 10.0)]
-    rate: f64,
-    /// Camera preset (paper, rpi-v2); default: the scenario's.
-    #[arg(long)]
-    camera: Option<String>,
-    /// Seed of the sea's phases and the pixel noise.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Gaussian pixel noise on the marker centres (standard deviation per axis, pixels).
-    #[arg(long, default_value_t = 0.0)]
-    noise_px: f64,
+    #[command(flatten)]
+    sim: SimulationArgs,
     /// Relative altimeter error, e.g. 0.001 for a reading 0.1 % high.
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     altimeter_error: f64,
 }
 
 fn sweep(a: SweepArgs) -> Result<(), String> {
-    let scenario = Scenario::from_name(&a.scenario)
-        .ok_or_else(|| format!("--scenario: unknown `{}` (case1, ship, offset)", a.scenario))?;
-    let cam_name = a.camera.as_deref().unwrap_or(scenario.default_camera());
-    let camera = CameraModel::preset(cam_name)
-        .ok_or_else(|| format!("--camera: unknown `{cam_name}` (paper, rpi-v2)"))?;
-    if !(a.rate.is_finite() && a.rate > 0.0) {
-        return Err(format!("--rate: must be a positive number of Hz, got {}", a.rate));
-    }
-    if !(a.noise_px.is_finite() && a.noise_px >= 0.0) {
-        return Err(format!("--noise-px: must be >= 0, got {}", a.noise_px));
-    }
+    let sim = a.sim.resolve()?;
     if !(a.altimeter_error.is_finite() && a.altimeter_error > -1.0) {
         return Err(format!(
             "--altimeter-error: must be > -1, got {}",
             a.altimeter_error
         ));
     }
-    let deck = DeckLayout::paper();
-    let profile = scenario.profile(a.seed);
-    let mut sim = MarkerSimulator::new(camera, deck, a.noise_px, a.seed);
-    let rows: Vec<_> = sample_series(profile.as_ref(), a.rate, a.frames)
-        .iter()
-        .enumerate()
-        .map(|(k, s)| sim.row(k as u64, s))
-        .collect();
+    let rows = a.sim.marker_rows(&sim);
     println!(
-        "scenario {}, camera {cam_name}, {} frames at {} Hz, seed {}, pixel noise {} px, altimeter error {:+.3} %",
-        scenario.name(),
-        a.frames,
-        a.rate,
-        a.seed,
-        a.noise_px,
+        "scenario {}, camera {}, {} frames at {} Hz, seed {}, pixel noise {} px, altimeter error {:+.3} %",
+        sim.scenario.name(),
+        sim.camera_name,
+        a.sim.frames,
+        a.sim.rate,
+        a.sim.seed,
+        a.sim.noise_px,
         100.0 * a.altimeter_error
     );
     println!(
@@ -108,7 +75,7 @@ fn sweep(a: SweepArgs) -> Result<(), String> {
         "variant", "estimated", "RMSE roll/pitch/yaw (deg)", "max roll/pitch/yaw (deg)", "us p50/p99"
     );
     for v in PaperVariant::ALL {
-        let est = PaperEstimator::new(camera, deck, v);
+        let est = PaperEstimator::new(sim.camera, sim.deck, v);
         let mut stats = ErrorStats::default();
         let mut times = Vec::with_capacity(rows.len());
         for row in &rows {

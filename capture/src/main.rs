@@ -16,6 +16,9 @@ use std::process::ExitCode;
 struct Args {
     #[command(flatten)]
     sim: SimulationArgs,
+    /// Gaussian pixel noise on the marker centres (standard deviation per axis, pixels).
+    #[arg(long, default_value_t = 0.0)]
+    noise_px: f64,
     /// Output file (default: stdout).
     #[arg(long)]
     out: Option<std::path::PathBuf>,
@@ -31,7 +34,7 @@ fn run(a: Args) -> Result<(), String> {
     };
     let io = |e: std::io::Error| format!("cannot write the marker table: {e}");
     let mut table = MarkerTableWriter::new(out, sim.deck.marker_count()).map_err(io)?;
-    for row in a.sim.marker_rows(&sim) {
+    for row in a.sim.marker_rows(&sim, a.noise_px)? {
         table.write(&row).map_err(io)?;
     }
     table.flush().map_err(io)

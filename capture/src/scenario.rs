@@ -15,16 +15,19 @@ pub enum Scenario {
     Ship,
     /// Ship motion with the camera 0.3 m off the deck centre at 4.5-5.5 m.
     Offset,
+    /// The camera 30 m away from the deck at 5 m: only the sea in view.
+    NoDeck,
 }
 
 impl Scenario {
-    pub const ALL: [Self; 3] = [Self::Case1, Self::Ship, Self::Offset];
+    pub const ALL: [Self; 4] = [Self::Case1, Self::Ship, Self::Offset, Self::NoDeck];
 
     pub fn name(&self) -> &'static str {
         match self {
             Self::Case1 => "case1",
             Self::Ship => "ship",
             Self::Offset => "offset",
+            Self::NoDeck => "nodeck",
         }
     }
 
@@ -40,6 +43,10 @@ impl Scenario {
             Self::Offset => {
                 Box::new(ShipMotion::sea_state_6(seed).with_tracking(TrackingError::offset_0_3m(seed)))
             }
+            Self::NoDeck => Box::new(ShipMotion::sea_state_6(seed).with_tracking(TrackingError {
+                offset_m: 30.0,
+                ..TrackingError::offset_0_3m(seed)
+            })),
         }
     }
 
@@ -55,7 +62,7 @@ impl Scenario {
 /// The command-line choice of a simulation, shared by every tool that simulates.
 #[derive(Debug, Clone, clap::Args)]
 pub struct SimulationArgs {
-    /// Scenario: case1, ship or offset.
+    /// Scenario: case1, ship, offset or nodeck.
     #[arg(long, default_value = "ship")]
     pub scenario: String,
     /// Number of frames.
@@ -67,12 +74,9 @@ pub struct SimulationArgs {
     /// Camera preset (paper, rpi-v2); default: the scenario's.
     #[arg(long)]
     pub camera: Option<String>,
-    /// Seed of the sea's phases and of the pixel noise.
+    /// Seed of the sea's phases, the textures and the noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Gaussian pixel noise on the marker centres (standard deviation per axis, pixels).
-    #[arg(long, default_value_t = 0.0)]
-    pub noise_px: f64,
 }
 
 /// A validated [`SimulationArgs`].
@@ -86,8 +90,12 @@ pub struct Simulation {
 impl SimulationArgs {
     /// Checks the choice; errors name the option.
     pub fn resolve(&self) -> Result<Simulation, String> {
-        let scenario = Scenario::from_name(&self.scenario)
-            .ok_or_else(|| format!("--scenario: unknown `{}` (case1, ship, offset)", self.scenario))?;
+        let scenario = Scenario::from_name(&self.scenario).ok_or_else(|| {
+            format!(
+                "--scenario: unknown `{}` (case1, ship, offset, nodeck)",
+                self.scenario
+            )
+        })?;
         let camera_name = self
             .camera
             .as_deref()
@@ -101,8 +109,8 @@ impl SimulationArgs {
                 self.rate
             ));
         }
-        if !(self.noise_px.is_finite() && self.noise_px >= 0.0) {
-            return Err(format!("--noise-px: must be >= 0, got {}", self.noise_px));
+        if self.frames == 0 {
+            return Err("--frames: must be at least 1".into());
         }
         Ok(Simulation {
             scenario,
@@ -112,15 +120,21 @@ impl SimulationArgs {
         })
     }
 
-    /// The simulated marker rows (with ground truth) of the whole run.
-    pub fn marker_rows(&self, sim: &Simulation) -> Vec<MarkerRow> {
-        let mut markers = MarkerSimulator::new(sim.camera, sim.deck, self.noise_px, self.seed);
+    /// The simulated marker rows (with ground truth) of the whole run, with Gaussian pixel noise
+    /// of `noise_px` (standard deviation per axis) on the marker centres.
+    pub fn marker_rows(&self, sim: &Simulation, noise_px: f64) -> Result<Vec<MarkerRow>, String> {
+        if !(noise_px.is_finite() && noise_px >= 0.0) {
+            return Err(format!("--noise-px: must be >= 0, got {noise_px}"));
+        }
+        let mut markers = MarkerSimulator::new(sim.camera, sim.deck, noise_px, self.seed);
         let profile = sim.scenario.profile(self.seed);
-        crate::motion::sample_series(profile.as_ref(), self.rate, self.frames)
-            .iter()
-            .enumerate()
-            .map(|(k, s)| markers.row(k as u64, s))
-            .collect()
+        Ok(
+            crate::motion::sample_series(profile.as_ref(), self.rate, self.frames)
+                .iter()
+                .enumerate()
+                .map(|(k, s)| markers.row(k as u64, s))
+                .collect(),
+        )
     }
 }
 

@@ -2,13 +2,16 @@
 //!
 //! - `deckwatch sweep`: simulate a scenario at the level of marker points and run every variant of
 //!   the paper's estimator on it, side by side (accuracy and per-frame cost).
+//! - `deckwatch sim record`: render a scenario into a recording with ground truth.
 //! - `deckwatch recording check DIR`: validate a recording (camera.json, frames.csv, every image).
 
 use clap::{Parser, Subcommand};
 use deckwatch_capture::scenario::SimulationArgs;
+use deckwatch_capture::sim::ImageArgs;
+use deckwatch_capture::{FrameSimulator, Renderer};
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::{ErrorStats, Percentiles};
-use deckwatch_common::Recording;
+use deckwatch_common::{GrayImage, Recording, RecordingWriter};
 use deckwatch_estimate::{PaperEstimator, PaperVariant};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -28,11 +31,86 @@ struct Cli {
 enum Command {
     /// Simulate a scenario (exact marker pixels, optional noise) and compare the estimator variants.
     Sweep(SweepArgs),
+    /// The simulator of the paper's scene.
+    Sim {
+        #[command(subcommand)]
+        command: SimCommand,
+    },
     /// Work with recordings.
     Recording {
         #[command(subcommand)]
         command: RecordingCommand,
     },
+}
+
+#[derive(Subcommand)]
+enum SimCommand {
+    /// Render a scenario's frames into a recording (camera.json, frames.csv with ground truth,
+    /// 8-bit grayscale PNGs).
+    Record(RecordArgs),
+}
+
+#[derive(clap::Args)]
+struct RecordArgs {
+    #[command(flatten)]
+    sim: SimulationArgs,
+    #[command(flatten)]
+    image: ImageArgs,
+    /// Sub-exposures sampled for motion blur (with --exposure-ms).
+    #[arg(long, default_value_t = 8)]
+    exposure_steps: usize,
+    /// Output folder (must not hold a recording yet).
+    #[arg(long)]
+    out: std::path::PathBuf,
+}
+
+fn record(a: RecordArgs) -> Result<(), String> {
+    let sim = a.sim.resolve()?;
+    let (camera, options) = a.image.resolve(&sim)?;
+    let renderer = Renderer::new(camera, sim.deck, options, a.sim.seed)?;
+    let mut frames = FrameSimulator::new(
+        sim.scenario.profile(a.sim.seed),
+        renderer,
+        a.sim.rate,
+        a.image.exposure_ms / 1e3,
+        a.exposure_steps,
+        a.sim.seed,
+    )?;
+    let mut writer =
+        RecordingWriter::create(&a.out, &camera, &sim.deck, [true; 6]).map_err(|e| e.to_string())?;
+    let mut img = GrayImage::new(camera.width as usize, camera.height as usize);
+    let bar = indicatif::ProgressBar::new(a.sim.frames as u64).with_style(
+        indicatif::ProgressStyle::with_template("{msg} {bar:40} {pos}/{len} frames, {per_sec}, eta {eta}")
+            .expect("valid template"),
+    );
+    bar.set_message(format!("recording {}", a.out.display()));
+    let started = Instant::now();
+    let mut render_s = 0.0;
+    let mut no_deck = 0;
+    for k in 0..a.sim.frames as u64 {
+        let t0 = Instant::now();
+        let truth = frames
+            .render_frame(k, &mut img.view_mut())
+            .map_err(|e| format!("frame {k}: {e}"))?;
+        render_s += t0.elapsed().as_secs_f64();
+        no_deck += usize::from(!truth.deck_in_view);
+        writer
+            .write_frame(k, truth.timestamp_ns, img.view(), &truth.ground_truth())
+            .map_err(|e| e.to_string())?;
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let n = writer.finish().map_err(|e| e.to_string())?;
+    eprintln!(
+        "wrote {n} frames ({}x{}, {} without deck) to {} in {:.1} s; rendering {:.1} ms/frame",
+        camera.width,
+        camera.height,
+        no_deck,
+        a.out.display(),
+        started.elapsed().as_secs_f64(),
+        1e3 * render_s / n.max(1) as f64
+    );
+    Ok(())
 }
 
 #[derive(Subcommand)]
@@ -46,6 +124,9 @@ enum RecordingCommand {
 struct SweepArgs {
     #[command(flatten)]
     sim: SimulationArgs,
+    /// Gaussian pixel noise on the marker centres (standard deviation per axis, pixels).
+    #[arg(long, default_value_t = 0.0)]
+    noise_px: f64,
     /// Relative altimeter error, e.g. 0.001 for a reading 0.1 % high.
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     altimeter_error: f64,
@@ -59,7 +140,7 @@ fn sweep(a: SweepArgs) -> Result<(), String> {
             a.altimeter_error
         ));
     }
-    let rows = a.sim.marker_rows(&sim);
+    let rows = a.sim.marker_rows(&sim, a.noise_px)?;
     println!(
         "scenario {}, camera {}, {} frames at {} Hz, seed {}, pixel noise {} px, altimeter error {:+.3} %",
         sim.scenario.name(),
@@ -67,7 +148,7 @@ fn sweep(a: SweepArgs) -> Result<(), String> {
         a.sim.frames,
         a.sim.rate,
         a.sim.seed,
-        a.sim.noise_px,
+        a.noise_px,
         100.0 * a.altimeter_error
     );
     println!(
@@ -137,6 +218,9 @@ fn check_recording(dir: &std::path::Path) -> Result<(), String> {
 fn main() -> ExitCode {
     let result = match Cli::parse().command {
         Command::Sweep(a) => sweep(a),
+        Command::Sim {
+            command: SimCommand::Record(a),
+        } => record(a),
         Command::Recording {
             command: RecordingCommand::Check { dir },
         } => check_recording(&dir),

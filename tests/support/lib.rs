@@ -50,3 +50,98 @@ pub fn workspace_binary(name: &str) -> std::path::PathBuf {
     assert!(path.exists(), "{} was not built", path.display());
     path
 }
+
+/// A simple reference blob finder for tests (the real detector is the detect crate's): threshold
+/// halfway between the darkest and brightest pixel, 4-connected components, then an
+/// intensity-weighted centroid over each component's box grown by `pad` pixels, with the median
+/// of that box's border subtracted as background.
+pub fn reference_blobs(
+    img: deckwatch_common::GrayView<'_>,
+    min_area: usize,
+    pad: usize,
+) -> Vec<deckwatch_detect::Blob> {
+    let (w, h) = (img.width(), img.height());
+    let (mut lo, mut hi) = (255u8, 0u8);
+    for y in 0..h {
+        for &v in img.row(y) {
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+    }
+    let threshold = ((lo as u16 + hi as u16) / 2) as u8;
+    if hi.saturating_sub(lo) < 40 {
+        return Vec::new(); // no contrast, no markers
+    }
+    let mut seen = vec![false; w * h];
+    let mut blobs = Vec::new();
+    let mut stack = Vec::new();
+    for y0 in 0..h {
+        for x0 in 0..w {
+            if seen[y0 * w + x0] || img.get(x0, y0) <= threshold {
+                continue;
+            }
+            // Flood fill one component.
+            let (mut bx0, mut by0, mut bx1, mut by1, mut area) = (x0, y0, x0, y0, 0usize);
+            seen[y0 * w + x0] = true;
+            stack.push((x0, y0));
+            while let Some((x, y)) = stack.pop() {
+                area += 1;
+                bx0 = bx0.min(x);
+                by0 = by0.min(y);
+                bx1 = bx1.max(x);
+                by1 = by1.max(y);
+                let mut visit = |nx: usize, ny: usize| {
+                    if !seen[ny * w + nx] && img.get(nx, ny) > threshold {
+                        seen[ny * w + nx] = true;
+                        stack.push((nx, ny));
+                    }
+                };
+                if x > 0 {
+                    visit(x - 1, y);
+                }
+                if x + 1 < w {
+                    visit(x + 1, y);
+                }
+                if y > 0 {
+                    visit(x, y - 1);
+                }
+                if y + 1 < h {
+                    visit(x, y + 1);
+                }
+            }
+            if area < min_area {
+                continue;
+            }
+            let (gx0, gy0) = (bx0.saturating_sub(pad), by0.saturating_sub(pad));
+            let (gx1, gy1) = ((bx1 + pad).min(w - 1), (by1 + pad).min(h - 1));
+            let mut border = Vec::new();
+            for x in gx0..=gx1 {
+                border.push(img.get(x, gy0));
+                border.push(img.get(x, gy1));
+            }
+            for y in gy0..=gy1 {
+                border.push(img.get(gx0, y));
+                border.push(img.get(gx1, y));
+            }
+            border.sort_unstable();
+            let background = border[border.len() / 2] as f64;
+            let (mut sw, mut su, mut sv) = (0.0, 0.0, 0.0);
+            for y in gy0..=gy1 {
+                for x in gx0..=gx1 {
+                    let wgt = (img.get(x, y) as f64 - background).max(0.0);
+                    sw += wgt;
+                    su += wgt * x as f64;
+                    sv += wgt * y as f64;
+                }
+            }
+            if sw > 0.0 {
+                blobs.push(deckwatch_detect::Blob {
+                    u: su / sw,
+                    v: sv / sw,
+                    area: area as f64,
+                });
+            }
+        }
+    }
+    blobs
+}

@@ -1,0 +1,45 @@
+//! Full-frame rendering speed, one thread: `cargo bench -p deckwatch-capture --bench render`.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use deckwatch_capture::{RenderOptions, Renderer};
+use deckwatch_common::{CameraModel, DeckLayout, GrayImage, Rpy, SceneGeometry, Viewpoint};
+
+fn bench(c: &mut Criterion) {
+    let cam = CameraModel::rpi_v2();
+    let scene = |roll: f64| SceneGeometry {
+        attitude: Rpy::from_degrees(roll, 6.0, 3.0).to_matrix(),
+        viewpoint: Viewpoint {
+            offset_x_m: 0.2,
+            offset_y_m: -0.1,
+            altitude_m: 5.0,
+        },
+    };
+    let mut img = GrayImage::new(3280, 2464);
+    let mut group = c.benchmark_group("render_3280x2464");
+    group.sample_size(20);
+    for (name, opts, sub) in [
+        ("clean", RenderOptions::default(), 1),
+        ("realistic", RenderOptions::realistic(), 1),
+        ("realistic_motion_blur_8", RenderOptions::realistic(), 8),
+    ] {
+        let mut r = Renderer::new(cam, DeckLayout::paper(), opts, 1).unwrap();
+        let exposure: Vec<SceneGeometry> = (0..sub).map(|k| scene(15.0 + 0.1 * k as f64)).collect();
+        let mut seed = 0;
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                seed += 1;
+                r.render(&exposure, seed, &mut img.view_mut()).unwrap();
+            })
+        });
+    }
+    let mut distorted = cam;
+    distorted.distortion = deckwatch_common::Distortion::from_array([-0.2, 0.05, 0.0, 0.0, 0.0]);
+    let mut r = Renderer::new(distorted, DeckLayout::paper(), RenderOptions::realistic(), 1).unwrap();
+    group.bench_function("realistic_lens_distortion", |b| {
+        b.iter(|| r.render(&[scene(15.0)], 1, &mut img.view_mut()).unwrap())
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,1050 @@
+//! The image renderer of the simulator: 8-bit grayscale frames of the deck as the camera sees it.
+//!
+//! Every pixel is inverse-mapped to the deck plane through the homography of the current pose
+//! (and through the lens model when it has distortion). The deck (a `deck_size_m` square) and the
+//! sea around it have a procedural albedo texture; the marker discs are bright. Disc edges are
+//! anti-aliased by supersampling each edge pixel (`supersample`^2 samples, each mapped exactly),
+//! averaged over the sub-exposures of the motion-blur window, then blurred by a Gaussian (optical
+//! blur). Illumination gradient, vignetting, shot and read noise are applied last. All of it
+//! happens in one pass over the caller's buffer; buffers are allocated when the renderer is made
+//! (or grow once when a marker appears larger than before), never per frame.
+//!
+//! Approximations, all far below a pixel: optical and motion blur act on the marker discs (where
+//! the image has edges); the deck texture is band-limited (coarser than a few pixels) and is
+//! neither blurred nor smeared.
+
+use crate::rng::SplitMix64;
+use deckwatch_common::image::{GrayViewMut, ImageError};
+use deckwatch_common::{CameraModel, DeckLayout, SceneGeometry};
+use nalgebra::{Matrix3, Vector3};
+
+/// What the renderer draws, and how.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderOptions {
+    /// Edge supersampling per axis (samples per edge pixel = supersample^2).
+    pub supersample: u32,
+    /// Standard deviation of the Gaussian optical blur, pixels (0 = sharp).
+    pub optical_blur_px: f64,
+    /// Signal of a marker disc at the image centre (digital numbers, 0-255).
+    pub marker_dn: f64,
+    /// Mean signal of the deck surface.
+    pub deck_dn: f64,
+    /// Mean signal of the sea around the deck.
+    pub sea_dn: f64,
+    /// Contrast of the deck and sea textures (relative amplitude, 0 = flat).
+    pub texture: f64,
+    /// Illumination falls off linearly across the image by this fraction (0 = even light)...
+    pub illumination_gradient: f64,
+    /// ...toward this direction in the image (radians from +u toward +v).
+    pub illumination_direction: f64,
+    /// Strength of cos^4 vignetting (0 = none, 1 = the full natural falloff).
+    pub vignetting: f64,
+    /// Read noise, standard deviation in DN.
+    pub read_noise_dn: f64,
+    /// Shot noise: variance in DN^2 per DN of signal (1 / conversion gain; 0 = none).
+    pub shot_noise_dn: f64,
+    /// Side of the square flight deck, metres (the paper: 10 m).
+    pub deck_size_m: f64,
+}
+
+impl Default for RenderOptions {
+    /// A clean frame: sharp, noiseless, evenly lit, textured.
+    fn default() -> Self {
+        Self {
+            supersample: 16,
+            optical_blur_px: 0.0,
+            marker_dn: 230.0,
+            deck_dn: 70.0,
+            sea_dn: 35.0,
+            texture: 0.15,
+            illumination_gradient: 0.0,
+            illumination_direction: 0.0,
+            vignetting: 0.0,
+            read_noise_dn: 0.0,
+            shot_noise_dn: 0.0,
+            deck_size_m: 10.0,
+        }
+    }
+}
+
+impl RenderOptions {
+    /// A realistic camera frame: optical blur, shot and read noise of a small sensor, uneven
+    /// light and a lens that vignettes.
+    pub fn realistic() -> Self {
+        Self {
+            optical_blur_px: 0.8,
+            illumination_gradient: 0.25,
+            illumination_direction: 0.6,
+            vignetting: 0.5,
+            read_noise_dn: 1.5,
+            shot_noise_dn: 0.25,
+            ..Self::default()
+        }
+    }
+
+    /// Checks the options; the error names the field.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(1..=64).contains(&self.supersample) {
+            return Err(format!(
+                "field `supersample`: must be within 1..=64, got {}",
+                self.supersample
+            ));
+        }
+        let fields = [
+            ("optical_blur_px", self.optical_blur_px, 0.0, 20.0),
+            ("marker_dn", self.marker_dn, 0.0, 255.0),
+            ("deck_dn", self.deck_dn, 0.0, 255.0),
+            ("sea_dn", self.sea_dn, 0.0, 255.0),
+            ("texture", self.texture, 0.0, 1.0),
+            ("illumination_gradient", self.illumination_gradient, 0.0, 1.0),
+            ("vignetting", self.vignetting, 0.0, 1.0),
+            ("read_noise_dn", self.read_noise_dn, 0.0, 100.0),
+            ("shot_noise_dn", self.shot_noise_dn, 0.0, 100.0),
+            ("deck_size_m", self.deck_size_m, 0.0, 1e4),
+        ];
+        for (name, v, lo, hi) in fields {
+            if !(v >= lo && v <= hi) {
+                return Err(format!("field `{name}`: must be within [{lo}, {hi}], got {v}"));
+            }
+        }
+        if !self.illumination_direction.is_finite() {
+            return Err("field `illumination_direction`: must be finite".into());
+        }
+        Ok(())
+    }
+}
+
+/// Why a frame could not be rendered.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RenderError {
+    /// The output view's size differs from the camera's.
+    SizeMismatch {
+        expected: (usize, usize),
+        got: (usize, usize),
+    },
+    /// No sub-exposure was given, or a pose is not finite.
+    InvalidScene,
+    Image(ImageError),
+}
+
+impl std::fmt::Display for RenderError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::SizeMismatch { expected, got } => write!(
+                f,
+                "output is {}x{}, the camera is {}x{}",
+                got.0, got.1, expected.0, expected.1
+            ),
+            Self::InvalidScene => write!(f, "no pose, or a pose that is not finite"),
+            Self::Image(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for RenderError {}
+
+/// Texture side in texels; deck texels are `deck_size_m / TEX` metres.
+const TEX: usize = 1024;
+/// The sea texture tiles every this many metres.
+const SEA_TILE_M: f64 = 16.0;
+/// Gaussian table size (inverse CDF at (i + 0.5) / N): 12-bit indices, five per random word.
+const GAUSS_BITS: u32 = 12;
+/// Grid step (pixels) of the stored undistortion map used for the background.
+const UNDISTORT_STEP: usize = 8;
+/// Most background pixels between exact evaluations of the albedo.
+const MAX_CHUNK: usize = 8;
+
+/// The marker-disc coverage of one marker's patch of the image.
+#[derive(Debug, Default, Clone)]
+struct Patch {
+    x0: usize,
+    y0: usize,
+    w: usize,
+    h: usize,
+    /// Coverage in [0, 1], row-major w x h.
+    cov: Vec<f32>,
+}
+
+/// Renders frames for one camera, deck and set of options.
+pub struct Renderer {
+    camera: CameraModel,
+    deck: DeckLayout,
+    options: RenderOptions,
+    deck_tex: Vec<u8>,
+    sea_tex: Vec<u8>,
+    gauss: Vec<f32>,
+    blur_kernel: Vec<f32>,
+    /// Normalised undistorted coordinates on a grid (only with lens distortion).
+    undistort_grid: Option<UndistortGrid>,
+    /// Illumination gradient x vignetting per pixel, fixed point (GAIN_ONE = 1); None = even.
+    gain: Option<Vec<u16>>,
+    patches: Vec<Patch>,
+    blur_tmp: Vec<f32>,
+    row_signal: Vec<f32>,
+    row_albedo: Vec<f32>,
+}
+
+impl Renderer {
+    /// Makes a renderer; `seed` sets the deck and sea textures.
+    pub fn new(
+        camera: CameraModel,
+        deck: DeckLayout,
+        options: RenderOptions,
+        seed: u64,
+    ) -> Result<Self, String> {
+        camera.validate()?;
+        deck.validate()?;
+        options.validate()?;
+        let deck_tex = value_noise(TEX, seed, &[(8, 0.5), (32, 0.3), (128, 0.15), (512, 0.05)]);
+        let sea_tex = value_noise(TEX, seed ^ 0x5ea, &[(4, 0.45), (16, 0.35), (64, 0.2)]);
+        let n = 1usize << GAUSS_BITS;
+        let gauss = (0..n)
+            .map(|i| inverse_normal_cdf((i as f64 + 0.5) / n as f64) as f32)
+            .collect();
+        let blur_kernel = if options.optical_blur_px > 0.0 {
+            let s = options.optical_blur_px;
+            let r = (3.0 * s).ceil() as i64;
+            let k: Vec<f64> = (-r..=r)
+                .map(|i| (-(i * i) as f64 / (2.0 * s * s)).exp())
+                .collect();
+            let sum: f64 = k.iter().sum();
+            k.iter().map(|v| (v / sum) as f32).collect()
+        } else {
+            vec![1.0]
+        };
+        let undistort_grid = (!camera.distortion.is_none()).then(|| UndistortGrid::new(&camera));
+        let gain = (options.illumination_gradient > 0.0 || options.vignetting > 0.0)
+            .then(|| gain_map(&camera, &options));
+        let width = camera.width as usize;
+        Ok(Self {
+            camera,
+            deck,
+            options,
+            deck_tex,
+            sea_tex,
+            gauss,
+            blur_kernel,
+            undistort_grid,
+            gain,
+            patches: vec![Patch::default(); deck.marker_count()],
+            blur_tmp: Vec::new(),
+            row_signal: vec![0.0; width],
+            row_albedo: vec![0.0; width],
+        })
+    }
+
+    pub fn camera(&self) -> &CameraModel {
+        &self.camera
+    }
+    pub fn deck(&self) -> &DeckLayout {
+        &self.deck
+    }
+    pub fn options(&self) -> &RenderOptions {
+        &self.options
+    }
+
+    /// Renders one frame into `out`. `exposure` holds the poses at evenly spaced instants of the
+    /// exposure window (one pose: no motion blur); the background uses the middle one.
+    /// `noise_seed` makes the noise of this frame reproducible.
+    pub fn render(
+        &mut self,
+        exposure: &[SceneGeometry],
+        noise_seed: u64,
+        out: &mut GrayViewMut<'_>,
+    ) -> Result<(), RenderError> {
+        let (w, h) = (self.camera.width as usize, self.camera.height as usize);
+        if (out.width(), out.height()) != (w, h) {
+            return Err(RenderError::SizeMismatch {
+                expected: (w, h),
+                got: (out.width(), out.height()),
+            });
+        }
+        let finite = |s: &SceneGeometry| {
+            s.attitude.iter().all(|v| v.is_finite()) && s.viewpoint.position().iter().all(|v| v.is_finite())
+        };
+        if exposure.is_empty() || !exposure.iter().all(finite) {
+            return Err(RenderError::InvalidScene);
+        }
+        let mid = exposure[exposure.len() / 2];
+        let Some(h_mid) = pixel_to_deck(&self.camera, &mid) else {
+            return Err(RenderError::InvalidScene);
+        };
+        self.draw_patches(exposure);
+        self.blur_patches();
+        self.composite(&h_mid, &mid, noise_seed, out);
+        Ok(())
+    }
+
+    /// Disc coverage of every marker in its patch, averaged over the sub-exposures.
+    fn draw_patches(&mut self, exposure: &[SceneGeometry]) {
+        let camera = self.camera;
+        let (w, h) = (camera.width as i64, camera.height as i64);
+        let pad = (self.blur_kernel.len() / 2) as i64 + 2;
+        let n_sub = exposure.len() as f32;
+        let n = self.options.supersample as usize;
+        let inv_n = 1.0 / n as f64;
+        for m in 0..self.deck.marker_count() {
+            let centre = self.deck.marker_position(m);
+            let (mx, my) = (centre.x, centre.y);
+            let rho = self.deck.disc_radius(m);
+            // Bounding box of the disc's image over the exposure.
+            let (mut u0, mut v0, mut u1, mut v1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+            let mut behind = false;
+            for s in exposure {
+                for k in 0..48 {
+                    let a = std::f64::consts::TAU * k as f64 / 48.0;
+                    let p = centre + Vector3::new(rho * a.cos(), rho * a.sin(), 0.0);
+                    match s.project_deck_point(&camera, &p) {
+                        Some([u, v]) => {
+                            u0 = u0.min(u);
+                            v0 = v0.min(v);
+                            u1 = u1.max(u);
+                            v1 = v1.max(v);
+                        }
+                        None => behind = true,
+                    }
+                }
+            }
+            let patch = &mut self.patches[m];
+            patch.w = 0;
+            patch.h = 0;
+            if behind || !(u0 <= u1 && v0 <= v1) {
+                continue; // off to infinity or behind the camera: not drawn
+            }
+            let x0 = ((u0.floor() as i64) - pad).clamp(0, w);
+            let y0 = ((v0.floor() as i64) - pad).clamp(0, h);
+            let x1 = ((u1.ceil() as i64) + pad + 1).clamp(0, w);
+            let y1 = ((v1.ceil() as i64) + pad + 1).clamp(0, h);
+            if x1 <= x0 || y1 <= y0 {
+                continue;
+            }
+            let (pw, ph) = ((x1 - x0) as usize, (y1 - y0) as usize);
+            patch.x0 = x0 as usize;
+            patch.y0 = y0 as usize;
+            patch.w = pw;
+            patch.h = ph;
+            patch.cov.clear();
+            patch.cov.resize(pw * ph, 0.0);
+            for s in exposure {
+                let Some(hm) = ray_to_deck(s) else { continue };
+                // The pixel's footprint on the deck (half its diagonal extent), from the map's
+                // derivatives at the patch centre, with 10 % margin for the change of scale
+                // across the patch.
+                let foot = {
+                    let (uc, vc) = ((x0 + x1) as f64 / 2.0, (y0 + y1) as f64 / 2.0);
+                    match pixel_ray(&camera, uc, vc) {
+                        Some((ray, du, dv)) => {
+                            let b = hm * ray;
+                            let (su, sv) = (hm * du, hm * dv);
+                            let at = |v: Vector3<f64>| [v.x / v.z, v.y / v.z];
+                            if b.z > 0.0 && (b + su).z > 0.0 && (b + sv).z > 0.0 {
+                                0.55 * (dist(at(b), at(b + su)) + dist(at(b), at(b + sv)))
+                            } else {
+                                f64::INFINITY
+                            }
+                        }
+                        None => f64::INFINITY,
+                    }
+                };
+                let inner2 = if rho > foot { (rho - foot).powi(2) } else { -1.0 };
+                let outer2 = (rho + foot).powi(2);
+                let rho2 = rho * rho;
+                for py in 0..ph {
+                    for px in 0..pw {
+                        let (u, v) = ((x0 as usize + px) as f64, (y0 as usize + py) as f64);
+                        // Ray of the pixel centre and its change per pixel (exact without
+                        // distortion; with it, the lens model linearised over the pixel).
+                        let Some((ray, du, dv)) = pixel_ray(&camera, u, v) else {
+                            continue;
+                        };
+                        let b = hm * ray;
+                        if !(b.z > 0.0) {
+                            continue;
+                        }
+                        let d2 = (b.x / b.z - mx).powi(2) + (b.y / b.z - my).powi(2);
+                        let c = if d2 >= outer2 {
+                            0.0
+                        } else if d2 <= inner2 {
+                            1.0
+                        } else {
+                            let (su, sv) = (hm * du * inv_n, hm * dv * inv_n);
+                            let start = b + (su + sv) * (0.5 - 0.5 * n as f64);
+                            let mut inside = 0u32;
+                            let mut row = start;
+                            for _ in 0..n {
+                                let mut q = row;
+                                for _ in 0..n {
+                                    if q.z > 0.0 {
+                                        let iz = 1.0 / q.z;
+                                        let (ex, ey) = (q.x * iz - mx, q.y * iz - my);
+                                        inside += (ex * ex + ey * ey <= rho2) as u32;
+                                    }
+                                    q += su;
+                                }
+                                row += sv;
+                            }
+                            inside as f32 / (n * n) as f32
+                        };
+                        patch.cov[py * pw + px] += c / n_sub;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Separable Gaussian blur of each patch's coverage (the patch is padded by the kernel
+    /// radius, so nothing is cut at its border but at the image's).
+    fn blur_patches(&mut self) {
+        if self.blur_kernel.len() == 1 {
+            return;
+        }
+        let k = &self.blur_kernel;
+        let r = k.len() / 2;
+        for p in self.patches.iter_mut().filter(|p| p.w > 0) {
+            let (w, h) = (p.w, p.h);
+            self.blur_tmp.clear();
+            self.blur_tmp.resize(w * h, 0.0);
+            for y in 0..h {
+                for x in 0..w {
+                    let mut acc = 0.0;
+                    for (i, kv) in k.iter().enumerate() {
+                        let xx = (x + i).wrapping_sub(r);
+                        if xx < w {
+                            acc += kv * p.cov[y * w + xx];
+                        }
+                    }
+                    self.blur_tmp[y * w + x] = acc;
+                }
+            }
+            for y in 0..h {
+                for x in 0..w {
+                    let mut acc = 0.0;
+                    for (i, kv) in k.iter().enumerate() {
+                        let yy = (y + i).wrapping_sub(r);
+                        if yy < h {
+                            acc += kv * self.blur_tmp[yy * w + x];
+                        }
+                    }
+                    p.cov[y * w + x] = acc;
+                }
+            }
+        }
+    }
+
+    /// The one pass over the frame: background albedo through the homography, marker patches,
+    /// light falloff, noise, quantisation.
+    fn composite(
+        &mut self,
+        h_px: &Matrix3<f64>,
+        scene: &SceneGeometry,
+        noise_seed: u64,
+        out: &mut GrayViewMut<'_>,
+    ) {
+        let (w, h) = (self.camera.width as usize, self.camera.height as usize);
+        let o = &self.options;
+        let (sea_dn, marker_dn) = (o.sea_dn as f32, o.marker_dn as f32);
+        let tex = Textures {
+            half: o.deck_size_m / 2.0,
+            deck_scale: TEX as f64 / o.deck_size_m,
+            sea_scale: TEX as f64 / SEA_TILE_M,
+            deck: &self.deck_tex,
+            sea: &self.sea_tex,
+            deck_dn: o.deck_dn as f32,
+            sea_dn,
+            amp: o.texture as f32,
+        };
+        let ray_h = ray_to_deck(scene);
+        // Pixels per two texels at the image centre -> the interpolation step (1, 2, 4 or 8).
+        let chunk = {
+            let c = h_px * Vector3::new(self.camera.cx, self.camera.cy, 1.0);
+            let d = h_px * Vector3::new(self.camera.cx + 1.0, self.camera.cy, 1.0);
+            let metres_per_px = ((c.x / c.z - d.x / d.z).powi(2) + (c.y / c.z - d.y / d.z).powi(2)).sqrt();
+            let px_per_two_texels = 2.0 * o.deck_size_m / TEX as f64 / metres_per_px;
+            // The largest power of two not above it (NaN compares false: 1).
+            let mut chunk = 1;
+            while chunk < MAX_CHUNK && (2 * chunk) as f64 <= px_per_two_texels {
+                chunk *= 2;
+            }
+            chunk
+        };
+        let noisy = o.read_noise_dn > 0.0 || o.shot_noise_dn > 0.0;
+        let sigma_lut: [f32; 256] = std::array::from_fn(|dn| {
+            (o.read_noise_dn * o.read_noise_dn + o.shot_noise_dn * dn as f64).sqrt() as f32
+        });
+        let mut rng = SplitMix64::new(noise_seed);
+        let gmask = (1u64 << GAUSS_BITS) - 1;
+        for y in 0..h {
+            // Background albedo along the row: exact at every `chunk`-th pixel, linear in
+            // between. The chunk spans at most two texels (a slight smoothing of the finest
+            // texture octave), and the perspective map's curvature over it is far
+            // below a micrometre on the deck.
+            let base = h_px * Vector3::new(0.0, y as f64, 1.0);
+            let step = h_px.column(0).into_owned();
+            let albedo_at = |x: usize| -> f32 {
+                let p = match (&self.undistort_grid, &ray_h) {
+                    (None, _) => base + step * x as f64,
+                    (Some(grid), Some(rh)) => rh * grid.ray(x, y),
+                    (Some(_), None) => return sea_dn,
+                };
+                if p.z > 0.0 {
+                    tex.albedo(p.x / p.z, p.y / p.z)
+                } else {
+                    sea_dn // beyond the horizon
+                }
+            };
+            let mut x = 0;
+            let mut left = albedo_at(0);
+            while x < w {
+                let end = (x + chunk).min(w);
+                let right = albedo_at(end);
+                let d = (right - left) / (end - x) as f32;
+                for (i, a) in self.row_albedo[x..end].iter_mut().enumerate() {
+                    *a = left + d * i as f32;
+                }
+                left = right;
+                x = end;
+            }
+            // Marker discs over the background.
+            self.row_signal.copy_from_slice(&self.row_albedo);
+            for p in self
+                .patches
+                .iter()
+                .filter(|p| p.w > 0 && y >= p.y0 && y < p.y0 + p.h)
+            {
+                let cov = &p.cov[(y - p.y0) * p.w..(y - p.y0 + 1) * p.w];
+                let (sig, alb) = (
+                    &mut self.row_signal[p.x0..p.x0 + p.w],
+                    &self.row_albedo[p.x0..p.x0 + p.w],
+                );
+                for ((s, a), c) in sig.iter_mut().zip(alb).zip(cov) {
+                    *s += c.min(1.0) * (marker_dn - a);
+                }
+            }
+            // Light falloff (camera-fixed gain map), noise, quantisation.
+            if let Some(gain) = &self.gain {
+                for (s, g) in self.row_signal.iter_mut().zip(&gain[y * w..(y + 1) * w]) {
+                    *s *= *g as f32 * (1.0 / GAIN_ONE);
+                }
+            }
+            let row = out.row_mut(y);
+            if noisy {
+                // Five 12-bit Gaussian table indices per random word.
+                let noisy_px = |px: &mut u8, s: f32, bits: u64| {
+                    let g = self.gauss[(bits & gmask) as usize];
+                    let n = s + sigma_lut[s.clamp(0.0, 255.0) as usize] * g;
+                    *px = (n + 0.5).clamp(0.0, 255.0) as u8;
+                };
+                let mut pxs = row.chunks_exact_mut(5);
+                let mut sig = self.row_signal.chunks_exact(5);
+                for (p5, s5) in (&mut pxs).zip(&mut sig) {
+                    let mut bits = rng.next_u64();
+                    for (px, &s) in p5.iter_mut().zip(s5) {
+                        noisy_px(px, s, bits);
+                        bits >>= GAUSS_BITS;
+                    }
+                }
+                let mut bits = rng.next_u64();
+                for (px, &s) in pxs.into_remainder().iter_mut().zip(sig.remainder()) {
+                    noisy_px(px, s, bits);
+                    bits >>= GAUSS_BITS;
+                }
+            } else {
+                for (px, &s) in row.iter_mut().zip(&self.row_signal) {
+                    *px = (s + 0.5).clamp(0.0, 255.0) as u8;
+                }
+            }
+        }
+    }
+}
+
+/// The viewing ray (x, y, 1) of a pixel (distorted pixel coordinates) and its change per pixel
+/// along u and v: exact for a camera without distortion; with distortion, the lens model is
+/// linearised over +-1/2 pixel (second-order error ~1e-7 px for usual lenses).
+fn pixel_ray(camera: &CameraModel, u: f64, v: f64) -> Option<(Vector3<f64>, Vector3<f64>, Vector3<f64>)> {
+    if camera.distortion.is_none() {
+        return Some((
+            Vector3::new((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, 1.0),
+            Vector3::new(1.0 / camera.fx, 0.0, 0.0),
+            Vector3::new(0.0, 1.0 / camera.fy, 0.0),
+        ));
+    }
+    let c = camera.unproject([u, v])?;
+    let (a, b) = (camera.unproject([u - 0.5, v])?, camera.unproject([u + 0.5, v])?);
+    let (e, f) = (camera.unproject([u, v - 0.5])?, camera.unproject([u, v + 0.5])?);
+    Some((
+        Vector3::new(c[0], c[1], 1.0),
+        Vector3::new(b[0] - a[0], b[1] - a[1], 0.0),
+        Vector3::new(f[0] - e[0], f[1] - e[1], 0.0),
+    ))
+}
+
+fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
+    (a[0] - b[0]).hypot(a[1] - b[1])
+}
+
+/// Homography from a viewing ray (x, y, 1) (normalised camera coordinates) to the deck plane:
+/// `H (x, y, 1) = (X, Y, 1) / depth`. A deck point (X, Y, 0) is at
+/// `p_cam = R_CW (R (X, Y, 0) - C) = A (X, Y, 1)` with `A = [R_CW R e1, R_CW R e2, -R_CW C]`.
+fn ray_to_deck(s: &SceneGeometry) -> Option<Matrix3<f64>> {
+    let a = Matrix3::from_columns(&[
+        s.deck_to_camera(&Vector3::x()) - s.deck_to_camera(&Vector3::zeros()),
+        s.deck_to_camera(&Vector3::y()) - s.deck_to_camera(&Vector3::zeros()),
+        s.deck_to_camera(&Vector3::zeros()),
+    ]);
+    a.try_inverse()
+}
+
+/// Homography from undistorted pixel coordinates (u, v, 1) to the deck plane.
+fn pixel_to_deck(camera: &CameraModel, s: &SceneGeometry) -> Option<Matrix3<f64>> {
+    let k_inv = Matrix3::new(
+        1.0 / camera.fx,
+        0.0,
+        -camera.cx / camera.fx,
+        0.0,
+        1.0 / camera.fy,
+        -camera.cy / camera.fy,
+        0.0,
+        0.0,
+        1.0,
+    );
+    Some(ray_to_deck(s)? * k_inv)
+}
+
+/// Fixed-point unit of the gain map (gains stay below 1).
+const GAIN_ONE: f32 = 65535.0;
+
+/// Illumination gradient (linear across the image) times cos^4 vignetting, per pixel.
+fn gain_map(camera: &CameraModel, o: &RenderOptions) -> Vec<u16> {
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    let (gdx, gdy) = (o.illumination_direction.cos(), o.illumination_direction.sin());
+    let diag = ((w * w + h * h) as f64).sqrt();
+    let mut g = Vec::with_capacity(w * h);
+    for y in 0..h {
+        let yn = (y as f64 - camera.cy) / camera.fy;
+        for x in 0..w {
+            // t in [-1/2, 1/2] across the image along the gradient's direction.
+            let t = ((x as f64 - w as f64 / 2.0) * gdx + (y as f64 - h as f64 / 2.0) * gdy) / diag;
+            let light = 1.0 - o.illumination_gradient * (t + 0.5);
+            let xn = (x as f64 - camera.cx) / camera.fx;
+            let c2 = 1.0 / (1.0 + xn * xn + yn * yn);
+            let vig = 1.0 - o.vignetting * (1.0 - c2 * c2);
+            g.push(
+                (light * vig * GAIN_ONE as f64)
+                    .round()
+                    .clamp(0.0, GAIN_ONE as f64) as u16,
+            );
+        }
+    }
+    g
+}
+
+/// Normalised undistorted coordinates of pixels on a coarse grid, bilinearly interpolated: the
+/// background's map through a distorting lens (the discs use the exact model).
+struct UndistortGrid {
+    gw: usize,
+    grid: Vec<[f64; 2]>,
+}
+
+impl UndistortGrid {
+    fn new(camera: &CameraModel) -> Self {
+        let gw = (camera.width as usize).div_ceil(UNDISTORT_STEP) + 2;
+        let gh = (camera.height as usize).div_ceil(UNDISTORT_STEP) + 2;
+        let mut grid = Vec::with_capacity(gw * gh);
+        for gy in 0..gh {
+            for gx in 0..gw {
+                let uv = [(gx * UNDISTORT_STEP) as f64, (gy * UNDISTORT_STEP) as f64];
+                // Beyond the model's valid field, fall back to the linear ray.
+                grid.push(
+                    camera
+                        .unproject(uv)
+                        .unwrap_or([(uv[0] - camera.cx) / camera.fx, (uv[1] - camera.cy) / camera.fy]),
+                );
+            }
+        }
+        Self { gw, grid }
+    }
+
+    /// The ray (x, y, 1) of pixel (x, y); x may be one past the last column.
+    fn ray(&self, x: usize, y: usize) -> Vector3<f64> {
+        let (gx, gy) = (x / UNDISTORT_STEP, y / UNDISTORT_STEP);
+        let tx = (x % UNDISTORT_STEP) as f64 / UNDISTORT_STEP as f64;
+        let ty = (y % UNDISTORT_STEP) as f64 / UNDISTORT_STEP as f64;
+        let g = |i: usize, j: usize| self.grid[j * self.gw + i];
+        let (a, b, c, d) = (g(gx, gy), g(gx + 1, gy), g(gx, gy + 1), g(gx + 1, gy + 1));
+        let lerp =
+            |k: usize| (a[k] * (1.0 - tx) + b[k] * tx) * (1.0 - ty) + (c[k] * (1.0 - tx) + d[k] * tx) * ty;
+        Vector3::new(lerp(0), lerp(1), 1.0)
+    }
+}
+
+/// The deck and sea albedo textures with their placement.
+struct Textures<'a> {
+    half: f64,
+    deck_scale: f64,
+    sea_scale: f64,
+    deck: &'a [u8],
+    sea: &'a [u8],
+    deck_dn: f32,
+    sea_dn: f32,
+    amp: f32,
+}
+
+impl Textures<'_> {
+    /// Albedo (DN) at a deck-plane point: the deck square's texture, or the sea's.
+    #[inline(always)]
+    fn albedo(&self, x: f64, y: f64) -> f32 {
+        if x.abs() <= self.half && y.abs() <= self.half {
+            let t = sample_clamped(
+                self.deck,
+                (x + self.half) * self.deck_scale,
+                (y + self.half) * self.deck_scale,
+            );
+            self.deck_dn * (1.0 + self.amp * t)
+        } else {
+            let t = sample_wrapped(self.sea, x * self.sea_scale, y * self.sea_scale);
+            self.sea_dn * (1.0 + self.amp * t)
+        }
+    }
+}
+
+/// Bilinear sample of a u8 texture whose bytes encode [-1, 1] as 0..=254 (a cache-friendly
+/// 1 MB; 8 bits are plenty for a texture of at most 15 % contrast).
+#[inline(always)]
+fn bilinear(tex: &[u8], x0: usize, y0: usize, x1: usize, y1: usize, fx: f32, fy: f32) -> f32 {
+    let a = tex[y0 * TEX + x0] as f32;
+    let b = tex[y0 * TEX + x1] as f32;
+    let c = tex[y1 * TEX + x0] as f32;
+    let d = tex[y1 * TEX + x1] as f32;
+    let top = a + (b - a) * fx;
+    let v = top + ((c + (d - c) * fx) - top) * fy;
+    v * (1.0 / 127.0) - 1.0
+}
+
+#[inline(always)]
+fn sample_clamped(tex: &[u8], x: f64, y: f64) -> f32 {
+    let max = (TEX - 1) as f64;
+    let (x, y) = (x.clamp(0.0, max), y.clamp(0.0, max));
+    let (x0, y0) = (x as usize, y as usize);
+    let (x1, y1) = ((x0 + 1).min(TEX - 1), (y0 + 1).min(TEX - 1));
+    bilinear(
+        tex,
+        x0,
+        y0,
+        x1,
+        y1,
+        (x - x0 as f64) as f32,
+        (y - y0 as f64) as f32,
+    )
+}
+
+#[inline(always)]
+fn sample_wrapped(tex: &[u8], x: f64, y: f64) -> f32 {
+    let (x, y) = (x.rem_euclid(TEX as f64), y.rem_euclid(TEX as f64));
+    let (x0, y0) = ((x as usize) % TEX, (y as usize) % TEX);
+    let (x1, y1) = ((x0 + 1) % TEX, (y0 + 1) % TEX);
+    bilinear(
+        tex,
+        x0,
+        y0,
+        x1,
+        y1,
+        (x - x0 as f64) as f32,
+        (y - y0 as f64) as f32,
+    )
+}
+
+/// A tileable value-noise texture (`n` x `n`, values roughly in [-1, 1]): octaves of random
+/// lattice values, (cells across, amplitude), smoothly interpolated.
+fn value_noise(n: usize, seed: u64, octaves: &[(usize, f64)]) -> Vec<u8> {
+    let mut tex = vec![0.0f32; n * n];
+    let mut rng = SplitMix64::new(seed);
+    for &(cells, amp) in octaves {
+        let lattice: Vec<f64> = (0..cells * cells).map(|_| 2.0 * rng.next_f64() - 1.0).collect();
+        let cell = n as f64 / cells as f64;
+        for y in 0..n {
+            let fy = y as f64 / cell;
+            let (cy0, ty) = (fy.floor() as usize % cells, smooth(fy.fract()));
+            let cy1 = (cy0 + 1) % cells;
+            for x in 0..n {
+                let fx = x as f64 / cell;
+                let (cx0, tx) = (fx.floor() as usize % cells, smooth(fx.fract()));
+                let cx1 = (cx0 + 1) % cells;
+                let l = |i: usize, j: usize| lattice[j * cells + i];
+                let top = l(cx0, cy0) + (l(cx1, cy0) - l(cx0, cy0)) * tx;
+                let bottom = l(cx0, cy1) + (l(cx1, cy1) - l(cx0, cy1)) * tx;
+                tex[y * n + x] += (amp * (top + (bottom - top) * ty)) as f32;
+            }
+        }
+    }
+    tex.iter()
+        .map(|t| ((t.clamp(-1.0, 1.0) + 1.0) * 127.0).round() as u8)
+        .collect()
+}
+
+fn smooth(t: f64) -> f64 {
+    t * t * (3.0 - 2.0 * t)
+}
+
+/// Inverse of the standard normal CDF (Acklam's rational approximation, relative error < 1.2e-9).
+fn inverse_normal_cdf(p: f64) -> f64 {
+    const A: [f64; 6] = [
+        -3.969683028665376e1,
+        2.209460984245205e2,
+        -2.759285104469687e2,
+        1.38357751867269e2,
+        -3.066479806614716e1,
+        2.506628277459239,
+    ];
+    const B: [f64; 5] = [
+        -5.447609879822406e1,
+        1.615858368580409e2,
+        -1.556989798598866e2,
+        6.680131188771972e1,
+        -1.328068155288572e1,
+    ];
+    const C: [f64; 6] = [
+        -7.784894002430293e-3,
+        -3.223964580411365e-1,
+        -2.400758277161838,
+        -2.549732539343734,
+        4.374664141464968,
+        2.938163982698783,
+    ];
+    const D: [f64; 4] = [
+        7.784695709041462e-3,
+        3.224671290700398e-1,
+        2.445134137142996,
+        3.754408661907416,
+    ];
+    let tail = |q: f64| {
+        (((((C[0] * q + C[1]) * q + C[2]) * q + C[3]) * q + C[4]) * q + C[5])
+            / ((((D[0] * q + D[1]) * q + D[2]) * q + D[3]) * q + 1.0)
+    };
+    if p < 0.02425 {
+        tail((-2.0 * p.ln()).sqrt())
+    } else if p > 1.0 - 0.02425 {
+        -tail((-2.0 * (1.0 - p).ln()).sqrt())
+    } else {
+        let q = p - 0.5;
+        let r = q * q;
+        (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * q
+            / (((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use deckwatch_common::{GrayImage, Rpy, Viewpoint};
+
+    fn scene(rpy: Rpy, vp: Viewpoint) -> SceneGeometry {
+        SceneGeometry {
+            attitude: rpy.to_matrix(),
+            viewpoint: vp,
+        }
+    }
+
+    fn small_camera() -> CameraModel {
+        CameraModel::rpi_v2().scaled_to(640, 480)
+    }
+
+    #[test]
+    fn inverse_normal_cdf_is_accurate() {
+        assert!(inverse_normal_cdf(0.5).abs() < 1e-12);
+        assert!((inverse_normal_cdf(0.975) - 1.959963984540054).abs() < 1e-8);
+        assert!((inverse_normal_cdf(0.001) + 3.090232306167813).abs() < 1e-8);
+    }
+
+    #[test]
+    fn homography_maps_marker_images_back_to_the_deck() {
+        let cam = CameraModel::paper();
+        let deck = DeckLayout::paper();
+        let s = scene(
+            Rpy::from_degrees(18.0, -7.0, 4.0),
+            Viewpoint {
+                offset_x_m: 0.3,
+                offset_y_m: -0.1,
+                altitude_m: 4.7,
+            },
+        );
+        let h = pixel_to_deck(&cam, &s).unwrap();
+        for i in 0..deck.marker_count() {
+            let p = deck.marker_position(i);
+            let [u, v] = s.project_deck_point(&cam, &p).unwrap();
+            let q = h * Vector3::new(u, v, 1.0);
+            assert!(q.z > 0.0);
+            assert!((q.x / q.z - p.x).abs() < 1e-12 && (q.y / q.z - p.y).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn clean_frame_has_discs_where_the_markers_project() {
+        let cam = small_camera();
+        let deck = DeckLayout::paper();
+        let opts = RenderOptions {
+            texture: 0.0,
+            ..RenderOptions::default()
+        };
+        let mut r = Renderer::new(cam, deck, opts, 1).unwrap();
+        let s = scene(Rpy::from_degrees(10.0, 5.0, 0.0), Viewpoint::centred(5.0));
+        let mut img = GrayImage::new(640, 480);
+        r.render(&[s], 0, &mut img.view_mut()).unwrap();
+        for i in 0..deck.marker_count() {
+            let [u, v] = s.project_deck_point(&cam, &deck.marker_position(i)).unwrap();
+            assert_eq!(
+                img.view().get(u.round() as usize, v.round() as usize),
+                230,
+                "marker {i}"
+            );
+        }
+        // Between markers: the deck; far corner: the deck too (the view is 10 m deck wide).
+        assert_eq!(img.view().get(5, 5), 70);
+        // Total brightness above the deck level = disc areas x (230 - 70): check the centre
+        // disc's area against its projection (pi r^2 f^2 / Z^2 on a nearly level deck).
+        let c = s.project_deck_point(&cam, &Vector3::zeros()).unwrap();
+        let mut sum = 0.0;
+        for y in (c[1] as usize - 12)..(c[1] as usize + 13) {
+            for x in (c[0] as usize - 12)..(c[0] as usize + 13) {
+                sum += (img.view().get(x, y) as f64 - 70.0) / 160.0;
+            }
+        }
+        let p = s.deck_to_camera(&Vector3::zeros());
+        let n = s.attitude * Vector3::z();
+        let expect = std::f64::consts::PI * 0.05 * 0.05 * cam.fx * cam.fy / (p.z * p.z) * n.z;
+        assert!((sum - expect).abs() < 0.02 * expect + 1.0, "{sum} vs {expect}");
+    }
+
+    #[test]
+    fn deterministic_for_a_seed_and_noise_has_the_requested_spread() {
+        let cam = small_camera();
+        let opts = RenderOptions {
+            texture: 0.0,
+            read_noise_dn: 3.0,
+            ..RenderOptions::default()
+        };
+        let mut r = Renderer::new(cam, DeckLayout::paper(), opts, 1).unwrap();
+        let s = scene(Rpy::default(), Viewpoint::centred(5.0));
+        let mut a = GrayImage::new(640, 480);
+        let mut b = GrayImage::new(640, 480);
+        r.render(&[s], 42, &mut a.view_mut()).unwrap();
+        r.render(&[s], 42, &mut b.view_mut()).unwrap();
+        assert_eq!(a, b);
+        r.render(&[s], 43, &mut b.view_mut()).unwrap();
+        assert_ne!(a, b);
+        // Corner region is plain deck at 70 DN.
+        let vals: Vec<f64> = (0..100)
+            .flat_map(|y| (0..100).map(move |x| (x, y)))
+            .map(|(x, y)| a.view().get(x, y) as f64)
+            .collect();
+        let mean = vals.iter().sum::<f64>() / vals.len() as f64;
+        let sd = (vals.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / vals.len() as f64).sqrt();
+        assert!((mean - 70.0).abs() < 0.2, "{mean}");
+        assert!((sd - 3.0).abs() < 0.15, "{sd}");
+    }
+
+    #[test]
+    fn blur_and_motion_blur_spread_the_disc_but_keep_its_energy() {
+        let cam = small_camera();
+        let deck = DeckLayout::paper();
+        let base = RenderOptions {
+            texture: 0.0,
+            ..RenderOptions::default()
+        };
+        let energy = |img: &GrayImage| img.data.iter().map(|&v| v as f64 - 70.0).sum::<f64>();
+        let s0 = scene(Rpy::from_degrees(3.0, 0.0, 0.0), Viewpoint::centred(5.0));
+        let mut sharp = GrayImage::new(640, 480);
+        Renderer::new(cam, deck, base.clone(), 1)
+            .unwrap()
+            .render(&[s0], 0, &mut sharp.view_mut())
+            .unwrap();
+        let mut blurred = GrayImage::new(640, 480);
+        let opts = RenderOptions {
+            optical_blur_px: 1.5,
+            ..base.clone()
+        };
+        Renderer::new(cam, deck, opts, 1)
+            .unwrap()
+            .render(&[s0], 0, &mut blurred.view_mut())
+            .unwrap();
+        assert!((energy(&blurred) - energy(&sharp)).abs() < 0.01 * energy(&sharp));
+        let max = |img: &GrayImage| *img.data.iter().max().unwrap();
+        assert_eq!(max(&sharp), 230);
+        // Motion: the deck yaws 14 deg during the exposure; the ring discs smear along the ring.
+        let exposure: Vec<SceneGeometry> = (0..8)
+            .map(|k| {
+                scene(
+                    Rpy::from_degrees(3.0, 0.0, -7.0 + 2.0 * k as f64),
+                    Viewpoint::centred(5.0),
+                )
+            })
+            .collect();
+        let mut smeared = GrayImage::new(640, 480);
+        Renderer::new(cam, deck, base, 1)
+            .unwrap()
+            .render(&exposure, 0, &mut smeared.view_mut())
+            .unwrap();
+        let lit = |img: &GrayImage| img.data.iter().filter(|&&v| v > 75).count();
+        assert!(lit(&smeared) > lit(&sharp));
+        assert!((energy(&smeared) - energy(&sharp)).abs() < 0.03 * energy(&sharp));
+    }
+
+    #[test]
+    fn lens_distortion_moves_the_discs_as_the_camera_model_says() {
+        let mut cam = small_camera();
+        cam.distortion = deckwatch_common::Distortion::from_array([-0.25, 0.08, 0.0, 0.0, 0.0]);
+        let deck = DeckLayout::paper();
+        let opts = RenderOptions {
+            texture: 0.0,
+            ..RenderOptions::default()
+        };
+        let mut r = Renderer::new(cam, deck, opts, 1).unwrap();
+        let s = scene(Rpy::from_degrees(8.0, -4.0, 30.0), Viewpoint::centred(3.0));
+        let mut img = GrayImage::new(640, 480);
+        r.render(&[s], 0, &mut img.view_mut()).unwrap();
+        for i in 0..deck.marker_count() {
+            let [u, v] = s.project_deck_point(&cam, &deck.marker_position(i)).unwrap();
+            assert_eq!(
+                img.view().get(u.round() as usize, v.round() as usize),
+                230,
+                "marker {i}"
+            );
+        }
+    }
+
+    #[test]
+    fn bad_calls_are_errors() {
+        let cam = small_camera();
+        let mut r = Renderer::new(cam, DeckLayout::paper(), RenderOptions::default(), 1).unwrap();
+        let mut img = GrayImage::new(64, 48);
+        let s = scene(Rpy::default(), Viewpoint::centred(5.0));
+        assert!(matches!(
+            r.render(&[s], 0, &mut img.view_mut()),
+            Err(RenderError::SizeMismatch { .. })
+        ));
+        let mut img = GrayImage::new(640, 480);
+        assert_eq!(
+            r.render(&[], 0, &mut img.view_mut()),
+            Err(RenderError::InvalidScene)
+        );
+        let mut bad = s;
+        bad.viewpoint.altitude_m = f64::NAN;
+        assert_eq!(
+            r.render(&[bad], 0, &mut img.view_mut()),
+            Err(RenderError::InvalidScene)
+        );
+        let e = RenderOptions {
+            supersample: 0,
+            ..RenderOptions::default()
+        }
+        .validate()
+        .unwrap_err();
+        assert!(e.contains("`supersample`"));
+        let e = RenderOptions {
+            vignetting: 2.0,
+            ..RenderOptions::default()
+        }
+        .validate()
+        .unwrap_err();
+        assert!(e.contains("`vignetting`"));
+    }
+}

@@ -1,0 +1,272 @@
+//! The frame simulator: a motion profile, sampled over each frame's exposure, drawn by the
+//! renderer straight into the caller's buffer, with the frame's ground truth.
+
+use crate::motion::{MotionProfile, MotionSample};
+use crate::render::{RenderError, RenderOptions, Renderer};
+use crate::scenario::Simulation;
+use deckwatch_common::image::GrayViewMut;
+use deckwatch_common::{CameraModel, DeckLayout, Distortion, GroundTruth, SceneGeometry};
+
+/// One rendered frame's truth.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameTruth {
+    pub index: u64,
+    pub timestamp_ns: u64,
+    /// The scene at the middle of the exposure.
+    pub sample: MotionSample,
+    /// Whether any marker centre lies on the sensor.
+    pub deck_in_view: bool,
+    /// Exact pixels of the marker centres (None when off the sensor).
+    pub markers: Vec<Option<[f64; 2]>>,
+}
+
+impl FrameTruth {
+    /// The recording's ground truth: attitude only when the deck is in view (`nan` otherwise);
+    /// altitude and offset always (the altimeter and the tracking error are known).
+    pub fn ground_truth(&self) -> GroundTruth {
+        let [roll, pitch, yaw] = self.sample.attitude.to_degrees();
+        let v = self.sample.viewpoint;
+        let seen = |x: f64| self.deck_in_view.then_some(x);
+        GroundTruth {
+            roll_deg: seen(roll),
+            pitch_deg: seen(pitch),
+            yaw_deg: seen(yaw),
+            alt_m: Some(v.altitude_m),
+            offset_x_m: Some(v.offset_x_m),
+            offset_y_m: Some(v.offset_y_m),
+        }
+    }
+}
+
+/// Renders the frames of a motion profile.
+pub struct FrameSimulator {
+    profile: Box<dyn MotionProfile + Send + Sync>,
+    renderer: Renderer,
+    rate_hz: f64,
+    exposure_s: f64,
+    exposure_steps: usize,
+    seed: u64,
+    poses: Vec<SceneGeometry>,
+}
+
+impl FrameSimulator {
+    /// `exposure_s` > 0 blurs motion over that window, sampled at `exposure_steps` instants.
+    pub fn new(
+        profile: Box<dyn MotionProfile + Send + Sync>,
+        renderer: Renderer,
+        rate_hz: f64,
+        exposure_s: f64,
+        exposure_steps: usize,
+        seed: u64,
+    ) -> Result<Self, String> {
+        if !(rate_hz.is_finite() && rate_hz > 0.0) {
+            return Err(format!("frame rate must be positive, got {rate_hz}"));
+        }
+        if !(exposure_s.is_finite() && exposure_s >= 0.0 && exposure_s <= 1.0 / rate_hz) {
+            return Err(format!("exposure must be within [0, 1/rate] s, got {exposure_s}"));
+        }
+        let steps = if exposure_s > 0.0 {
+            exposure_steps.clamp(2, 64)
+        } else {
+            1
+        };
+        Ok(Self {
+            profile,
+            renderer,
+            rate_hz,
+            exposure_s,
+            exposure_steps: steps,
+            seed,
+            poses: Vec::with_capacity(steps),
+        })
+    }
+
+    pub fn camera(&self) -> &CameraModel {
+        self.renderer.camera()
+    }
+    pub fn deck(&self) -> &DeckLayout {
+        self.renderer.deck()
+    }
+
+    /// Renders frame `index` (at t = index / rate) into `out` and returns its truth.
+    pub fn render_frame(&mut self, index: u64, out: &mut GrayViewMut<'_>) -> Result<FrameTruth, RenderError> {
+        let t = index as f64 / self.rate_hz;
+        self.poses.clear();
+        for k in 0..self.exposure_steps {
+            let dt = if self.exposure_steps == 1 {
+                0.0
+            } else {
+                self.exposure_s * (k as f64 / (self.exposure_steps - 1) as f64 - 0.5)
+            };
+            let s = self.profile.sample(t + dt);
+            self.poses.push(SceneGeometry {
+                attitude: s.attitude.to_matrix(),
+                viewpoint: s.viewpoint,
+            });
+        }
+        // Noise differs per frame and per seed, and is reproducible frame by frame.
+        let noise_seed = self.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ index;
+        self.renderer.render(&self.poses, noise_seed, out)?;
+        let sample = self.profile.sample(t);
+        let scene = SceneGeometry {
+            attitude: sample.attitude.to_matrix(),
+            viewpoint: sample.viewpoint,
+        };
+        let markers = scene.project_markers(self.renderer.camera(), self.renderer.deck());
+        Ok(FrameTruth {
+            index,
+            timestamp_ns: (t * 1e9).round() as u64,
+            sample,
+            deck_in_view: markers.iter().any(Option::is_some),
+            markers,
+        })
+    }
+}
+
+/// Command-line choice of the image: resolution, look and lens.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ImageArgs {
+    /// Image width (the camera preset is scaled to it); default: the preset's.
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height; default: the preset's.
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Starting point of the look: `clean` (sharp, noiseless, even light) or `realistic`
+    /// (blur, noise, uneven light, vignetting); the options below override it.
+    #[arg(long, default_value = "realistic")]
+    pub look: String,
+    /// Optical blur, Gaussian sigma in pixels.
+    #[arg(long)]
+    pub blur_px: Option<f64>,
+    /// Exposure time for motion blur, milliseconds (0 = none).
+    #[arg(long, default_value_t = 0.0)]
+    pub exposure_ms: f64,
+    /// Read noise (DN, standard deviation).
+    #[arg(long)]
+    pub read_noise: Option<f64>,
+    /// Shot noise (DN^2 of variance per DN of signal).
+    #[arg(long)]
+    pub shot_noise: Option<f64>,
+    /// Vignetting strength, 0-1.
+    #[arg(long)]
+    pub vignetting: Option<f64>,
+    /// Illumination gradient across the image, 0-1.
+    #[arg(long)]
+    pub gradient: Option<f64>,
+    /// Deck and sea texture contrast, 0-1.
+    #[arg(long)]
+    pub texture: Option<f64>,
+    /// Lens distortion k1,k2,p1,p2,k3 (OpenCV order).
+    #[arg(long, value_delimiter = ',', num_args = 5)]
+    pub distortion: Option<Vec<f64>>,
+}
+
+impl ImageArgs {
+    /// The camera (preset scaled to the resolution, with the lens) and the render options.
+    pub fn resolve(&self, sim: &Simulation) -> Result<(CameraModel, RenderOptions), String> {
+        let mut camera = sim.camera;
+        let (w, h) = (
+            self.width.unwrap_or(camera.width),
+            self.height.unwrap_or(camera.height),
+        );
+        if w == 0 || h == 0 || w > 16384 || h > 16384 {
+            return Err(format!("--width/--height: {w}x{h} is not a usable image size"));
+        }
+        if (w, h) != (camera.width, camera.height) {
+            camera = camera.scaled_to(w, h);
+        }
+        if let Some(d) = &self.distortion {
+            let a: [f64; 5] = d
+                .as_slice()
+                .try_into()
+                .map_err(|_| "--distortion: give k1,k2,p1,p2,k3")?;
+            camera.distortion = Distortion::from_array(a);
+        }
+        camera.validate().map_err(|e| format!("camera: {e}"))?;
+        let mut o = match self.look.as_str() {
+            "clean" => RenderOptions::default(),
+            "realistic" => RenderOptions::realistic(),
+            other => return Err(format!("--look: unknown `{other}` (clean, realistic)")),
+        };
+        let set = |field: &mut f64, v: Option<f64>| {
+            if let Some(v) = v {
+                *field = v;
+            }
+        };
+        set(&mut o.optical_blur_px, self.blur_px);
+        set(&mut o.read_noise_dn, self.read_noise);
+        set(&mut o.shot_noise_dn, self.shot_noise);
+        set(&mut o.vignetting, self.vignetting);
+        set(&mut o.illumination_gradient, self.gradient);
+        set(&mut o.texture, self.texture);
+        o.validate().map_err(|e| format!("render options: {e}"))?;
+        Ok((camera, o))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::{Scenario, SimulationArgs};
+    use deckwatch_common::GrayImage;
+
+    fn sim_args(scenario: &str) -> SimulationArgs {
+        SimulationArgs {
+            scenario: scenario.into(),
+            frames: 3,
+            rate: 10.0,
+            camera: None,
+            seed: 5,
+        }
+    }
+
+    #[test]
+    fn frames_carry_their_truth_and_no_deck_frames_have_none() {
+        for (name, in_view) in [("ship", true), ("nodeck", false)] {
+            let sim = sim_args(name).resolve().unwrap();
+            let cam = sim.camera.scaled_to(320, 240);
+            let r = Renderer::new(cam, sim.deck, RenderOptions::realistic(), 5).unwrap();
+            let mut fs = FrameSimulator::new(sim.scenario.profile(5), r, 10.0, 0.01, 4, 5).unwrap();
+            let mut img = GrayImage::new(320, 240);
+            let t = fs.render_frame(7, &mut img.view_mut()).unwrap();
+            assert_eq!(t.timestamp_ns, 700_000_000);
+            assert_eq!(t.deck_in_view, in_view, "{name}");
+            let gt = t.ground_truth();
+            assert_eq!(gt.attitude().is_some(), in_view);
+            assert!(gt.alt_m.is_some());
+            if !in_view {
+                // Only the sea: nothing near the marker brightness.
+                assert!(img.data.iter().all(|&v| v < 120), "{name}");
+            }
+        }
+        assert_eq!(Scenario::from_name("nodeck"), Some(Scenario::NoDeck));
+    }
+
+    #[test]
+    fn image_args_resolve_and_validate() {
+        let sim = sim_args("case1").resolve().unwrap();
+        let mut a = ImageArgs {
+            width: Some(640),
+            height: Some(480),
+            look: "clean".into(),
+            blur_px: Some(1.0),
+            exposure_ms: 0.0,
+            read_noise: None,
+            shot_noise: None,
+            vignetting: None,
+            gradient: None,
+            texture: None,
+            distortion: Some(vec![-0.1, 0.0, 0.0, 0.0, 0.0]),
+        };
+        let (cam, o) = a.resolve(&sim).unwrap();
+        assert_eq!((cam.width, cam.height, cam.distortion.k1), (640, 480, -0.1));
+        assert_eq!(o.optical_blur_px, 1.0);
+        assert_eq!(o.read_noise_dn, 0.0);
+        a.look = "fancy".into();
+        assert!(a.resolve(&sim).unwrap_err().contains("--look"));
+        a.look = "clean".into();
+        a.vignetting = Some(3.0);
+        assert!(a.resolve(&sim).unwrap_err().contains("`vignetting`"));
+    }
+}

@@ -398,36 +398,11 @@ impl Renderer {
         if self.blur_kernel.len() == 1 {
             return;
         }
-        let k = &self.blur_kernel;
-        let r = k.len() / 2;
         for p in self.patches.iter_mut().filter(|p| p.w > 0) {
-            let (w, h) = (p.w, p.h);
             self.blur_tmp.clear();
-            self.blur_tmp.resize(w * h, 0.0);
-            for y in 0..h {
-                for x in 0..w {
-                    let mut acc = 0.0;
-                    for (i, kv) in k.iter().enumerate() {
-                        let xx = (x + i).wrapping_sub(r);
-                        if xx < w {
-                            acc += kv * p.cov[y * w + xx];
-                        }
-                    }
-                    self.blur_tmp[y * w + x] = acc;
-                }
-            }
-            for y in 0..h {
-                for x in 0..w {
-                    let mut acc = 0.0;
-                    for (i, kv) in k.iter().enumerate() {
-                        let yy = (y + i).wrapping_sub(r);
-                        if yy < h {
-                            acc += kv * self.blur_tmp[yy * w + x];
-                        }
-                    }
-                    p.cov[y * w + x] = acc;
-                }
-            }
+            self.blur_tmp.resize(p.w * p.h, 0.0);
+            convolve_axis(&p.cov, &mut self.blur_tmp, p.w, p.h, &self.blur_kernel, true);
+            convolve_axis(&self.blur_tmp, &mut p.cov, p.w, p.h, &self.blur_kernel, false);
         }
     }
 
@@ -553,6 +528,26 @@ impl Renderer {
                     *px = (s + 0.5).clamp(0.0, 255.0) as u8;
                 }
             }
+        }
+    }
+}
+
+/// `dst` = `src` (w x h, row-major) convolved with the odd-length kernel `k` along x or y;
+/// samples beyond the border count as 0.
+fn convolve_axis(src: &[f32], dst: &mut [f32], w: usize, h: usize, k: &[f32], along_x: bool) {
+    let r = k.len() / 2;
+    let (n, step) = if along_x { (w, 1) } else { (h, w) };
+    for y in 0..h {
+        for x in 0..w {
+            let (i0, pos) = (y * w + x, if along_x { x } else { y });
+            let mut acc = 0.0;
+            for (i, kv) in k.iter().enumerate() {
+                let q = (pos + i).wrapping_sub(r);
+                if q < n {
+                    acc += kv * src[i0 + q * step - pos * step];
+                }
+            }
+            dst[i0] = acc;
         }
     }
 }

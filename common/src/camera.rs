@@ -212,6 +212,15 @@ impl CameraModel {
         Some([self.fx * x + self.cx, self.fy * y + self.cy])
     }
 
+    /// Where an ideal (distortion-free) pixel appears through the lens: inverse of
+    /// [`CameraModel::undistort_pixel`].
+    pub fn distort_pixel(&self, [u, v]: [f64; 2]) -> [f64; 2] {
+        let [x, y] = self
+            .distortion
+            .apply([(u - self.cx) / self.fx, (v - self.cy) / self.fy]);
+        [self.fx * x + self.cx, self.fy * y + self.cy]
+    }
+
     /// Undistorts many pixels in place; entries that do not invert become None.
     pub fn undistort_points(&self, points: &mut [Option<[f64; 2]>]) {
         for p in points.iter_mut() {

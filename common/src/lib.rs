@@ -7,8 +7,10 @@
 
 pub mod camera;
 pub mod deck;
+pub mod homography;
 pub mod image;
 pub mod marker_table;
+pub mod markers;
 pub mod recording;
 pub mod rotation;
 pub mod scene;
@@ -17,6 +19,7 @@ pub mod stats;
 pub use camera::{CameraModel, Distortion};
 pub use deck::DeckLayout;
 pub use image::{GrayImage, GrayView, GrayViewMut};
+pub use markers::{DetectionStatus, Marker, MarkerSet};
 pub use recording::{GroundTruth, Recording, RecordingError, RecordingWriter};
 pub use rotation::{Attitude, Euler313, Quaternion, RotationMatrix, Rpy};
 pub use scene::{SceneGeometry, Viewpoint};

@@ -1,6 +1,10 @@
-//! Marker detection: from a grayscale frame to the deck's markers. So far the last step, the
-//! geometric identification of blobs as markers; the blob detector itself comes with its issue.
+//! Marker detection: from an 8-bit grayscale frame to the deck's markers ([`MarkerSet`]).
+//! Pure algorithm: no IPC, no logging.
+//!
+//! [`MarkerSet`]: deckwatch_common::MarkerSet
 
+pub mod detector;
 pub mod identify;
 
+pub use detector::{Detector, DetectorConfig};
 pub use identify::{identify, marker_pixels, Blob, IdentifyError};

@@ -1,0 +1,73 @@
+//! Detected markers: what detection hands to estimation, one fixed-size value per frame.
+
+use crate::deck::MAX_MARKERS;
+
+/// One detected marker.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Marker {
+    /// Whether this marker was found; the other fields are meaningless when false.
+    pub valid: bool,
+    /// Subpixel centre: the image of the disc's centre (pixels, distorted as in the frame).
+    pub u: f64,
+    pub v: f64,
+    /// Disc area in pixels (sum of coverage).
+    pub area_px: f64,
+    /// Mean intensity over the disc's plateau (DN).
+    pub mean_intensity: f64,
+    /// Quality in [0, 1]: 1 = round, high contrast, on the fitted deck plane; below ~0.3 doubtful.
+    pub quality: f64,
+}
+
+/// Outcome of detecting the deck's markers in a frame.
+#[repr(u32)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DetectionStatus {
+    /// Every marker found.
+    Ok = 0,
+    /// The centre, the bow and at least 4 more ring markers found; some missing.
+    Partial = 1,
+    /// No deck: no marker set could be identified. No marker is valid.
+    #[default]
+    NoDeck = 2,
+    /// The frame could not be read (size, stride); no marker is valid.
+    BadFrame = 3,
+}
+
+/// Why candidate blobs were not used.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct RejectCounts {
+    /// Too small or too large for a marker at any plausible altitude.
+    pub area: u32,
+    /// Not a filled ellipse (elongated, ragged, hollow).
+    pub shape: u32,
+    /// Touching the image border (a cut disc has a biased centre).
+    pub border: u32,
+    /// Round and sized like a marker, but not part of the identified pattern (glints).
+    pub unassigned: u32,
+}
+
+/// The markers of one frame, by marker index (0 centre, 1 bow, 2.. counter-clockwise).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct MarkerSet {
+    pub status: DetectionStatus,
+    /// Number of valid markers.
+    pub count: u32,
+    /// Whether the markers were found by tracking (regions around the previous frame's).
+    pub tracked: bool,
+    pub markers: [Marker; MAX_MARKERS],
+    pub rejected: RejectCounts,
+}
+
+impl MarkerSet {
+    /// Marker pixels by marker index for `n` markers (None where not found), as the estimators
+    /// take them.
+    pub fn pixels(&self, n: usize) -> Vec<Option<[f64; 2]>> {
+        self.markers[..n.min(MAX_MARKERS)]
+            .iter()
+            .map(|m| m.valid.then_some([m.u, m.v]))
+            .collect()
+    }
+}

@@ -1,0 +1,108 @@
+//! Detector speed on 3280x2464 simulator frames (rpi-v2, realistic noise and blur, ship motion),
+//! one thread: `cargo bench -p deckwatch-detect --bench detect`.
+//!
+//! Criterion measures full-frame and tracked detection; then, in the same run, a plain timing
+//! loop measures the detector and the OpenCV baseline (`opencv_baseline.py`: threshold +
+//! connectedComponentsWithStats + moments, one thread) on the same frames and prints the ratio.
+//! The baseline needs `pip install opencv-python-headless numpy`; without it that part is skipped
+//! with a message.
+
+use criterion::Criterion;
+use deckwatch_capture::{FrameSimulator, RenderOptions, Renderer, Scenario};
+use deckwatch_common::stats::Percentiles;
+use deckwatch_common::{CameraModel, DeckLayout, GrayImage};
+use deckwatch_detect::{Detector, DetectorConfig};
+use std::time::Instant;
+
+fn frames(n: u64) -> Vec<GrayImage> {
+    let cam = CameraModel::rpi_v2();
+    let r = Renderer::new(cam, DeckLayout::paper(), RenderOptions::realistic(), 3).unwrap();
+    let mut sim = FrameSimulator::new(Scenario::Ship.profile(3), r, 1.0, 0.0, 1, 3).unwrap();
+    (0..n)
+        .map(|k| {
+            let mut img = GrayImage::new(3280, 2464);
+            sim.render_frame(k, &mut img.view_mut()).unwrap();
+            img
+        })
+        .collect()
+}
+
+fn main() {
+    let cam = CameraModel::rpi_v2();
+    let deck = DeckLayout::paper();
+    let frames = frames(8);
+    let mut det = Detector::new(cam, deck, DetectorConfig::for_camera(&cam, &deck));
+
+    let mut c = Criterion::default().sample_size(50).configure_from_args();
+    let mut group = c.benchmark_group("detect_3280x2464");
+    let mut k = 0;
+    group.bench_function("full_frame", |b| {
+        b.iter(|| {
+            k = (k + 1) % frames.len();
+            det.detect_full(frames[k].view())
+        })
+    });
+    // Tracked: the previous frame's markers are known (here: the same frame's), so only the
+    // regions around them are searched.
+    let mut k = 0;
+    group.bench_function("tracked", |b| {
+        b.iter_custom(|iters| {
+            let mut total = std::time::Duration::ZERO;
+            for _ in 0..iters {
+                k = (k + 1) % frames.len();
+                det.detect_full(frames[k].view()); // sets the tracking state (not timed)
+                let t0 = Instant::now();
+                let set = det.detect(frames[k].view());
+                total += t0.elapsed();
+                assert!(set.tracked);
+            }
+            total
+        })
+    });
+    group.finish();
+    c.final_summary();
+
+    // Side by side with OpenCV, same frames, same run.
+    let mut ours = Vec::new();
+    for _ in 0..10 {
+        for f in &frames {
+            let t0 = Instant::now();
+            let set = det.detect_full(f.view());
+            ours.push(t0.elapsed().as_secs_f64() * 1e3);
+            assert_eq!(set.count, 9);
+        }
+    }
+    let p = Percentiles::of(&mut ours).unwrap();
+    println!(
+        "deckwatch full frame: p50 {:.3} ms p90 {:.3} ms p99 {:.3} ms (n {})",
+        p.p50, p.p90, p.p99, p.n
+    );
+    let dir = std::env::temp_dir().join(format!("deckwatch-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (i, f) in frames.iter().enumerate() {
+        std::fs::write(dir.join(format!("frame_{i:02}.raw")), &f.data).unwrap();
+    }
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/opencv_baseline.py");
+    let out = std::process::Command::new("python3")
+        .args([script, dir.to_str().unwrap(), "3280", "2464", "150", "10"])
+        .output();
+    let _ = std::fs::remove_dir_all(&dir);
+    match out {
+        Ok(o) if o.status.success() => {
+            let text = String::from_utf8_lossy(&o.stdout);
+            println!("opencv baseline: {}", text.trim());
+            let p50: f64 = text
+                .split("\"p50_ms\": ")
+                .nth(1)
+                .and_then(|s| s.split([',', '}']).next())
+                .and_then(|s| s.trim().parse().ok())
+                .unwrap_or(f64::NAN);
+            println!("ratio (opencv p50 / deckwatch p50): {:.1}x", p50 / p.p50);
+        }
+        Ok(o) => println!(
+            "opencv baseline skipped: {}",
+            String::from_utf8_lossy(&o.stderr).trim()
+        ),
+        Err(e) => println!("opencv baseline skipped: cannot run python3: {e}"),
+    }
+}

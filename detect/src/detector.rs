@@ -1,0 +1,826 @@
+//! The marker detector: an 8-bit grayscale frame in, a [`MarkerSet`] out.
+//!
+//! Full frame: a threshold from a sparse histogram; a coarse scan of every `step`-th pixel of
+//! every `step`-th row (a marker disc covers many such cells); connected cells form candidate
+//! blobs. Each candidate is measured at full resolution in its region: background as a plane
+//! fitted to the region's border, the disc's plateau level, a 4-connected component above the
+//! half-way level (area, fill ratio, roundness from moments), and a subpixel centre weighted by
+//! coverage `(I - background) / (plateau - background)` (insensitive to light gradients).
+//! Identification is geometric (centre, bow, angles: [`crate::identify`]); with extra blobs
+//! (glints) the subsets are tried and the one whose homography to the deck fits best wins.
+//! Finally the perspective bias of disc centres (NOTES.md item 6) is removed with that
+//! homography: the centre of an imaged disc is not the image of the disc's centre.
+//!
+//! Tracking: the next frame first looks only in regions around the previous markers; when that
+//! does not give a consistent marker set it falls back to the full frame.
+
+use crate::identify::{identify, Blob};
+use deckwatch_common::deck::MAX_MARKERS;
+use deckwatch_common::homography;
+use deckwatch_common::image::{GrayView, ImageError};
+use deckwatch_common::markers::{DetectionStatus, Marker, MarkerSet, RejectCounts};
+use deckwatch_common::{CameraModel, DeckLayout};
+
+/// Tuning of the detector.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DetectorConfig {
+    /// Least brightness of a marker over its background (DN).
+    pub min_contrast: f64,
+    /// Smallest and largest plausible disc radius in pixels.
+    pub min_radius_px: f64,
+    pub max_radius_px: f64,
+    /// Least minor/major axis ratio of a blob (a disc tilted by 70 deg has 0.34).
+    pub min_roundness: f64,
+    /// Area / area of the moment ellipse must be within 1 +- this.
+    pub fill_tolerance: f64,
+    /// Largest RMS residual (pixels) of the deck-to-image homography of an accepted marker set.
+    pub max_residual_px: f64,
+    /// How far (pixels) a marker may move between frames and still be tracked; beyond, the
+    /// full-frame search finds it. Ship motion at 10 Hz moves markers by a few pixels.
+    pub track_margin_px: f64,
+    /// Remove the perspective bias of disc centres.
+    pub correct_perspective: bool,
+}
+
+impl DetectorConfig {
+    /// Defaults for a camera and deck: discs from 1.5 m to 15 m away.
+    pub fn for_camera(camera: &CameraModel, deck: &DeckLayout) -> Self {
+        let f = camera.fx.min(camera.fy);
+        Self {
+            min_contrast: 25.0,
+            min_radius_px: (f * deck.marker_radius_m / 15.0).max(1.0),
+            max_radius_px: f * deck.bow_marker_radius_m / 1.5,
+            min_roundness: 0.3,
+            fill_tolerance: 0.3,
+            max_residual_px: 2.0,
+            track_margin_px: 8.0,
+            correct_perspective: true,
+        }
+    }
+}
+
+/// A measured blob.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Candidate {
+    u: f64,
+    v: f64,
+    /// Coverage area (pixels).
+    area: f64,
+    plateau: f64,
+    contrast: f64,
+    roundness: f64,
+    /// Equivalent radius (pixels).
+    radius: f64,
+}
+
+/// Marker index and the candidate assigned to it.
+type Assignment = Vec<(usize, Candidate)>;
+type Points = Vec<[f64; 2]>;
+
+enum Rejection {
+    Area,
+    Shape,
+    Border,
+}
+
+/// Detects the deck's markers in frames of one camera, keeping track between frames.
+pub struct Detector {
+    camera: CameraModel,
+    deck: DeckLayout,
+    config: DetectorConfig,
+    /// The previous frame's markers (centre, radius) for tracking.
+    previous: Option<[Option<(f64, f64, f64)>; MAX_MARKERS]>,
+    coarse: Vec<u8>,
+    stack: Vec<(u32, u32)>,
+    seeds: Vec<u32>,
+    mask: Vec<u8>,
+    candidates: Vec<Candidate>,
+}
+
+impl Detector {
+    pub fn new(camera: CameraModel, deck: DeckLayout, config: DetectorConfig) -> Self {
+        Self {
+            camera,
+            deck,
+            config,
+            previous: None,
+            coarse: Vec::new(),
+            stack: Vec::new(),
+            seeds: Vec::new(),
+            mask: Vec::new(),
+            candidates: Vec::new(),
+        }
+    }
+
+    pub fn config(&self) -> &DetectorConfig {
+        &self.config
+    }
+
+    /// Forgets the previous frame (the next frame is searched in full).
+    pub fn reset_tracking(&mut self) {
+        self.previous = None;
+    }
+
+    /// Detects markers in a frame given as bytes with its geometry; a geometry that does not fit
+    /// the bytes is an error.
+    pub fn detect_bytes(
+        &mut self,
+        data: &[u8],
+        width: usize,
+        height: usize,
+        stride: usize,
+    ) -> Result<MarkerSet, ImageError> {
+        Ok(self.detect(GrayView::new(data, width, height, stride)?))
+    }
+
+    /// Detects markers: tracked when the previous frame had a marker set, else (or when tracking
+    /// fails) over the full frame. A frame whose size is not the camera's gives `BadFrame`.
+    pub fn detect(&mut self, frame: GrayView<'_>) -> MarkerSet {
+        if (frame.width(), frame.height()) != (self.camera.width as usize, self.camera.height as usize) {
+            self.previous = None;
+            return MarkerSet {
+                status: DetectionStatus::BadFrame,
+                ..MarkerSet::default()
+            };
+        }
+        if let Some(prev) = self.previous {
+            if let Some(set) = self.detect_tracked(frame, &prev) {
+                return set;
+            }
+        }
+        self.detect_full(frame)
+    }
+
+    /// Full-frame detection (ignores and then replaces the tracking state).
+    pub fn detect_full(&mut self, frame: GrayView<'_>) -> MarkerSet {
+        let mut rejected = RejectCounts::default();
+        self.candidates.clear();
+        let (w, h) = (frame.width(), frame.height());
+        let Some(threshold) = self.global_threshold(frame) else {
+            self.previous = None;
+            return MarkerSet::default(); // no contrast: no deck
+        };
+        // Coarse scan: one cell per `step` x `step` pixels, sampled at its corner.
+        let step = (self.config.min_radius_px.floor() as usize).clamp(1, 4);
+        let (gw, gh) = (w.div_ceil(step), h.div_ceil(step));
+        self.coarse.clear();
+        self.coarse.resize(gw * gh, 0);
+        self.seeds.clear();
+        let t = threshold as u8;
+        for gy in 0..gh {
+            let row = frame.row(gy * step);
+            let cells = &mut self.coarse[gy * gw..(gy + 1) * gw];
+            for (gx, (c, &p)) in cells.iter_mut().zip(row.iter().step_by(step)).enumerate() {
+                if p >= t {
+                    *c = 1;
+                    self.seeds.push((gy * gw + gx) as u32);
+                }
+            }
+        }
+        // Too many bright cells: not a frame of markers (e.g. over-exposed).
+        let max_cells = 64 * MAX_MARKERS * (self.config.max_radius_px / step as f64).powi(2).ceil() as usize;
+        if self.seeds.len() > max_cells {
+            self.previous = None;
+            return MarkerSet::default();
+        }
+        for i in 0..self.seeds.len() {
+            let s = self.seeds[i] as usize;
+            if self.coarse[s] != 1 {
+                continue;
+            }
+            // Flood the coarse component, keeping its bounding box.
+            let (mut x0, mut y0, mut x1, mut y1) = (s % gw, s / gw, s % gw, s / gw);
+            self.coarse[s] = 2;
+            self.stack.clear();
+            self.stack.push(((s % gw) as u32, (s / gw) as u32));
+            while let Some((x, y)) = self.stack.pop() {
+                let (x, y) = (x as usize, y as usize);
+                x0 = x0.min(x);
+                y0 = y0.min(y);
+                x1 = x1.max(x);
+                y1 = y1.max(y);
+                for (nx, ny) in [
+                    (x.wrapping_sub(1), y),
+                    (x + 1, y),
+                    (x, y.wrapping_sub(1)),
+                    (x, y + 1),
+                ] {
+                    if nx < gw && ny < gh && self.coarse[ny * gw + nx] == 1 {
+                        self.coarse[ny * gw + nx] = 2;
+                        self.stack.push((nx as u32, ny as u32));
+                    }
+                }
+            }
+            let pad = step + 3;
+            let roi = (
+                (x0 * step).saturating_sub(pad),
+                (y0 * step).saturating_sub(pad),
+                ((x1 + 1) * step + pad).min(w),
+                ((y1 + 1) * step + pad).min(h),
+            );
+            match self.measure(frame, roi) {
+                Ok(c) => self.candidates.push(c),
+                Err(Rejection::Area) => rejected.area += 1,
+                Err(Rejection::Shape) => rejected.shape += 1,
+                Err(Rejection::Border) => rejected.border += 1,
+            }
+        }
+        let set = self.assemble(rejected, false);
+        self.remember(&set);
+        set
+    }
+
+    /// Looks only around the previous markers; None when that does not give a consistent set
+    /// with as many markers as before.
+    fn detect_tracked(
+        &mut self,
+        frame: GrayView<'_>,
+        prev: &[Option<(f64, f64, f64)>; MAX_MARKERS],
+    ) -> Option<MarkerSet> {
+        let (w, h) = (frame.width() as f64, frame.height() as f64);
+        let mut found = [None; MAX_MARKERS];
+        let expected = prev.iter().flatten().count();
+        for (i, p) in prev.iter().enumerate() {
+            let Some((u, v, r)) = p else { continue };
+            // The disc, the background border the measurement needs, and the motion allowance.
+            let half = r + 4.0 + self.config.track_margin_px;
+            let roi = (
+                (u - half).max(0.0) as usize,
+                (v - half).max(0.0) as usize,
+                ((u + half).ceil().min(w)) as usize,
+                ((v + half).ceil().min(h)) as usize,
+            );
+            if roi.2 <= roi.0 + 2 || roi.3 <= roi.1 + 2 {
+                return None;
+            }
+            found[i] = Some(self.measure(frame, roi).ok()?);
+        }
+        let n = self.deck.marker_count();
+        let assigned: Vec<(usize, Candidate)> = (0..n).filter_map(|i| found[i].map(|c| (i, c))).collect();
+        if assigned.len() < expected {
+            return None;
+        }
+        let residual = self.fit_residual(&assigned)?;
+        if residual > self.config.max_residual_px {
+            return None;
+        }
+        let set = self.build(&assigned, RejectCounts::default(), true);
+        self.remember(&set);
+        Some(set)
+    }
+
+    /// Median of a sparse sample of the frame plus half the way to its brightest sample (at least
+    /// half the minimum contrast); None when the frame has no contrast.
+    fn global_threshold(&self, frame: GrayView<'_>) -> Option<f64> {
+        let (w, h) = (frame.width(), frame.height());
+        let step = (((w * h) as f64 / 16384.0).sqrt() as usize).clamp(1, 16);
+        let mut hist = [0u32; 256];
+        let mut n = 0u32;
+        for y in (step / 2..h).step_by(step) {
+            for &p in frame.row(y).iter().skip(step / 2).step_by(step) {
+                hist[p as usize] += 1;
+                n += 1;
+            }
+        }
+        let mut acc = 0;
+        let median = hist.iter().position(|&c| {
+            acc += c;
+            acc * 2 >= n
+        })? as f64;
+        // The sample step is below a marker's diameter, so markers are among the samples.
+        let top = hist.iter().rposition(|&c| c > 0)? as f64;
+        if top - median < self.config.min_contrast {
+            return None;
+        }
+        Some(median + ((top - median) / 2.0).max(self.config.min_contrast / 2.0))
+    }
+
+    /// Measures the blob in a region (x0, y0, x1, y1), half-open.
+    fn measure(
+        &mut self,
+        frame: GrayView<'_>,
+        roi: (usize, usize, usize, usize),
+    ) -> Result<Candidate, Rejection> {
+        let (x0, y0, x1, y1) = roi;
+        let (rw, rh) = (x1 - x0, y1 - y0);
+        if rw < 3 || rh < 3 {
+            return Err(Rejection::Area);
+        }
+        // Peak (the seed) and the background plane from the region's border.
+        let (mut peak, mut seed) = (0u8, (x0, y0));
+        for y in y0..y1 {
+            let row = &frame.row(y)[x0..x1];
+            let m = *row.iter().max().expect("region not empty");
+            if m > peak {
+                peak = m;
+                seed = (
+                    x0 + row.iter().position(|&p| p == m).expect("max is in the row"),
+                    y,
+                );
+            }
+        }
+        let bg = fit_border_plane(frame, roi, peak);
+        let b_at = |x: usize, y: usize| bg[0] + bg[1] * x as f64 + bg[2] * y as f64;
+        let contrast = peak as f64 - b_at(seed.0, seed.1);
+        if contrast < self.config.min_contrast {
+            return Err(Rejection::Shape);
+        }
+        // The half-way level between the peak and the background under it.
+        let level = (0.5 * (peak as f64 + b_at(seed.0, seed.1)))
+            .ceil()
+            .clamp(0.0, 255.0) as u8;
+        // One pass: the mask of pixels at or above the level, with integer moments per row. A
+        // region holds one marker (its search box); anything else bright in it spoils the shape
+        // and is rejected below.
+        self.mask.clear();
+        self.mask.resize(rw * rh, 0);
+        let (mut n, mut sx, mut sy, mut sxx, mut syy, mut sxy) = (0u64, 0u64, 0u64, 0u64, 0u64, 0u64);
+        let (mut bx0, mut by0, mut bx1, mut by1) = (rw, rh, 0, 0);
+        for y in 0..rh {
+            let row = &frame.row(y0 + y)[x0..x1];
+            let mrow = &mut self.mask[y * rw..(y + 1) * rw];
+            let (mut rn, mut rsx, mut rsxx) = (0u64, 0u64, 0u64);
+            for (x, (m, &p)) in mrow.iter_mut().zip(row).enumerate() {
+                let on = p >= level;
+                *m = on as u8;
+                let (o, xx) = (on as u64, x as u64);
+                rn += o;
+                rsx += o * xx;
+                rsxx += o * xx * xx;
+            }
+            if rn > 0 {
+                let yy = y as u64;
+                (n, sx, sxx) = (n + rn, sx + rsx, sxx + rsxx);
+                (sy, syy, sxy) = (sy + rn * yy, syy + rn * yy * yy, sxy + rsx * yy);
+                by0 = by0.min(y);
+                by1 = y;
+                bx0 = bx0.min(mrow.iter().position(|&m| m == 1).expect("row has mask pixels"));
+                bx1 = bx1.max(
+                    rw - 1
+                        - mrow
+                            .iter()
+                            .rev()
+                            .position(|&m| m == 1)
+                            .expect("row has mask pixels"),
+                );
+            }
+        }
+        let touches = n > 0 && (bx0 == 0 || by0 == 0 || bx1 + 1 == rw || by1 + 1 == rh);
+        let (area, sx, sy, sxx, syy, sxy) =
+            (n as f64, sx as f64, sy as f64, sxx as f64, syy as f64, sxy as f64);
+        if touches {
+            // The blob fills its region: at the image border, a cut disc; elsewhere, too large.
+            let at_border = x0 == 0 || y0 == 0 || x1 == frame.width() || y1 == frame.height();
+            return Err(if at_border {
+                Rejection::Border
+            } else {
+                Rejection::Area
+            });
+        }
+        let (min_r, max_r) = (self.config.min_radius_px, self.config.max_radius_px);
+        let min_area = 0.5 * std::f64::consts::PI * min_r * min_r;
+        let max_area = std::f64::consts::PI * max_r * max_r;
+        if area < min_area.max(3.0) || area > max_area {
+            return Err(Rejection::Area);
+        }
+        let (mx, my) = (sx / area, sy / area);
+        let (cxx, cyy, cxy) = (sxx / area - mx * mx, syy / area - my * my, sxy / area - mx * my);
+        let tr = cxx + cyy;
+        let disc = ((cxx - cyy).powi(2) + 4.0 * cxy * cxy).sqrt();
+        let (l1, l2) = ((tr + disc) / 2.0, (tr - disc) / 2.0);
+        let roundness = if l1 > 0.0 { (l2.max(0.0) / l1).sqrt() } else { 0.0 };
+        // A filled ellipse of area A has moment eigenvalues a^2/4, b^2/4 with A = pi a b.
+        let fill = area / (4.0 * std::f64::consts::PI * (l1 * l2).max(1e-12).sqrt());
+        if roundness < self.config.min_roundness || (fill - 1.0).abs() > self.config.fill_tolerance {
+            return Err(Rejection::Shape);
+        }
+        // Depth of each mask pixel inside the disc (0 outside, 1 at the edge, capped at 3), by
+        // repeated 4-neighbour erosion over the component's box.
+        for d in 2..=3u8 {
+            for y in by0.max(1)..by1.min(rh - 2) + 1 {
+                for x in bx0.max(1)..bx1.min(rw - 2) + 1 {
+                    let k = y * rw + x;
+                    if self.mask[k] == d - 1
+                        && self.mask[k - 1] >= d - 1
+                        && self.mask[k + 1] >= d - 1
+                        && self.mask[k - rw] >= d - 1
+                        && self.mask[k + rw] >= d - 1
+                    {
+                        self.mask[k] = d;
+                    }
+                }
+            }
+        }
+        // Plateau: a plane through the disc's interior (2 or more pixels deep), so that a light
+        // gradient across the disc does not tilt the coverage.
+        let mut pn = PlaneFit::default();
+        for y in by0..=by1 {
+            for x in bx0..=bx1 {
+                if self.mask[y * rw + x] >= 2 {
+                    pn.add(x, y, frame.get(x0 + x, y0 + y));
+                }
+            }
+        }
+        let plateau_plane = pn.solve().unwrap_or([peak as f64, 0.0, 0.0]);
+        let p_at = |x: usize, y: usize| {
+            plateau_plane[0] + plateau_plane[1] * (x - x0) as f64 + plateau_plane[2] * (y - y0) as f64
+        };
+        // Coverage-weighted centre in a window reaching 2 pixels beyond the disc: pixels 2 deep
+        // count as fully covered (no interior noise), the rest by
+        // (I - background) / (plateau - background).
+        let a = 2.0 * l1.sqrt();
+        let reach = a + 2.0;
+        let (cx, cy) = (x0 as f64 + mx, y0 as f64 + my);
+        let wx0 = ((cx - reach).floor().max(x0 as f64)) as usize;
+        let wx1 = ((cx + reach).ceil().min((x1 - 1) as f64)) as usize;
+        let wy0 = ((cy - reach).floor().max(y0 as f64)) as usize;
+        let wy1 = ((cy + reach).ceil().min((y1 - 1) as f64)) as usize;
+        let (mut cw, mut cu, mut cv) = (0.0, 0.0, 0.0);
+        for y in wy0..=wy1 {
+            for (x, &pixel) in frame.row(y).iter().enumerate().take(wx1 + 1).skip(wx0) {
+                let (dx, dy) = (x as f64 - cx, y as f64 - cy);
+                if dx * dx + dy * dy > reach * reach {
+                    continue;
+                }
+                let c = if self.mask[(y - y0) * rw + (x - x0)] >= 2 {
+                    1.0
+                } else {
+                    let b = b_at(x, y);
+                    ((pixel as f64 - b) / (p_at(x, y) - b)).min(1.0)
+                };
+                cw += c;
+                cu += c * x as f64;
+                cv += c * y as f64;
+            }
+        }
+        if !(cw > 0.0) {
+            return Err(Rejection::Shape);
+        }
+        let plateau = p_at(seed.0, seed.1);
+        Ok(Candidate {
+            u: cu / cw,
+            v: cv / cw,
+            area: cw,
+            plateau,
+            contrast: plateau - b_at(seed.0, seed.1),
+            roundness,
+            radius: (area / std::f64::consts::PI).sqrt(),
+        })
+    }
+
+    /// Identifies the candidates (trying subsets when there are extras) and builds the set.
+    fn assemble(&mut self, mut rejected: RejectCounts, tracked: bool) -> MarkerSet {
+        let n_markers = self.deck.marker_count();
+        let cands = std::mem::take(&mut self.candidates);
+        // (markers, residual, assignment) of the best consistent subset so far.
+        let mut best: Option<(usize, f64, Assignment)> = None;
+        // At most 4 extras (or missing markers) are searched: beyond, the frame is not a deck.
+        let n = cands.len();
+        if n >= 6 && n <= n_markers + 4 {
+            let min_size = 6.max(n.saturating_sub(4));
+            for size in (min_size..=n.min(n_markers)).rev() {
+                for_each_subset(n, size, &mut |subset: &[usize]| {
+                    let blobs: Vec<Blob> = subset
+                        .iter()
+                        .map(|&i| Blob {
+                            u: cands[i].u,
+                            v: cands[i].v,
+                            area: cands[i].area,
+                        })
+                        .collect();
+                    let Ok(ids) = identify(&blobs, &self.deck, &self.camera) else {
+                        return;
+                    };
+                    let assigned: Vec<(usize, Candidate)> = ids
+                        .iter()
+                        .enumerate()
+                        .filter_map(|(m, id)| id.map(|b| (m, cands[subset[b]])))
+                        .collect();
+                    let Some(res) = self.fit_residual(&assigned) else {
+                        return;
+                    };
+                    if res <= self.config.max_residual_px
+                        && best
+                            .as_ref()
+                            .is_none_or(|(k, r, _)| assigned.len() > *k || (assigned.len() == *k && res < *r))
+                    {
+                        best = Some((assigned.len(), res, assigned));
+                    }
+                });
+                if best.is_some() {
+                    break; // the largest consistent set wins
+                }
+            }
+        }
+        self.candidates = cands;
+        match best {
+            Some((k, _, assigned)) => {
+                rejected.unassigned += (self.candidates.len() - k) as u32;
+                self.build(&assigned, rejected, tracked)
+            }
+            None => {
+                rejected.unassigned += self.candidates.len() as u32;
+                MarkerSet {
+                    rejected,
+                    ..MarkerSet::default()
+                }
+            }
+        }
+    }
+
+    /// RMS residual (pixels) of the deck-to-image homography through the assigned markers.
+    fn fit_residual(&self, assigned: &[(usize, Candidate)]) -> Option<f64> {
+        let (src, dst) = self.correspondences(assigned)?;
+        let h = homography::fit(&src, &dst)?;
+        Some(homography::rms_residual(&h, &src, &dst))
+    }
+
+    /// Deck points and undistorted image points of the assigned markers.
+    fn correspondences(&self, assigned: &[(usize, Candidate)]) -> Option<(Points, Points)> {
+        let mut src = Vec::with_capacity(assigned.len());
+        let mut dst = Vec::with_capacity(assigned.len());
+        for (m, c) in assigned {
+            let p = self.deck.marker_position(*m);
+            src.push([p.x, p.y]);
+            dst.push(self.camera.undistort_pixel([c.u, c.v])?);
+        }
+        Some((src, dst))
+    }
+
+    /// The marker set of assigned candidates, with the perspective bias removed.
+    fn build(&self, assigned: &[(usize, Candidate)], rejected: RejectCounts, tracked: bool) -> MarkerSet {
+        let mut set = MarkerSet {
+            rejected,
+            tracked,
+            ..MarkerSet::default()
+        };
+        let fit = self.correspondences(assigned).and_then(|(src, dst)| {
+            let h = homography::fit(&src, &dst)?;
+            Some((h, src, dst))
+        });
+        for (k, (m, c)) in assigned.iter().enumerate() {
+            let (mut u, mut v) = (c.u, c.v);
+            let mut residual = 0.0;
+            if let Some((h, src, dst)) = &fit {
+                if let Some(p) = homography::apply(h, src[k]) {
+                    residual = ((p[0] - dst[k][0]).powi(2) + (p[1] - dst[k][1]).powi(2)).sqrt();
+                }
+                if self.config.correct_perspective {
+                    let r = self.deck.disc_radius(*m);
+                    if let Some((centre, image)) = homography::imaged_circle_centre(h, src[k], r) {
+                        let ideal = [
+                            dst[k][0] - (centre[0] - image[0]),
+                            dst[k][1] - (centre[1] - image[1]),
+                        ];
+                        [u, v] = self.camera.distort_pixel(ideal);
+                    }
+                }
+            }
+            let contrast_score = (c.contrast / (4.0 * self.config.min_contrast)).min(1.0);
+            let residual_score = 1.0 / (1.0 + residual * residual);
+            set.markers[*m] = Marker {
+                valid: true,
+                u,
+                v,
+                area_px: c.area,
+                mean_intensity: c.plateau,
+                quality: (c.roundness * contrast_score * residual_score).clamp(0.0, 1.0),
+            };
+        }
+        set.count = assigned.len() as u32;
+        set.status = if set.count as usize == self.deck.marker_count() {
+            DetectionStatus::Ok
+        } else {
+            DetectionStatus::Partial
+        };
+        set
+    }
+
+    fn remember(&mut self, set: &MarkerSet) {
+        if set.status == DetectionStatus::Ok || set.status == DetectionStatus::Partial {
+            let mut prev = [None; MAX_MARKERS];
+            for (p, m) in prev.iter_mut().zip(&set.markers) {
+                if m.valid {
+                    *p = Some((m.u, m.v, (m.area_px / std::f64::consts::PI).sqrt()));
+                }
+            }
+            self.previous = Some(prev);
+        } else {
+            self.previous = None;
+        }
+    }
+}
+
+/// Least-squares plane `z = p0 + p1 x + p2 y` from its normal equations, over integer pixel
+/// coordinates and values (exact integer sums: cheap per pixel, no rounding).
+#[derive(Default)]
+struct PlaneFit {
+    s: [i64; 9],
+}
+
+impl PlaneFit {
+    #[inline(always)]
+    fn add(&mut self, x: usize, y: usize, z: u8) {
+        let (x, y, z) = (x as i64, y as i64, z as i64);
+        for (acc, v) in self
+            .s
+            .iter_mut()
+            .zip([1, x, y, x * x, y * y, x * y, z, x * z, y * z])
+        {
+            *acc += v;
+        }
+    }
+
+    /// None with fewer than 3 points or a degenerate layout.
+    fn solve(&self) -> Option<[f64; 3]> {
+        let [n, sx, sy, sxx, syy, sxy, sz, sxz, syz] = self.s.map(|v| v as f64);
+        if n < 3.0 {
+            return None;
+        }
+        let m = nalgebra::Matrix3::new(n, sx, sy, sx, sxx, sxy, sy, sxy, syy);
+        let p = m.lu().solve(&nalgebra::Vector3::new(sz, sxz, syz))?;
+        p.iter().all(|v| v.is_finite()).then(|| [p[0], p[1], p[2]])
+    }
+}
+
+/// Least-squares plane `b0 + b1 x + b2 y` through the border pixels of a region, leaving out
+/// pixels at least as bright as half the way to the peak (parts of other blobs).
+fn fit_border_plane(
+    frame: GrayView<'_>,
+    (x0, y0, x1, y1): (usize, usize, usize, usize),
+    peak: u8,
+) -> [f64; 3] {
+    // First pass: the border's median level decides what is "bright".
+    let mut vals = [0u32; 256];
+    let border = |f: &mut dyn FnMut(usize, usize)| {
+        for x in x0..x1 {
+            f(x, y0);
+            f(x, y1 - 1);
+        }
+        for y in y0 + 1..y1 - 1 {
+            f(x0, y);
+            f(x1 - 1, y);
+        }
+    };
+    let mut n = 0u32;
+    border(&mut |x, y| {
+        vals[frame.get(x, y) as usize] += 1;
+        n += 1;
+    });
+    let mut acc = 0;
+    let median = vals
+        .iter()
+        .position(|&c| {
+            acc += c;
+            acc * 2 >= n
+        })
+        .unwrap_or(0) as f64;
+    let cut = 0.5 * (median + peak as f64);
+    // Coordinates relative to the region's corner, for conditioning.
+    let mut fit = PlaneFit::default();
+    border(&mut |x, y| {
+        let z = frame.get(x, y);
+        if (z as f64) < cut {
+            fit.add(x - x0, y - y0, z);
+        }
+    });
+    let plane = fit.solve().unwrap_or([median, 0.0, 0.0]);
+    // Back to frame coordinates.
+    [
+        plane[0] - plane[1] * x0 as f64 - plane[2] * y0 as f64,
+        plane[1],
+        plane[2],
+    ]
+}
+
+/// Calls `f` with every subset of `0..n` of size `k` (ascending indices).
+fn for_each_subset(n: usize, k: usize, f: &mut dyn FnMut(&[usize])) {
+    fn rec(start: usize, n: usize, k: usize, cur: &mut Vec<usize>, f: &mut dyn FnMut(&[usize])) {
+        if cur.len() == k {
+            f(cur);
+            return;
+        }
+        for i in start..n {
+            if n - i < k - cur.len() {
+                break;
+            }
+            cur.push(i);
+            rec(i + 1, n, k, cur, f);
+            cur.pop();
+        }
+    }
+    rec(0, n, k, &mut Vec::with_capacity(k), f);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn subsets() {
+        let mut all = Vec::new();
+        for_each_subset(5, 3, &mut |s| all.push(s.to_vec()));
+        assert_eq!(all.len(), 10);
+        assert_eq!(all[0], vec![0, 1, 2]);
+        assert_eq!(all[9], vec![2, 3, 4]);
+        let mut n = 0;
+        for_each_subset(3, 3, &mut |_| n += 1);
+        assert_eq!(n, 1);
+    }
+}
+
+#[cfg(test)]
+mod bad_input {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn detector(w: u32, h: u32) -> Detector {
+        let cam = CameraModel::rpi_v2().scaled_to(w.max(1), h.max(1));
+        let deck = DeckLayout::paper();
+        Detector::new(cam, deck, DetectorConfig::for_camera(&cam, &deck))
+    }
+
+    #[test]
+    fn uniform_frames_are_no_deck() {
+        for value in [0u8, 1, 70, 254, 255] {
+            let mut d = detector(320, 240);
+            let frame = vec![value; 320 * 240];
+            let set = d.detect_bytes(&frame, 320, 240, 320).unwrap();
+            assert_eq!(set.status, DetectionStatus::NoDeck, "value {value}");
+        }
+        // Saturated: half the frame white.
+        let mut d = detector(320, 240);
+        let mut frame = vec![60u8; 320 * 240];
+        frame[..320 * 120].fill(255);
+        assert_eq!(
+            d.detect_bytes(&frame, 320, 240, 320).unwrap().status,
+            DetectionStatus::NoDeck
+        );
+    }
+
+    #[test]
+    fn geometry_errors_are_errors() {
+        let mut d = detector(32, 24);
+        let frame = vec![0u8; 32 * 24];
+        assert!(matches!(
+            d.detect_bytes(&[], 32, 24, 32),
+            Err(ImageError::BufferTooSmall { .. })
+        ));
+        assert!(matches!(
+            d.detect_bytes(&frame, 0, 24, 32),
+            Err(ImageError::ZeroSize { .. })
+        ));
+        assert!(matches!(
+            d.detect_bytes(&frame, 32, 24, 16),
+            Err(ImageError::StrideTooSmall { .. })
+        ));
+        assert!(matches!(
+            d.detect_bytes(&frame, 32, 25, 32),
+            Err(ImageError::BufferTooSmall { .. })
+        ));
+        let set = d.detect_bytes(&frame, 16, 12, 32).unwrap();
+        assert_eq!(
+            set.status,
+            DetectionStatus::BadFrame,
+            "size differs from the camera's"
+        );
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(300))]
+        #[test]
+        fn never_panics(w in 0usize..96, h in 0usize..72, pad in 0usize..8, seed in any::<u64>(),
+                        spots in 0usize..12, len_cut in 0usize..4) {
+            let stride = w + pad;
+            let len = (stride * h).saturating_sub(len_cut);
+            let mut rng = seed | 1;
+            let mut next = || { rng ^= rng << 13; rng ^= rng >> 7; rng ^= rng << 17; rng };
+            let mut frame: Vec<u8> = (0..len).map(|_| (next() % 256) as u8).collect();
+            // Bright discs here and there, so the blob path runs too.
+            for _ in 0..spots {
+                if w < 4 || h < 4 { break; }
+                let (cx, cy, r) = ((next() % w as u64) as i64, (next() % h as u64) as i64, 1 + (next() % 6) as i64);
+                for y in (cy - r).max(0)..(cy + r).min(h as i64) {
+                    for x in (cx - r).max(0)..(cx + r).min(w as i64) {
+                        if (x - cx).pow(2) + (y - cy).pow(2) <= r * r && (y as usize * stride + (x as usize)) < len {
+                            frame[y as usize * stride + x as usize] = 250;
+                        }
+                    }
+                }
+            }
+            let mut d = detector(w as u32, h as u32);
+            match d.detect_bytes(&frame, w, h, stride) {
+                Ok(set) => {
+                    prop_assert!(set.count as usize <= 9);
+                    prop_assert_eq!(set.markers.iter().filter(|m| m.valid).count(), set.count as usize);
+                    if set.status == DetectionStatus::NoDeck || set.status == DetectionStatus::BadFrame {
+                        prop_assert_eq!(set.count, 0);
+                    }
+                    // A second frame exercises the tracking path.
+                    let _ = d.detect_bytes(&frame, w, h, stride);
+                }
+                Err(_) => prop_assert!(w == 0 || h == 0 || len < stride * h.saturating_sub(1) + w),
+            }
+        }
+    }
+}

@@ -1,0 +1,182 @@
+//! The detector on simulator frames: accuracy against the exact marker centres, attitude through
+//! the paper's estimator, robustness (occlusion, glints, no deck), tracking.
+
+use deckwatch_capture::{FrameSimulator, RenderOptions, Renderer, Scenario};
+use deckwatch_common::markers::DetectionStatus;
+use deckwatch_common::rotation::rpy_error_deg;
+use deckwatch_common::stats::ErrorStats;
+use deckwatch_common::{CameraModel, DeckLayout, GrayImage};
+use deckwatch_detect::{Detector, DetectorConfig};
+use deckwatch_estimate::{PaperEstimator, PaperVariant};
+
+fn simulator(
+    scenario: Scenario,
+    cam: CameraModel,
+    opts: RenderOptions,
+    rate: f64,
+    seed: u64,
+) -> FrameSimulator {
+    let r = Renderer::new(cam, DeckLayout::paper(), opts, seed).unwrap();
+    FrameSimulator::new(scenario.profile(seed), r, rate, 0.0, 1, seed).unwrap()
+}
+
+#[test]
+fn full_resolution_ship_motion_accuracy() {
+    let cam = CameraModel::rpi_v2();
+    let deck = DeckLayout::paper();
+    // Ship motion sampled every 1.7 s (decorrelated frames), realistic noise and blur.
+    let mut sim = simulator(Scenario::Ship, cam, RenderOptions::realistic(), 1.0 / 1.7, 11);
+    let mut det = Detector::new(cam, deck, DetectorConfig::for_camera(&cam, &deck));
+    let est = PaperEstimator::new(cam, deck, PaperVariant::Atan2);
+    let mut img = GrayImage::new(cam.width as usize, cam.height as usize);
+    let (mut ss, mut n) = (0.0, 0);
+    let mut att = ErrorStats::default();
+    for k in 0..60 {
+        let truth = sim.render_frame(k, &mut img.view_mut()).unwrap();
+        det.reset_tracking();
+        let set = det.detect(img.view());
+        assert_eq!(set.status, DetectionStatus::Ok, "frame {k}: {set:?}");
+        for (m, t) in set.markers.iter().zip(&truth.markers).take(9) {
+            let t = t.unwrap();
+            ss += (m.u - t[0]).powi(2) + (m.v - t[1]).powi(2);
+            n += 1;
+        }
+        let e = est
+            .estimate(&set.pixels(9), Some(truth.sample.viewpoint.altitude_m))
+            .unwrap();
+        att.add(rpy_error_deg(&e.attitude.rpy, &truth.sample.attitude));
+    }
+    let rms = (ss / n as f64).sqrt();
+    println!(
+        "centroid RMS {rms:.4} px; attitude RMSE {:?} deg, max {:?}",
+        att.rmse(),
+        att.max
+    );
+    assert!(rms <= 0.08, "centroid RMS {rms} px");
+    assert!(
+        att.rmse().iter().all(|&r| r <= 0.05),
+        "attitude RMSE {:?}",
+        att.rmse()
+    );
+}
+
+/// Paints a disc of value `value` and radius `r` (pixels) at (u, v).
+fn paint_disc(img: &mut GrayImage, u: f64, v: f64, r: f64, value: u8) {
+    let (w, h) = (img.width, img.height);
+    let (x0, x1) = (
+        (u - r).floor().max(0.0) as usize,
+        ((u + r).ceil() as usize).min(w - 1),
+    );
+    let (y0, y1) = (
+        (v - r).floor().max(0.0) as usize,
+        ((v + r).ceil() as usize).min(h - 1),
+    );
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            if (x as f64 - u).powi(2) + (y as f64 - v).powi(2) <= r * r {
+                img.data[y * w + x] = value;
+            }
+        }
+    }
+}
+
+#[test]
+fn occlusion_glints_and_no_deck() {
+    let cam = CameraModel::rpi_v2();
+    let deck = DeckLayout::paper();
+    let mut sim = simulator(Scenario::Offset, cam, RenderOptions::realistic(), 1.0 / 2.3, 4);
+    let mut det = Detector::new(cam, deck, DetectorConfig::for_camera(&cam, &deck));
+    let mut img = GrayImage::new(cam.width as usize, cam.height as usize);
+    for k in 0..8 {
+        let truth = sim.render_frame(k, &mut img.view_mut()).unwrap();
+        // Occlude one ring marker (not the bow) with deck-coloured paint.
+        let hidden = 2 + (k as usize % 7);
+        let [hu, hv] = truth.markers[hidden].unwrap();
+        paint_disc(&mut img, hu, hv, 35.0, 70);
+        // Glints: small specks and two marker-sized bright spots away from the deck pattern.
+        for (i, (u, v, r)) in [
+            (300.0, 300.0, 3.0),
+            (2900.0, 500.0, 6.0),
+            (600.0, 2100.0, 26.0),
+            (2800.0, 2000.0, 40.0),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            paint_disc(&mut img, u + 13.0 * k as f64, v + 7.0 * i as f64, r, 250);
+        }
+        det.reset_tracking();
+        let set = det.detect(img.view());
+        assert_eq!(set.status, DetectionStatus::Partial, "frame {k}: {set:?}");
+        assert!(!set.markers[hidden].valid);
+        assert!(
+            set.rejected.unassigned + set.rejected.area >= 2,
+            "{:?}",
+            set.rejected
+        );
+        for (i, (m, t)) in set.markers.iter().zip(&truth.markers).take(9).enumerate() {
+            if i != hidden {
+                let t = t.unwrap();
+                assert!(m.valid, "frame {k}: marker {i} lost");
+                let e = ((m.u - t[0]).powi(2) + (m.v - t[1]).powi(2)).sqrt();
+                assert!(e < 0.1, "frame {k}: marker {i} off by {e} px");
+            }
+        }
+    }
+    // No deck in view: never a marker set, with or without glints.
+    let mut sim = simulator(Scenario::NoDeck, cam, RenderOptions::realistic(), 10.0, 4);
+    for k in 0..3 {
+        sim.render_frame(k, &mut img.view_mut()).unwrap();
+        if k == 2 {
+            paint_disc(&mut img, 1600.0, 1200.0, 25.0, 240);
+            paint_disc(&mut img, 1900.0, 1200.0, 25.0, 240);
+        }
+        let set = det.detect(img.view());
+        assert_eq!(set.status, DetectionStatus::NoDeck, "frame {k}");
+        assert!(set.markers.iter().all(|m| !m.valid) && set.count == 0);
+    }
+}
+
+#[test]
+fn tracking_follows_the_deck_and_falls_back_when_lost() {
+    let cam = CameraModel::rpi_v2();
+    let deck = DeckLayout::paper();
+    let mut sim = simulator(Scenario::Ship, cam, RenderOptions::realistic(), 10.0, 2);
+    let mut det = Detector::new(cam, deck, DetectorConfig::for_camera(&cam, &deck));
+    let mut img = GrayImage::new(cam.width as usize, cam.height as usize);
+    let mut tracked = 0;
+    for k in 0..30 {
+        let truth = sim.render_frame(k, &mut img.view_mut()).unwrap();
+        let set = det.detect(img.view());
+        assert_eq!(set.status, DetectionStatus::Ok, "frame {k}");
+        tracked += usize::from(set.tracked);
+        for (m, t) in set.markers.iter().zip(&truth.markers).take(9) {
+            let t = t.unwrap();
+            assert!(((m.u - t[0]).powi(2) + (m.v - t[1]).powi(2)).sqrt() < 0.1);
+        }
+    }
+    assert_eq!(tracked, 29, "every frame after the first is tracked");
+    // The deck jumps (camera moved): tracking fails, the full frame finds it again.
+    let mut far = simulator(Scenario::Offset, cam, RenderOptions::realistic(), 10.0, 9);
+    let truth = far.render_frame(0, &mut img.view_mut()).unwrap();
+    let shift = 400.0;
+    let mut shifted = GrayImage::new(img.width, img.height);
+    for y in 0..img.height {
+        for x in 0..img.width {
+            let sx = x as f64 - shift;
+            shifted.data[y * img.width + x] = if sx >= 0.0 {
+                img.data[y * img.width + sx as usize]
+            } else {
+                70
+            };
+        }
+    }
+    let set = det.detect(shifted.view());
+    assert_eq!(set.status, DetectionStatus::Ok);
+    assert!(!set.tracked, "a jump is found by the full-frame search");
+    let t = truth.markers[0].unwrap();
+    assert!((set.markers[0].u - (t[0] + shift)).abs() < 0.1);
+    // A frame of another size is a bad frame, and resets tracking.
+    let small = GrayImage::new(640, 480);
+    assert_eq!(det.detect(small.view()).status, DetectionStatus::BadFrame);
+}

@@ -148,3 +148,78 @@ fn sweep_compares_the_variants() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--scenario: unknown `storm`"));
 }
+
+#[test]
+fn run_replays_recordings_and_simulates() {
+    let data = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/");
+    let deckwatch = workspace_binary("deckwatch");
+    let out = Command::new(&deckwatch)
+        .args([
+            "run",
+            "--source",
+            "replay",
+            "--recording",
+            &format!("{data}ship-640x480"),
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("8 frames (0 bad, skipped): 8 ok"), "{stdout}");
+    assert!(
+        stdout.contains("attitude error vs ground truth (8 frames)"),
+        "{stdout}"
+    );
+    for stage in ["capture:", "detect:", "estimate:"] {
+        assert!(stdout.contains(stage), "{stdout}");
+    }
+    let out = Command::new(&deckwatch)
+        .args([
+            "run",
+            "--source",
+            "replay",
+            "--recording",
+            &format!("{data}nodeck-640x480"),
+        ])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("3 no deck") && stdout.contains("0 attitudes"),
+        "{stdout}"
+    );
+    assert!(!stdout.contains("WARNING"), "{stdout}");
+    // A bad frame in a recording is counted and skipped.
+    let tmp = tempfile::tempdir().unwrap();
+    let rec = tmp.path().join("rec");
+    let copy = |from: &str| {
+        std::fs::create_dir_all(rec.join("frames")).unwrap();
+        for f in ["camera.json", "frames.csv"] {
+            std::fs::copy(format!("{data}{from}/{f}"), rec.join(f)).unwrap();
+        }
+        for e in std::fs::read_dir(format!("{data}{from}/frames")).unwrap() {
+            let e = e.unwrap();
+            std::fs::copy(e.path(), rec.join("frames").join(e.file_name())).unwrap();
+        }
+    };
+    copy("offset-640x480");
+    std::fs::write(rec.join("frames/000001.png"), b"broken").unwrap();
+    let out = Command::new(&deckwatch)
+        .args(["run", "--source", "replay", "--recording"])
+        .arg(&rec)
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("3 frames (1 bad, skipped): 3 ok"), "{stdout}");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("000001.png"));
+    // The simulator source, small and quick.
+    let out = Command::new(&deckwatch)
+        .args([
+            "run", "--frames", "5", "--width", "640", "--height", "480", "--every", "0",
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("5 frames (0 bad, skipped): 5 ok"));
+}

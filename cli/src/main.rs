@@ -1,5 +1,6 @@
 //! `deckwatch`: the command line of the deck-attitude pipeline.
 //!
+//! - `deckwatch run`: the pipeline on the simulator (default) or a recording.
 //! - `deckwatch sweep`: simulate a scenario at the level of marker points and run every variant of
 //!   the paper's estimator on it, side by side (accuracy and per-frame cost).
 //! - `deckwatch sim record`: render a scenario into a recording with ground truth.
@@ -27,8 +28,13 @@ struct Cli {
     command: Command,
 }
 
+mod run;
+
 #[derive(Subcommand)]
 enum Command {
+    /// Run the pipeline (capture -> detect -> estimate) on the simulator or a recording, in one
+    /// process, with per-stage timing and accuracy against the ground truth.
+    Run(run::RunArgs),
     /// Simulate a scenario (exact marker pixels, optional noise) and compare the estimator variants.
     Sweep(SweepArgs),
     /// The simulator of the paper's scene.
@@ -217,6 +223,7 @@ fn check_recording(dir: &std::path::Path) -> Result<(), String> {
 
 fn main() -> ExitCode {
     let result = match Cli::parse().command {
+        Command::Run(a) => run::run(a),
         Command::Sweep(a) => sweep(a),
         Command::Sim {
             command: SimCommand::Record(a),

@@ -1,6 +1,6 @@
 //! Plane-to-image homographies: the normalised DLT fit, and the image of a circle.
 
-use nalgebra::{DMatrix, Matrix3, Vector3};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 /// Applies `h` to a point; None at infinity.
 pub fn apply(h: &Matrix3<f64>, [x, y]: [f64; 2]) -> Option<[f64; 2]> {
@@ -33,19 +33,20 @@ pub fn fit(src: &[[f64; 2]], dst: &[[f64; 2]]) -> Option<Matrix3<f64>> {
         return None;
     }
     let (ts, td) = (normaliser(src)?, normaliser(dst)?);
-    let mut a = DMatrix::<f64>::zeros(2 * src.len(), 9);
-    for (i, (s, d)) in src.iter().zip(dst).enumerate() {
+    // A^T A accumulated row by row (fixed size: no allocation); the null vector of the DLT
+    // system A h = 0 is its eigenvector with the smallest eigenvalue.
+    let mut ata = SMatrix::<f64, 9, 9>::zeros();
+    for (s, d) in src.iter().zip(dst) {
         let p = ts * Vector3::new(s[0], s[1], 1.0);
         let q = td * Vector3::new(d[0], d[1], 1.0);
         let (x, y, u, v) = (p.x, p.y, q.x, q.y);
-        let r = 2 * i;
-        a.row_mut(r)
-            .copy_from_slice(&[-x, -y, -1.0, 0.0, 0.0, 0.0, u * x, u * y, u]);
-        a.row_mut(r + 1)
-            .copy_from_slice(&[0.0, 0.0, 0.0, -x, -y, -1.0, v * x, v * y, v]);
+        for row in [
+            SVector::<f64, 9>::from([-x, -y, -1.0, 0.0, 0.0, 0.0, u * x, u * y, u]),
+            SVector::<f64, 9>::from([0.0, 0.0, 0.0, -x, -y, -1.0, v * x, v * y, v]),
+        ] {
+            ata += row * row.transpose();
+        }
     }
-    // The null vector: eigenvector of A^T A with the smallest eigenvalue.
-    let ata = a.transpose() * &a;
     let eig = nalgebra::SymmetricEigen::new(ata);
     let k = (0..9).min_by(|&i, &j| eig.eigenvalues[i].total_cmp(&eig.eigenvalues[j]))?;
     let hv = eig.eigenvectors.column(k);

@@ -1,4 +1,4 @@
-//! The command-line tools end to end: the capture -> estimate pipe, bad input rows, recording
+//! The command-line tools end to end: the marker-table pipe (`sim markers | estimate-table`), bad input rows, recording
 //! checks and the sweep.
 
 use deckwatch_common::{CameraModel, DeckLayout, GrayImage, GroundTruth, RecordingWriter};
@@ -6,8 +6,10 @@ use deckwatch_tests::workspace_binary;
 use std::io::Write;
 use std::process::{Command, Stdio};
 
-fn run_with_input(bin: &str, args: &[&str], input: &[u8]) -> std::process::Output {
-    let mut child = Command::new(workspace_binary(bin))
+/// `deckwatch estimate-table ARGS` with `input` on stdin.
+fn run_with_input(args: &[&str], input: &[u8]) -> std::process::Output {
+    let mut child = Command::new(workspace_binary("deckwatch"))
+        .arg("estimate-table")
         .args(args)
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
@@ -20,8 +22,17 @@ fn run_with_input(bin: &str, args: &[&str], input: &[u8]) -> std::process::Outpu
 
 #[test]
 fn capture_pipes_into_estimate_exactly() {
-    let table = Command::new(workspace_binary("deckwatch-capture"))
-        .args(["--scenario", "offset", "--frames", "200", "--seed", "3"])
+    let table = Command::new(workspace_binary("deckwatch"))
+        .args([
+            "sim",
+            "markers",
+            "--scenario",
+            "offset",
+            "--frames",
+            "200",
+            "--seed",
+            "3",
+        ])
         .output()
         .unwrap();
     assert!(
@@ -29,7 +40,7 @@ fn capture_pipes_into_estimate_exactly() {
         "{}",
         String::from_utf8_lossy(&table.stderr)
     );
-    let out = run_with_input("deckwatch-estimate", &["--variant", "atan2"], &table.stdout);
+    let out = run_with_input(&["--variant", "atan2"], &table.stdout);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = String::from_utf8(out.stdout).unwrap();
     let mut lines = text.lines();
@@ -52,8 +63,8 @@ fn capture_pipes_into_estimate_exactly() {
 
 #[test]
 fn bad_rows_are_reported_counted_and_skipped() {
-    let table = Command::new(workspace_binary("deckwatch-capture"))
-        .args(["--frames", "5"])
+    let table = Command::new(workspace_binary("deckwatch"))
+        .args(["sim", "markers", "--frames", "5"])
         .output()
         .unwrap();
     let text = String::from_utf8(table.stdout).unwrap();
@@ -68,7 +79,7 @@ fn bad_rows_are_reported_counted_and_skipped() {
     f[4] = "nan".into();
     lines[4] = f.join(",");
     let input = lines.join("\n") + "\n";
-    let out = run_with_input("deckwatch-estimate", &[], input.as_bytes());
+    let out = run_with_input(&[], input.as_bytes());
     assert_eq!(out.status.code(), Some(2), "bad rows make the exit code 2");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(

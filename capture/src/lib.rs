@@ -1,13 +1,14 @@
-//! Frame sources of deckwatch. So far the simulator of the paper's scene: motion profiles (deck
-//! attitude and camera position over time), named scenarios, the image renderer and frame
-//! simulator, marker-level simulation (exact marker pixels) and a deterministic random
-//! generator. Replay and libcamera sources come with their issues.
+//! Frame sources of deckwatch: the simulator of the paper's scene (motion profiles, named
+//! scenarios, the image renderer and frame simulator, marker-level simulation, a deterministic
+//! random generator) and the replay of recordings, behind one [`source::CaptureSource`] that the
+//! capture stage (`src/main.rs`) publishes from.
 
 pub mod motion;
 pub mod render;
 pub mod rng;
 pub mod scenario;
 pub mod sim;
+pub mod source;
 
 pub use motion::{Case1Sweep, MotionProfile, MotionSample, ShipMotion, TrackingError};
 pub use render::{RenderOptions, Renderer};

@@ -1,43 +1,112 @@
-//! `deckwatch-capture`: the capture stage. For now it simulates at the level of points: it writes
-//! the marker table (exact marker pixels with ground truth, optionally noisy) for a scenario to
-//! stdout or a file, e.g. `deckwatch-capture --scenario ship | deckwatch-estimate`.
+//! `deckwatch-capture`: the capture stage. Takes frames from the configured source (simulator or
+//! replay), writes each straight into a loaned iceoryx2 sample and publishes it, paced at the
+//! source's rate. If it falls behind, the frames whose time has passed are skipped and counted,
+//! as a camera would drop them. Exits when the source is exhausted or on SIGINT/SIGTERM.
 
 use clap::Parser;
-use deckwatch_capture::scenario::SimulationArgs;
-use deckwatch_common::marker_table::MarkerTableWriter;
-use std::io::Write;
+use deckwatch_capture::source::CaptureConfig;
+use deckwatch_common::bus::{quiet_logging, Bus, PublishError, StageArgs};
+use deckwatch_common::messages::{
+    monotonic_ns, DropCounts, FrameContext, FrameHeader, FrameStamp, PixelFormat, StageTimes, Truth,
+};
 use std::process::ExitCode;
+use std::time::Duration;
 
 #[derive(Parser)]
 #[command(
     version,
-    about = "Simulated marker pixels of the paper's scene, as a marker table (CSV)"
+    about = "deckwatch capture stage: frames into iceoryx2 shared memory"
 )]
 struct Args {
     #[command(flatten)]
-    sim: SimulationArgs,
-    /// Gaussian pixel noise on the marker centres (standard deviation per axis, pixels).
-    #[arg(long, default_value_t = 0.0)]
-    noise_px: f64,
-    /// Output file (default: stdout).
-    #[arg(long)]
-    out: Option<std::path::PathBuf>,
+    stage: StageArgs,
 }
 
 fn run(a: Args) -> Result<(), String> {
-    let sim = a.sim.resolve()?;
-    let out: Box<dyn Write> = match &a.out {
-        Some(p) => Box::new(std::io::BufWriter::new(
-            std::fs::File::create(p).map_err(|e| format!("{}: cannot create: {e}", p.display()))?,
-        )),
-        None => Box::new(std::io::BufWriter::new(std::io::stdout().lock())),
-    };
-    let io = |e: std::io::Error| format!("cannot write the marker table: {e}");
-    let mut table = MarkerTableWriter::new(out, sim.deck.marker_count()).map_err(io)?;
-    for row in a.sim.marker_rows(&sim, a.noise_px)? {
-        table.write(&row).map_err(io)?;
+    let (file, text) = a.stage.read_config()?;
+    let config = CaptureConfig::from_toml(&file, &text)?;
+    let bus_config = a.stage.bus_config(&file, &text)?;
+    let mut source = config.open()?;
+    let camera = *source.camera();
+    let deck = *source.deck();
+    let (width, height) = (camera.width, camera.height);
+    quiet_logging();
+    let bus = Bus::join(&bus_config.settings(source.frame_bytes()), "capture").map_err(|e| e.to_string())?;
+    let publisher = bus.frame_publisher().map_err(|e| e.to_string())?;
+
+    let start = monotonic_ns();
+    let mut drops = DropCounts::default();
+    let (mut seq, mut k) = (0u64, 0u64);
+    loop {
+        if source.len().is_some_and(|n| k >= n) {
+            break;
+        }
+        // Pace: sleep (signal-aware) until frame k is due; skip frames whose time has passed.
+        if let Some(due) = source.due_ns(k) {
+            let now = monotonic_ns() - start;
+            if now < due {
+                if !bus.sleep(Duration::from_nanos(due - now)) {
+                    break;
+                }
+            } else {
+                while source.due_ns(k + 1).is_some_and(|next| next <= now)
+                    && source.len().is_none_or(|n| k + 1 < n)
+                {
+                    k += 1;
+                    drops.capture += 1;
+                }
+            }
+        } else if !bus.sleep(Duration::ZERO) {
+            break;
+        }
+        let header = FrameHeader {
+            stamp: FrameStamp {
+                seq,
+                times: StageTimes {
+                    captured_ns: monotonic_ns(),
+                    ..Default::default()
+                },
+                drops,
+            },
+            context: FrameContext {
+                source: source.kind(),
+                camera,
+                deck,
+                ..Default::default()
+            },
+            width,
+            height,
+            stride: width,
+            pixel_format: PixelFormat::Gray8,
+        };
+        let frame = k;
+        let result = publisher.publish(header, |h, pixels| {
+            let f = source.capture(frame, pixels, width as usize)?;
+            h.context.source_index = f.source_index;
+            h.context.source_timestamp_ns = f.source_timestamp_ns;
+            h.context.altitude_m = f.altitude_m.unwrap_or(f64::NAN);
+            h.context.truth = Truth::from_ground_truth(&f.truth, f.truth_known);
+            Ok::<(), String>(())
+        });
+        match result {
+            Ok(_) => seq += 1,
+            Err(PublishError::NoSample(e)) => {
+                drops.capture += 1;
+                eprintln!("deckwatch-capture: frame {frame} dropped: {e}");
+            }
+            Err(PublishError::Fill(e)) => {
+                drops.bad_frames += 1;
+                eprintln!("deckwatch-capture: frame {frame} skipped: {e}");
+            }
+            Err(e) => return Err(e.to_string()),
+        }
+        k += 1;
     }
-    table.flush().map_err(io)
+    eprintln!(
+        "deckwatch-capture: {seq} frames published, {} dropped, {} bad",
+        drops.capture, drops.bad_frames
+    );
+    Ok(())
 }
 
 fn main() -> ExitCode {

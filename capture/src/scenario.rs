@@ -59,8 +59,10 @@ impl Scenario {
     }
 }
 
-/// The command-line choice of a simulation, shared by every tool that simulates.
-#[derive(Debug, Clone, clap::Args)]
+/// The command-line choice of a simulation, shared by every tool that simulates (and the
+/// `[sim]` section of the pipeline's configuration).
+#[derive(Debug, Clone, PartialEq, clap::Args, serde::Deserialize, serde::Serialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct SimulationArgs {
     /// Scenario: case1, ship, offset or nodeck.
     #[arg(long, default_value = "ship")]
@@ -77,6 +79,18 @@ pub struct SimulationArgs {
     /// Seed of the sea's phases, the textures and the noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+}
+
+impl Default for SimulationArgs {
+    /// The command line's defaults.
+    fn default() -> Self {
+        #[derive(clap::Parser)]
+        struct Defaults {
+            #[command(flatten)]
+            a: SimulationArgs,
+        }
+        <Defaults as clap::Parser>::parse_from(["defaults"]).a
+    }
 }
 
 /// A validated [`SimulationArgs`].

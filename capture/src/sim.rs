@@ -123,8 +123,10 @@ impl FrameSimulator {
     }
 }
 
-/// Command-line choice of the image: resolution, look and lens.
-#[derive(Debug, Clone, clap::Args)]
+/// Command-line choice of the image: resolution, look and lens (and the `[image]` section of
+/// the pipeline's configuration).
+#[derive(Debug, Clone, PartialEq, clap::Args, serde::Deserialize, serde::Serialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct ImageArgs {
     /// Image width (the camera preset is scaled to it); default: the preset's.
     #[arg(long)]
@@ -160,6 +162,18 @@ pub struct ImageArgs {
     /// Lens distortion k1,k2,p1,p2,k3 (OpenCV order).
     #[arg(long, value_delimiter = ',', num_args = 5)]
     pub distortion: Option<Vec<f64>>,
+}
+
+impl Default for ImageArgs {
+    /// The command line's defaults.
+    fn default() -> Self {
+        #[derive(clap::Parser)]
+        struct Defaults {
+            #[command(flatten)]
+            a: ImageArgs,
+        }
+        <Defaults as clap::Parser>::parse_from(["defaults"]).a
+    }
 }
 
 impl ImageArgs {

@@ -1,6 +1,10 @@
 //! `deckwatch`: the command line of the deck-attitude pipeline.
 //!
-//! - `deckwatch run`: the pipeline on the simulator (default) or a recording.
+//! - `deckwatch run`: the pipeline as four processes over iceoryx2 (capture, detect, estimate,
+//!   decide) on the simulator (default) or a recording, supervised, with a live status line.
+//! - `deckwatch latency RECORDING`: per-stage latency of the four processes on recorded frames.
+//! - `deckwatch inproc`: the same stages in one process, for profiling the algorithms.
+//! - `deckwatch sim markers` / `deckwatch estimate-table`: the marker-table tools.
 //! - `deckwatch sweep`: simulate a scenario at the level of marker points and run every variant of
 //!   the paper's estimator on it, side by side (accuracy and per-frame cost).
 //! - `deckwatch sim record`: render a scenario into a recording with ground truth.
@@ -28,13 +32,22 @@ struct Cli {
     command: Command,
 }
 
-mod run;
+mod inproc;
+mod launch;
+mod pipeline;
+mod tables;
 
 #[derive(Subcommand)]
 enum Command {
-    /// Run the pipeline (capture -> detect -> estimate) on the simulator or a recording, in one
-    /// process, with per-stage timing and accuracy against the ground truth.
-    Run(run::RunArgs),
+    /// Run the pipeline: capture, detect, estimate and decide as supervised processes over
+    /// iceoryx2 shared memory, with a live status line; stops on Ctrl-C or at the source's end.
+    Run(pipeline::RunArgs),
+    /// Replay a recording through the four processes and report per-stage latency and drops.
+    Latency(pipeline::LatencyArgs),
+    /// The stages in one process, frame by frame (no IPC): per-stage cost and accuracy.
+    Inproc(inproc::RunArgs),
+    /// Run the paper's estimator on a marker table (CSV), one attitude row per frame.
+    EstimateTable(tables::EstimateTableArgs),
     /// Simulate a scenario (exact marker pixels, optional noise) and compare the estimator variants.
     Sweep(SweepArgs),
     /// The simulator of the paper's scene.
@@ -54,6 +67,8 @@ enum SimCommand {
     /// Render a scenario's frames into a recording (camera.json, frames.csv with ground truth,
     /// 8-bit grayscale PNGs).
     Record(RecordArgs),
+    /// Write a scenario's exact (or noisy) marker pixels with ground truth as a marker table.
+    Markers(tables::MarkersArgs),
 }
 
 #[derive(clap::Args)]
@@ -223,7 +238,17 @@ fn check_recording(dir: &std::path::Path) -> Result<(), String> {
 
 fn main() -> ExitCode {
     let result = match Cli::parse().command {
-        Command::Run(a) => run::run(a),
+        Command::Run(a) => pipeline::run(a),
+        Command::Latency(a) => pipeline::latency(a),
+        Command::Inproc(a) => inproc::run(a),
+        Command::EstimateTable(a) => match tables::estimate_table(a) {
+            Ok(true) => Ok(()),
+            Ok(false) => return ExitCode::from(2), // finished, but some rows were bad
+            Err(e) => Err(e),
+        },
+        Command::Sim {
+            command: SimCommand::Markers(a),
+        } => tables::markers(a),
         Command::Sweep(a) => sweep(a),
         Command::Sim {
             command: SimCommand::Record(a),

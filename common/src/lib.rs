@@ -5,12 +5,15 @@
 //! z = up; `P_world = R * P_deck`; `R = Rz(alpha) Rx(beta) Rz(gamma) = Rx(roll) Ry(pitch) Rz(yaw)`;
 //! level camera looking down, image up = bow, image left = port; pixel centres at integers.
 
+pub mod bus;
 pub mod camera;
 pub mod deck;
+pub mod ellipse;
 pub mod homography;
 pub mod image;
 pub mod marker_table;
 pub mod markers;
+pub mod messages;
 pub mod recording;
 pub mod rotation;
 pub mod scene;

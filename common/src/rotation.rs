@@ -9,6 +9,7 @@
 //!
 //! All angles are radians unless a name ends in `_deg`.
 
+use iceoryx2::prelude::ZeroCopySend;
 use nalgebra::Matrix3;
 use std::f64::consts::{FRAC_PI_2, PI};
 
@@ -47,7 +48,9 @@ pub fn wrap_pi(a: f64) -> f64 {
 ///
 /// Positive roll raises the port side, positive pitch lowers the bow, positive yaw turns the bow
 /// to port.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[type_name("deckwatch.Rpy.v1")]
 pub struct Rpy {
     pub roll: f64,
     pub pitch: f64,
@@ -109,7 +112,9 @@ impl Rpy {
 /// (-180, 180], `gamma` in (-180, 180] deg. `(alpha, beta, gamma)` and
 /// `(alpha + 180, -beta, gamma + 180)` are the same rotation; the canonical form picks the one
 /// with alpha in (-90, 90].
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[type_name("deckwatch.Euler313.v1")]
 pub struct Euler313 {
     pub alpha: f64,
     pub beta: f64,
@@ -208,7 +213,9 @@ impl Euler313 {
 }
 
 /// A Hamilton unit quaternion `w + x i + y j + z k` of a rotation matrix R.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("deckwatch.Quaternion.v1")]
 pub struct Quaternion {
     pub w: f64,
     pub x: f64,

@@ -3,6 +3,8 @@
 //! prediction and fail-safes, in its own issue) is measured against. The naive rule looks at one
 //! instant only; it is not a landing clearance.
 
+pub mod stage;
+
 use deckwatch_common::Rpy;
 
 /// What the quadrotor can land on: deck tilt limits at touchdown.

@@ -112,6 +112,14 @@ impl Detector {
         }
     }
 
+    pub fn camera(&self) -> &CameraModel {
+        &self.camera
+    }
+
+    pub fn deck(&self) -> &DeckLayout {
+        &self.deck
+    }
+
     pub fn config(&self) -> &DetectorConfig {
         &self.config
     }

@@ -1,10 +1,12 @@
-//! Deck attitude estimators: pure algorithms, no IPC and no logging.
+//! Deck attitude estimators: pure algorithms, no IPC and no logging; the stage binary
+//! (`src/main.rs`) wires [`stage`] to iceoryx2.
 //!
 //! - [`paper`]: the paper's ellipse method with the corrections of NOTES.md.
 //! - [`ellipse`]: the eq. (3) conic fit both use.
 
 pub mod ellipse;
 pub mod paper;
+pub mod stage;
 
 pub use ellipse::{Ellipse, EllipseFit, EllipseFitError};
 pub use paper::{NotEstimable, PaperEstimate, PaperEstimator, PaperVariant};

@@ -1,161 +1,44 @@
-//! `deckwatch-estimate`: the estimate stage. For now it reads a marker table (CSV: marker pixels
-//! per frame, see `deckwatch_common::marker_table`) from a file or stdin and writes one attitude
-//! row per frame. A bad row is reported (file, line, column), counted and skipped; the stream
-//! goes on.
+//! `deckwatch-estimate`: the estimate stage. Sleeps until detect publishes markers, estimates the
+//! deck attitude of each marker set, publishes it to decide. Runs until SIGINT/SIGTERM.
 
 use clap::Parser;
-use deckwatch_common::marker_table::MarkerTableReader;
-use deckwatch_common::recording::read_camera_json;
-use deckwatch_common::rotation::rpy_error_deg;
-use deckwatch_common::stats::Percentiles;
-use deckwatch_common::{CameraModel, DeckLayout};
-use deckwatch_estimate::{PaperEstimator, PaperVariant};
-use std::collections::BTreeMap;
-use std::io::{BufRead, Write};
+use deckwatch_common::bus::{event_loop, quiet_logging, Bus, BusError, Flow, StageArgs};
+use deckwatch_common::messages::{monotonic_ns, AttitudeMessage, MarkerMessage};
+use deckwatch_estimate::stage::{EstimateConfig, EstimateStage};
 use std::process::ExitCode;
-use std::time::Instant;
 
 #[derive(Parser)]
-#[command(version, about = "Deck attitude from marker pixels (the paper's estimator)")]
+#[command(version, about = "deckwatch estimate stage: deck attitude from markers")]
 struct Args {
-    /// Marker table to read; `-` for stdin.
-    #[arg(default_value = "-")]
-    input: String,
-    /// Camera preset (paper, rpi-v2), used when --recording is not given.
-    #[arg(long, default_value = "rpi-v2")]
-    camera: String,
-    /// Take camera and deck from this recording's camera.json instead.
-    #[arg(long)]
-    recording: Option<std::path::PathBuf>,
-    /// Estimator variant: printed, fitted-major-axis, atan2.
-    #[arg(long, default_value = "atan2")]
-    variant: String,
-    /// Ignore the table's alt_m column (no altimeter).
-    #[arg(long)]
-    no_altimeter: bool,
+    #[command(flatten)]
+    stage: StageArgs,
 }
 
-fn fmt(v: f64) -> String {
-    if v.is_finite() {
-        format!("{v:.12}")
-    } else {
-        "nan".into()
-    }
-}
-
-fn run(a: Args) -> Result<bool, String> {
-    let variant = PaperVariant::from_name(&a.variant).ok_or_else(|| {
-        format!(
-            "--variant: unknown `{}` (printed, fitted-major-axis, atan2)",
-            a.variant
-        )
-    })?;
-    let (camera, deck) = match &a.recording {
-        Some(dir) => read_camera_json(dir).map_err(|e| e.to_string())?,
-        None => (
-            CameraModel::preset(&a.camera)
-                .ok_or_else(|| format!("--camera: unknown `{}` (paper, rpi-v2)", a.camera))?,
-            DeckLayout::paper(),
-        ),
-    };
-    let input: Box<dyn BufRead> = if a.input == "-" {
-        Box::new(std::io::stdin().lock())
-    } else {
-        Box::new(std::io::BufReader::new(
-            std::fs::File::open(&a.input).map_err(|e| format!("{}: cannot read: {e}", a.input))?,
-        ))
-    };
-    let source = if a.input == "-" { "stdin" } else { a.input.as_str() };
-    let mut table = MarkerTableReader::new(source, input, deck.marker_count()).map_err(|e| e.to_string())?;
-    let est = PaperEstimator::new(camera, deck, variant);
-    let mut out = std::io::BufWriter::new(std::io::stdout().lock());
-    let io = |e: std::io::Error| format!("cannot write: {e}");
-    writeln!(
-        out,
-        "index,timestamp_ns,status,roll_deg,pitch_deg,yaw_deg,alpha_deg,beta_deg,gamma_deg,qw,qx,qy,qz,fit_rms_m,err_roll_deg,err_pitch_deg,err_yaw_deg,reason"
-    )
-    .map_err(io)?;
-    let (mut ok, mut bad_rows) = (0usize, 0usize);
-    let mut not_estimable: BTreeMap<String, usize> = BTreeMap::new();
-    let mut times_us = Vec::new();
-    while let Some(row) = table.next_row() {
-        let row = match row {
-            Ok(r) => r,
-            Err(e) => {
-                eprintln!("deckwatch-estimate: skipped: {e}");
-                bad_rows += 1;
-                continue;
-            }
-        };
-        let alt = if a.no_altimeter { None } else { row.truth.alt_m };
-        let t0 = Instant::now();
-        let r = est.estimate(&row.markers, alt);
-        times_us.push(t0.elapsed().as_secs_f64() * 1e6);
-        match r {
-            Ok(e) => {
-                ok += 1;
-                let att = e.attitude;
-                let [r, p, y] = att.rpy.to_degrees();
-                let [al, be, ga] = att.euler313.to_degrees();
-                let q = att.quaternion;
-                let err = row
-                    .truth
-                    .attitude()
-                    .map(|t| rpy_error_deg(&att.rpy, &t))
-                    .unwrap_or([f64::NAN; 3]);
-                let cols = [
-                    r,
-                    p,
-                    y,
-                    al,
-                    be,
-                    ga,
-                    q.w,
-                    q.x,
-                    q.y,
-                    q.z,
-                    e.fit_rms_m,
-                    err[0],
-                    err[1],
-                    err[2],
-                ];
-                let cols: Vec<String> = cols.iter().map(|&v| fmt(v)).collect();
-                writeln!(out, "{},{},ok,{},", row.index, row.timestamp_ns, cols.join(",")).map_err(io)?;
-            }
-            Err(e) => {
-                *not_estimable.entry(format!("{e}")).or_default() += 1;
-                let nans = vec!["nan"; 14].join(",");
-                writeln!(
-                    out,
-                    "{},{},not_estimable,{nans},\"{e}\"",
-                    row.index, row.timestamp_ns
-                )
-                .map_err(io)?;
-            }
+fn run(a: Args) -> Result<(), String> {
+    let (file, text) = a.stage.read_config()?;
+    let bus_config = a.stage.bus_config(&file, &text)?;
+    let mut stage = EstimateStage::new(&EstimateConfig::from_toml(&file, &text)?)?;
+    quiet_logging();
+    let bus = Bus::join(&bus_config.settings(1), "estimate").map_err(|e| e.to_string())?;
+    let input = bus.subscriber::<MarkerMessage>().map_err(|e| e.to_string())?;
+    let output = bus.publisher::<AttitudeMessage>().map_err(|e| e.to_string())?;
+    event_loop(&[input.listener()], None, |_| {
+        while let Some(m) = input.receive()? {
+            output.send(&stage.process(&m, monotonic_ns()))?;
         }
-    }
-    out.flush().map_err(io)?;
-    let frames = ok + not_estimable.values().sum::<usize>();
+        Ok::<Flow, BusError>(Flow::Continue)
+    })
+    .map_err(|e| e.to_string())?;
     eprintln!(
-        "deckwatch-estimate: {frames} frames, {ok} estimated ({}), {bad_rows} bad rows skipped",
-        variant.name()
+        "deckwatch-estimate: {} marker sets, {} attitudes, {} dropped",
+        stage.processed, stage.estimated, stage.dropped
     );
-    for (why, n) in &not_estimable {
-        eprintln!("  not estimable x{n}: {why}");
-    }
-    if let Some(p) = Percentiles::of(&mut times_us) {
-        eprintln!(
-            "  estimate time per frame (us): p50 {:.1} p90 {:.1} p99 {:.1} max {:.1}",
-            p.p50, p.p90, p.p99, p.max
-        );
-    }
-    Ok(bad_rows == 0)
+    Ok(())
 }
 
 fn main() -> ExitCode {
     match run(Args::parse()) {
-        Ok(true) => ExitCode::SUCCESS,
-        Ok(false) => ExitCode::from(2), // finished, but some rows were bad
+        Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("deckwatch-estimate: {e}");
             ExitCode::FAILURE

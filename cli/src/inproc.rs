@@ -1,7 +1,7 @@
-//! `deckwatch run`: the pipeline in one process, frame by frame: capture (simulator or replay of
+//! `deckwatch inproc`: the pipeline in one process, frame by frame: capture (simulator or replay of
 //! a recording) -> detect -> estimate, with per-stage timing and, where the source knows it,
-//! accuracy against the ground truth. (The multi-process pipeline replaces this loop later; the
-//! stages are the same library calls.)
+//! accuracy against the ground truth: for profiling and debugging the algorithms without IPC (the
+//! same library calls as the stage processes of `deckwatch run`).
 
 use deckwatch_capture::scenario::SimulationArgs;
 use deckwatch_capture::sim::ImageArgs;

@@ -1,0 +1,401 @@
+//! The capture stage's sources and its part of the pipeline configuration: the simulator, or
+//! the replay of a recording (at its recorded rate, at a given rate, or as fast as possible).
+//! A source fills a frame into the caller's buffer (the loaned shared-memory sample), so each
+//! frame is written once.
+
+use crate::scenario::SimulationArgs;
+use crate::sim::ImageArgs;
+use crate::{FrameSimulator, Renderer};
+use deckwatch_common::messages::FrameSource;
+use deckwatch_common::{CameraModel, DeckLayout, GrayViewMut, GroundTruth, Recording};
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+/// `[source]`: which source, and what it tells beside the pixels.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SourceConfig {
+    /// `sim`, `replay` or `libcamera`.
+    pub kind: String,
+    /// Publish the true altitude (simulator, a recording's `alt_m` column) as the altimeter
+    /// reading; the paper's printed estimator needs one.
+    pub altimeter: bool,
+}
+
+impl Default for SourceConfig {
+    fn default() -> Self {
+        Self {
+            kind: "sim".into(),
+            altimeter: true,
+        }
+    }
+}
+
+/// `[replay]`: replay of a recording.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ReplayConfig {
+    /// The recording folder.
+    pub recording: Option<PathBuf>,
+    /// Frames per second; absent: the recorded timestamps' rate; 0: as fast as possible.
+    pub rate_hz: Option<f64>,
+    /// Times through the recording; 0 = until stopped.
+    pub loops: u32,
+    /// Stop after this many frames (0: when the loops are done).
+    pub frames: u64,
+    /// Decode every frame before starting, so that capturing a frame is one copy (otherwise
+    /// each frame's PNG is decoded straight into shared memory when it is due).
+    pub preload: bool,
+    /// Refuse to preload more than this many MiB.
+    pub preload_limit_mib: u64,
+}
+
+impl Default for ReplayConfig {
+    fn default() -> Self {
+        Self {
+            recording: None,
+            rate_hz: None,
+            loops: 1,
+            frames: 0,
+            preload: true,
+            preload_limit_mib: 2048,
+        }
+    }
+}
+
+/// The capture stage's sections of the pipeline configuration.
+#[derive(Debug, Clone, PartialEq, Default, Deserialize, Serialize)]
+#[serde(default)]
+pub struct CaptureConfig {
+    pub source: SourceConfig,
+    pub sim: SimulationArgs,
+    pub image: ImageArgs,
+    pub replay: ReplayConfig,
+}
+
+impl CaptureConfig {
+    /// Reads the capture sections of a pipeline configuration (TOML); other sections are left
+    /// to their stages. Errors name the file, line and key.
+    pub fn from_toml(file: &str, text: &str) -> Result<Self, String> {
+        toml::from_str(text).map_err(|e| format!("{file}: {e}"))
+    }
+
+    /// Checks the configuration without opening the source (no rendering, no decoding): what
+    /// the launcher does before it starts the stages.
+    pub fn check(&self) -> Result<(), String> {
+        match self.source.kind.as_str() {
+            "sim" => {
+                let sim = self.sim.resolve().map_err(|e| format!("[sim] {e}"))?;
+                self.image.resolve(&sim).map_err(|e| format!("[image] {e}"))?;
+                Ok(())
+            }
+            "replay" => {
+                let dir = self.replay.recording.as_ref().ok_or(
+                    "replay.recording: the recording folder is required for source.kind = \"replay\"",
+                )?;
+                Recording::open(dir).map_err(|e| e.to_string())?;
+                if matches!(self.replay.rate_hz, Some(hz) if !(hz.is_finite() && hz >= 0.0)) {
+                    return Err(format!(
+                        "replay.rate_hz: must be >= 0, got {:?}",
+                        self.replay.rate_hz
+                    ));
+                }
+                Ok(())
+            }
+            _ => self.open().map(|_| ()),
+        }
+    }
+
+    /// Opens the configured source.
+    pub fn open(&self) -> Result<CaptureSource, String> {
+        match self.source.kind.as_str() {
+            "sim" => self.open_sim(),
+            "replay" => self.open_replay(),
+            "libcamera" => Err("source.kind: `libcamera` is not built into this capture stage".into()),
+            other => Err(format!("source.kind: unknown `{other}` (sim, replay, libcamera)")),
+        }
+    }
+
+    fn open_sim(&self) -> Result<CaptureSource, String> {
+        let sim = self.sim.resolve().map_err(|e| format!("[sim] {e}"))?;
+        let (camera, options) = self.image.resolve(&sim).map_err(|e| format!("[image] {e}"))?;
+        let renderer = Renderer::new(camera, sim.deck, options, self.sim.seed)?;
+        let frames = FrameSimulator::new(
+            sim.scenario.profile(self.sim.seed),
+            renderer,
+            self.sim.rate,
+            self.image.exposure_ms / 1e3,
+            8,
+            self.sim.seed,
+        )
+        .map_err(|e| format!("[sim] {e}"))?;
+        Ok(CaptureSource {
+            camera,
+            deck: sim.deck,
+            altimeter: self.source.altimeter,
+            inner: Inner::Sim {
+                sim: Box::new(frames),
+                frames: self.sim.frames as u64,
+                period_ns: (1e9 / self.sim.rate).round() as u64,
+            },
+        })
+    }
+
+    fn open_replay(&self) -> Result<CaptureSource, String> {
+        let r = &self.replay;
+        let dir = r
+            .recording
+            .as_ref()
+            .ok_or("replay.recording: the recording folder is required for source.kind = \"replay\"")?;
+        let rec = Recording::open(dir).map_err(|e| e.to_string())?;
+        if rec.frames.is_empty() {
+            return Err(format!("{}: the recording has no frames", dir.display()));
+        }
+        let pace = match r.rate_hz {
+            None => Pace::Recorded,
+            Some(hz) if hz == 0.0 => Pace::AsFastAsPossible,
+            Some(hz) if hz.is_finite() && hz > 0.0 => Pace::Fixed((1e9 / hz).round() as u64),
+            Some(hz) => return Err(format!("replay.rate_hz: must be >= 0, got {hz}")),
+        };
+        let frame_bytes = rec.camera.width as u64 * rec.camera.height as u64;
+        let preloaded = if r.preload {
+            let mib = (frame_bytes * rec.frames.len() as u64).div_ceil(1 << 20);
+            if mib > r.preload_limit_mib {
+                return Err(format!(
+                    "replay.preload: {} frames need {mib} MiB, more than replay.preload_limit_mib = {}; \
+                     raise the limit or set preload = false",
+                    rec.frames.len(),
+                    r.preload_limit_mib
+                ));
+            }
+            // A frame that cannot be read stays None: it is counted and skipped when due.
+            let images = rec
+                .frames
+                .iter()
+                .map(|f| rec.read_image(f).map(|img| img.data).map_err(|e| e.to_string()))
+                .collect();
+            Some(images)
+        } else {
+            None
+        };
+        Ok(CaptureSource {
+            camera: rec.camera,
+            deck: rec.deck,
+            altimeter: self.source.altimeter,
+            inner: Inner::Replay {
+                truth_known: rec.has_attitude_truth(),
+                rec,
+                preloaded,
+                pace,
+                loops: r.loops,
+                max_frames: r.frames,
+            },
+        })
+    }
+}
+
+/// How replay paces frames.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Pace {
+    Recorded,
+    Fixed(u64),
+    AsFastAsPossible,
+}
+
+/// What a source knows of a frame besides its pixels.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CapturedFrame {
+    /// The frame's index at its source (recording index, simulator frame number).
+    pub source_index: u64,
+    /// The frame's time at its source (ns).
+    pub source_timestamp_ns: u64,
+    pub truth: GroundTruth,
+    /// Whether the source knows the truth (then a missing attitude means "no deck").
+    pub truth_known: bool,
+    /// The altimeter reading when the source has one.
+    pub altitude_m: Option<f64>,
+}
+
+enum Inner {
+    Sim {
+        sim: Box<FrameSimulator>,
+        frames: u64,
+        period_ns: u64,
+    },
+    Replay {
+        rec: Recording,
+        preloaded: Option<Vec<Result<Vec<u8>, String>>>,
+        pace: Pace,
+        loops: u32,
+        max_frames: u64,
+        truth_known: bool,
+    },
+}
+
+/// An opened source.
+pub struct CaptureSource {
+    camera: CameraModel,
+    deck: DeckLayout,
+    altimeter: bool,
+    inner: Inner,
+}
+
+impl CaptureSource {
+    pub fn camera(&self) -> &CameraModel {
+        &self.camera
+    }
+
+    pub fn deck(&self) -> &DeckLayout {
+        &self.deck
+    }
+
+    pub fn kind(&self) -> FrameSource {
+        match self.inner {
+            Inner::Sim { .. } => FrameSource::Simulator,
+            Inner::Replay { .. } => FrameSource::Replay,
+        }
+    }
+
+    /// Bytes of one frame (tightly packed rows).
+    pub fn frame_bytes(&self) -> usize {
+        self.camera.width as usize * self.camera.height as usize
+    }
+
+    /// Frames the source will deliver; None = until stopped.
+    pub fn len(&self) -> Option<u64> {
+        match &self.inner {
+            Inner::Sim { frames, .. } => (*frames > 0).then_some(*frames),
+            Inner::Replay {
+                rec,
+                loops,
+                max_frames,
+                ..
+            } => {
+                let all = (*loops > 0).then(|| *loops as u64 * rec.frames.len() as u64);
+                match (all, *max_frames) {
+                    (a, 0) => a,
+                    (None, m) => Some(m),
+                    (Some(a), m) => Some(a.min(m)),
+                }
+            }
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == Some(0)
+    }
+
+    /// When frame `k` is due, in ns after the first; None = as fast as possible.
+    pub fn due_ns(&self, k: u64) -> Option<u64> {
+        match &self.inner {
+            Inner::Sim { period_ns, .. } => Some(k * period_ns),
+            Inner::Replay { rec, pace, .. } => match pace {
+                Pace::AsFastAsPossible => None,
+                Pace::Fixed(p) => Some(k * p),
+                Pace::Recorded => {
+                    let n = rec.frames.len() as u64;
+                    let t0 = rec.frames[0].timestamp_ns;
+                    let last = rec.frames[n as usize - 1].timestamp_ns.saturating_sub(t0);
+                    // One loop lasts the recorded span plus one mean frame period.
+                    let period = if n > 1 { last / (n - 1) } else { 100_000_000 };
+                    let (lap, j) = (k / n, (k % n) as usize);
+                    Some(lap * (last + period) + rec.frames[j].timestamp_ns.saturating_sub(t0))
+                }
+            },
+        }
+    }
+
+    /// Writes frame `k` into `out` (`stride` bytes a row, at least `frame_bytes()` in all) and
+    /// returns what is known of it. An error means the frame is bad (counted and skipped).
+    pub fn capture(&mut self, k: u64, out: &mut [u8], stride: usize) -> Result<CapturedFrame, String> {
+        let (w, h) = (self.camera.width as usize, self.camera.height as usize);
+        let altimeter = self.altimeter;
+        match &mut self.inner {
+            Inner::Sim { sim, .. } => {
+                let mut view = GrayViewMut::new(out, w, h, stride).map_err(|e| e.to_string())?;
+                let t = sim.render_frame(k, &mut view).map_err(|e| e.to_string())?;
+                let truth = t.ground_truth();
+                Ok(CapturedFrame {
+                    source_index: k,
+                    source_timestamp_ns: t.timestamp_ns,
+                    altitude_m: if altimeter { truth.alt_m } else { None },
+                    truth,
+                    truth_known: true,
+                })
+            }
+            Inner::Replay {
+                rec,
+                preloaded,
+                truth_known,
+                ..
+            } => {
+                let j = (k % rec.frames.len() as u64) as usize;
+                let f = &rec.frames[j];
+                if stride != w || out.len() < w * h {
+                    return Err(format!(
+                        "replay writes packed rows; got stride {stride} for width {w}"
+                    ));
+                }
+                match preloaded {
+                    Some(images) => match &images[j] {
+                        Ok(px) => out[..w * h].copy_from_slice(px),
+                        Err(e) => return Err(e.clone()),
+                    },
+                    None => rec
+                        .read_image_into(f, &mut out[..w * h])
+                        .map_err(|e| e.to_string())?,
+                }
+                Ok(CapturedFrame {
+                    source_index: f.index,
+                    source_timestamp_ns: f.timestamp_ns,
+                    truth: f.truth,
+                    truth_known: *truth_known,
+                    altitude_m: if altimeter { f.truth.alt_m } else { None },
+                })
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn config_errors_name_line_and_key() {
+        let e = CaptureConfig::from_toml("p.toml", "[sim]\nscenari = \"ship\"\n").unwrap_err();
+        assert!(
+            e.contains("p.toml") && e.contains("scenari") && e.contains("line 2"),
+            "{e}"
+        );
+        let e = CaptureConfig::from_toml("p.toml", "[sim]\nrate = \"fast\"\n").unwrap_err();
+        assert!(e.contains("rate"), "{e}");
+        let c = CaptureConfig::from_toml("p.toml", "[decide]\nanything = 1\n").unwrap();
+        assert_eq!(c, CaptureConfig::default());
+        let e = CaptureConfig::from_toml("p.toml", "[source]\nkind = \"usb\"\n")
+            .unwrap()
+            .open()
+            .err()
+            .unwrap();
+        assert!(e.contains("source.kind"), "{e}");
+        let e = CaptureConfig::from_toml("p.toml", "[source]\nkind = \"replay\"\n")
+            .unwrap()
+            .open()
+            .err()
+            .unwrap();
+        assert!(e.contains("replay.recording"), "{e}");
+    }
+
+    #[test]
+    fn sim_source_paces_and_fills() {
+        let text = "[sim]\nscenario = \"ship\"\nframes = 3\nrate = 20\n[image]\nwidth = 160\nheight = 120\n";
+        let mut src = CaptureConfig::from_toml("t", text).unwrap().open().unwrap();
+        assert_eq!(src.len(), Some(3));
+        assert_eq!(src.due_ns(2), Some(100_000_000));
+        let mut buf = vec![0u8; src.frame_bytes()];
+        let f = src.capture(1, &mut buf, 160).unwrap();
+        assert_eq!(f.source_index, 1);
+        assert!(f.truth_known && f.altitude_m.is_some());
+        assert!(buf.iter().any(|&b| b != 0));
+    }
+}

@@ -1,0 +1,745 @@
+//! The pipeline's transport: iceoryx2 services, defined once so that every process opens them
+//! with the same settings.
+//!
+//! Each message kind is a publish-subscribe service plus an event service of the same name: the
+//! publisher sends the sample, then notifies, and the subscriber sleeps in a `WaitSet` on the
+//! listener until then (no polling; an idle stage uses no CPU). Frames are `[u8]` samples with a
+//! [`FrameHeader`] user header: capture writes the pixels once into the loaned shared memory and
+//! detect reads them in place.
+//!
+//! Slow consumers never block capture: every service has safe overflow (a full subscriber queue
+//! loses its oldest sample, `send` never waits); stages take the newest input and count the
+//! sequence gaps as drops.
+//!
+//! A *domain* isolates pipelines on one machine (tests run several at once): it prefixes every
+//! iceoryx2 file in `/dev/shm` and under `/tmp/iceoryx2`.
+
+use crate::messages::{AttitudeMessage, FrameHeader, LandingDecision, MarkerMessage};
+use iceoryx2::config::Config;
+use iceoryx2::node::{NodeState, NodeView};
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::{
+    ipc, AllocationStrategy, CallbackProgression, EventId, FileName, LogLevel, Node, NodeBuilder, NodeName,
+    PortFactory, SemanticString, ServiceName, WaitSetBuilder, ZeroCopySend,
+};
+use iceoryx2::sample::Sample;
+use iceoryx2::waitset::WaitSetRunResult;
+use std::fmt::Debug;
+use std::time::Duration;
+
+/// Service names, one place.
+pub mod services {
+    pub const FRAMES: &str = "deckwatch/frames";
+    pub const MARKERS: &str = "deckwatch/markers";
+    pub const ATTITUDE: &str = "deckwatch/attitude";
+    pub const DECISION: &str = "deckwatch/decision";
+}
+
+/// The default domain.
+pub const DEFAULT_DOMAIN: &str = "deckwatch";
+
+/// `[bus]` of the pipeline configuration.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize, serde::Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct BusConfig {
+    /// Isolates one pipeline's shared memory from another's on the same machine.
+    pub domain: String,
+    /// Subscribers the frame service accepts.
+    pub frame_subscribers: usize,
+    /// Frames queued per subscriber before the oldest is dropped.
+    pub frame_queue: usize,
+}
+
+impl Default for BusConfig {
+    fn default() -> Self {
+        Self {
+            domain: DEFAULT_DOMAIN.into(),
+            frame_subscribers: 2,
+            frame_queue: 2,
+        }
+    }
+}
+
+impl BusConfig {
+    /// The `[bus]` section of a pipeline configuration (TOML); errors name file, line and key.
+    pub fn from_toml(file: &str, text: &str) -> Result<Self, String> {
+        #[derive(serde::Deserialize)]
+        struct Doc {
+            #[serde(default)]
+            bus: BusConfig,
+        }
+        let doc: Doc = toml::from_str(text).map_err(|e| format!("{file}: {e}"))?;
+        Ok(doc.bus)
+    }
+
+    /// The settings for frames of up to `max_frame_bytes`.
+    pub fn settings(&self, max_frame_bytes: usize) -> BusSettings {
+        BusSettings {
+            domain: self.domain.clone(),
+            max_frame_bytes,
+            frame_subscribers: self.frame_subscribers,
+            frame_queue: self.frame_queue,
+        }
+    }
+}
+
+/// The command line every stage binary takes: the pipeline configuration and the domain.
+#[derive(Debug, Clone, clap::Args)]
+pub struct StageArgs {
+    /// Pipeline configuration (TOML); each stage reads its own sections. Default: built-in
+    /// defaults.
+    #[arg(long)]
+    pub config: Option<std::path::PathBuf>,
+    /// iceoryx2 domain (overrides `bus.domain`).
+    #[arg(long)]
+    pub domain: Option<String>,
+}
+
+impl StageArgs {
+    /// The configuration file's name (for messages) and text ("" without one).
+    pub fn read_config(&self) -> Result<(String, String), String> {
+        match &self.config {
+            None => Ok(("(defaults)".into(), String::new())),
+            Some(p) => std::fs::read_to_string(p)
+                .map(|t| (p.display().to_string(), t))
+                .map_err(|e| format!("{}: cannot read: {e}", p.display())),
+        }
+    }
+
+    /// The bus configuration with the `--domain` override applied.
+    pub fn bus_config(&self, file: &str, text: &str) -> Result<BusConfig, String> {
+        let mut c = BusConfig::from_toml(file, text)?;
+        if let Some(d) = &self.domain {
+            c.domain = d.clone();
+        }
+        validate_domain(&c.domain).map_err(|e| format!("bus.{e}"))?;
+        Ok(c)
+    }
+}
+
+/// A transport failure, with what was being done.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BusError(pub String);
+
+impl std::fmt::Display for BusError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for BusError {}
+
+fn context<E: Debug>(what: impl std::fmt::Display) -> impl FnOnce(E) -> BusError {
+    move |e| BusError(format!("iceoryx2: {what}: {e:?}"))
+}
+
+/// Sizes of the shared-memory services (all processes of a domain must agree).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BusSettings {
+    /// Isolates this pipeline's iceoryx2 resources: `[a-z0-9_-]`, 1..=32 characters.
+    pub domain: String,
+    /// Largest frame in bytes (stride x height); shared memory holds a few frames of this size.
+    pub max_frame_bytes: usize,
+    /// Subscribers the frame service accepts (detect, plus observers and a restarted stage
+    /// before the dead one is cleaned up).
+    pub frame_subscribers: usize,
+    /// Frames queued per subscriber before the oldest is dropped.
+    pub frame_queue: usize,
+}
+
+impl BusSettings {
+    pub fn new(domain: &str, max_frame_bytes: usize) -> Self {
+        Self {
+            domain: domain.to_string(),
+            max_frame_bytes,
+            frame_subscribers: 2,
+            frame_queue: 2,
+        }
+    }
+
+    pub fn validate(&self) -> Result<(), String> {
+        validate_domain(&self.domain)?;
+        if self.max_frame_bytes == 0 {
+            return Err("max_frame_bytes: must be positive".into());
+        }
+        if !(1..=8).contains(&self.frame_subscribers) {
+            return Err(format!(
+                "frame_subscribers: must be 1..=8, got {}",
+                self.frame_subscribers
+            ));
+        }
+        if !(1..=16).contains(&self.frame_queue) {
+            return Err(format!("frame_queue: must be 1..=16, got {}", self.frame_queue));
+        }
+        Ok(())
+    }
+
+    /// Shared memory the frame service reserves: samples for every subscriber's queue and
+    /// borrows, plus the publisher's loans.
+    pub fn frame_memory_bytes(&self) -> usize {
+        let samples = self.frame_subscribers * (self.frame_queue + FRAME_BORROWS) + FRAME_LOANS;
+        samples * self.max_frame_bytes
+    }
+
+    /// The iceoryx2 file-name prefix of this domain.
+    pub fn prefix(&self) -> String {
+        domain_prefix(&self.domain)
+    }
+}
+
+/// Checks a domain name; the error says what is allowed.
+pub fn validate_domain(domain: &str) -> Result<(), String> {
+    let ok = !domain.is_empty()
+        && domain.len() <= 32
+        && domain
+            .bytes()
+            .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_' || b == b'-');
+    if ok {
+        Ok(())
+    } else {
+        Err(format!(
+            "domain `{domain}`: must be 1..=32 characters of a-z, 0-9, _ and -"
+        ))
+    }
+}
+
+/// The iceoryx2 file-name prefix of a domain: every shared-memory and state file of the domain
+/// starts with it.
+pub fn domain_prefix(domain: &str) -> String {
+    format!("iox2_dw_{domain}_")
+}
+
+// A stage holds its newest frame while receiving the next one.
+const FRAME_BORROWS: usize = 2;
+// Capture fills one frame at a time.
+const FRAME_LOANS: usize = 1;
+// Small messages: deep enough that a burst is not lost while a stage is busy.
+const MESSAGE_QUEUE: usize = 8;
+const MESSAGE_SUBSCRIBERS: usize = 8;
+
+fn domain_config(domain: &str) -> Result<Config, BusError> {
+    validate_domain(domain).map_err(BusError)?;
+    let mut config = Config::default();
+    config.global.prefix =
+        FileName::new(domain_prefix(domain).as_bytes()).map_err(context("domain prefix"))?;
+    Ok(config)
+}
+
+/// Silences iceoryx2's info/warn output (e.g. "no config file loaded"); call before joining.
+pub fn quiet_logging() {
+    iceoryx2::prelude::set_log_level_from_env_or(LogLevel::Error);
+}
+
+/// What [`Bus::cleanup_dead_nodes`] removed.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct CleanupReport {
+    pub removed: u64,
+    pub failed: u64,
+}
+
+/// One process's connection to a domain: an iceoryx2 node.
+pub struct Bus {
+    node: Node<ipc::Service>,
+    settings: BusSettings,
+}
+
+/// A small fixed-size message published on its own service.
+pub trait Message: Debug + Copy + Default + ZeroCopySend + 'static {
+    const SERVICE: &'static str;
+}
+
+impl Message for MarkerMessage {
+    const SERVICE: &'static str = services::MARKERS;
+}
+impl Message for AttitudeMessage {
+    const SERVICE: &'static str = services::ATTITUDE;
+}
+impl Message for LandingDecision {
+    const SERVICE: &'static str = services::DECISION;
+}
+
+type PubSub<P, H> = iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, P, H>;
+type EventService = iceoryx2::service::port_factory::event::PortFactory<ipc::Service>;
+
+impl Bus {
+    /// Joins the domain as a node called `name`; removes what dead nodes of the domain left.
+    pub fn join(settings: &BusSettings, name: &str) -> Result<Self, BusError> {
+        settings.validate().map_err(BusError)?;
+        let config = domain_config(&settings.domain)?;
+        let node_name = NodeName::new(name).map_err(context(format!("node name `{name}`")))?;
+        let node = NodeBuilder::new()
+            .name(&node_name)
+            .config(&config)
+            .create::<ipc::Service>()
+            .map_err(context(format!("creating node `{name}`")))?;
+        Ok(Self {
+            node,
+            settings: settings.clone(),
+        })
+    }
+
+    pub fn settings(&self) -> &BusSettings {
+        &self.settings
+    }
+
+    /// Removes the shared-memory resources of crashed processes of the domain.
+    pub fn cleanup_dead_nodes(domain: &str) -> Result<CleanupReport, BusError> {
+        let config = domain_config(domain)?;
+        let mut report = CleanupReport::default();
+        Node::<ipc::Service>::list(&config, |state| {
+            if let NodeState::Dead(view) = state {
+                match view.try_remove_stale_resources() {
+                    Ok(_) => report.removed += 1,
+                    Err(_) => report.failed += 1,
+                }
+            }
+            CallbackProgression::Continue
+        })
+        .map_err(context("listing nodes"))?;
+        Ok(report)
+    }
+
+    /// Names of the live nodes of the domain.
+    pub fn live_nodes(domain: &str) -> Result<Vec<String>, BusError> {
+        let config = domain_config(domain)?;
+        let mut names = Vec::new();
+        Node::<ipc::Service>::list(&config, |state| {
+            if let NodeState::Alive(view) = state {
+                if let Some(details) = view.details().as_ref() {
+                    names.push(details.name().as_str().to_string());
+                }
+            }
+            CallbackProgression::Continue
+        })
+        .map_err(context("listing nodes"))?;
+        Ok(names)
+    }
+
+    /// Removes the one file a domain keeps after its last node is gone (iceoryx2's persistent
+    /// node counter, the "global management segment"), so that a stopped pipeline leaves
+    /// nothing in /dev/shm. Does nothing (returns false) while any node of the domain is alive.
+    pub fn remove_idle_domain(domain: &str) -> Result<bool, BusError> {
+        Self::cleanup_dead_nodes(domain)?;
+        if !Self::live_nodes(domain)?.is_empty() {
+            return Ok(false);
+        }
+        let config = domain_config(domain)?;
+        // SAFETY: iceoryx2 requires that no process uses the domain: checked just above (a
+        // domain belongs to one launcher, which has stopped its stages).
+        unsafe { iceoryx2::testing::remove_global_mgmt_segment::<ipc::Service>(&config) }
+            .map_err(context("removing the domain's management segment"))
+    }
+
+    fn service_name(name: &str) -> Result<ServiceName, BusError> {
+        ServiceName::new(name).map_err(context(format!("service name `{name}`")))
+    }
+
+    fn event_service(&self, name: &str) -> Result<EventService, BusError> {
+        self.node
+            .service_builder(&Self::service_name(name)?)
+            .event()
+            .open_or_create()
+            .map_err(context(format!("event service `{name}`")))
+    }
+
+    fn frame_service(&self) -> Result<PubSub<[u8], FrameHeader>, BusError> {
+        let s = &self.settings;
+        self.node
+            .service_builder(&Self::service_name(services::FRAMES)?)
+            .publish_subscribe::<[u8]>()
+            .user_header::<FrameHeader>()
+            .max_publishers(2)
+            .max_subscribers(s.frame_subscribers)
+            .subscriber_max_buffer_size(s.frame_queue)
+            .subscriber_max_borrowed_samples(FRAME_BORROWS)
+            .history_size(0)
+            .enable_safe_overflow(true)
+            .open_or_create()
+            .map_err(context(format!("service `{}`", services::FRAMES)))
+    }
+
+    fn message_service<M: Message>(&self) -> Result<PubSub<M, ()>, BusError> {
+        self.node
+            .service_builder(&Self::service_name(M::SERVICE)?)
+            .publish_subscribe::<M>()
+            .max_publishers(2)
+            .max_subscribers(MESSAGE_SUBSCRIBERS)
+            .subscriber_max_buffer_size(MESSAGE_QUEUE)
+            .subscriber_max_borrowed_samples(2)
+            .history_size(0)
+            .enable_safe_overflow(true)
+            .open_or_create()
+            .map_err(context(format!("service `{}`", M::SERVICE)))
+    }
+
+    /// Capture's end of the frame service.
+    pub fn frame_publisher(&self) -> Result<FramePublisher, BusError> {
+        let service = self.frame_service()?;
+        let publisher = service
+            .publisher_builder()
+            .initial_max_slice_len(self.settings.max_frame_bytes)
+            .allocation_strategy(AllocationStrategy::Static)
+            .max_loaned_samples(FRAME_LOANS)
+            .create()
+            .map_err(context("frame publisher"))?;
+        let notifier = self
+            .event_service(services::FRAMES)?
+            .notifier_builder()
+            .default_event_id(EventId::new(0))
+            .create()
+            .map_err(context("frame notifier"))?;
+        Ok(FramePublisher {
+            publisher,
+            notifier,
+            max_bytes: self.settings.max_frame_bytes,
+        })
+    }
+
+    /// A frame consumer (detect, observers).
+    pub fn frame_subscriber(&self) -> Result<FrameSubscriber, BusError> {
+        let service = self.frame_service()?;
+        let subscriber = service
+            .subscriber_builder()
+            .buffer_size(self.settings.frame_queue)
+            .create()
+            .map_err(context("frame subscriber"))?;
+        let listener = self
+            .event_service(services::FRAMES)?
+            .listener_builder()
+            .create()
+            .map_err(context("frame listener"))?;
+        Ok(FrameSubscriber {
+            subscriber,
+            listener,
+            _service: service,
+        })
+    }
+
+    pub fn publisher<M: Message>(&self) -> Result<MessagePublisher<M>, BusError> {
+        let publisher = self
+            .message_service::<M>()?
+            .publisher_builder()
+            .max_loaned_samples(1)
+            .create()
+            .map_err(context(format!("publisher of `{}`", M::SERVICE)))?;
+        let notifier = self
+            .event_service(M::SERVICE)?
+            .notifier_builder()
+            .default_event_id(EventId::new(0))
+            .create()
+            .map_err(context(format!("notifier of `{}`", M::SERVICE)))?;
+        Ok(MessagePublisher { publisher, notifier })
+    }
+
+    pub fn subscriber<M: Message>(&self) -> Result<MessageSubscriber<M>, BusError> {
+        let service = self.message_service::<M>()?;
+        let subscriber = service
+            .subscriber_builder()
+            .buffer_size(MESSAGE_QUEUE)
+            .create()
+            .map_err(context(format!("subscriber of `{}`", M::SERVICE)))?;
+        let listener = self
+            .event_service(M::SERVICE)?
+            .listener_builder()
+            .create()
+            .map_err(context(format!("listener of `{}`", M::SERVICE)))?;
+        Ok(MessageSubscriber {
+            subscriber,
+            listener,
+            service,
+        })
+    }
+
+    /// Number of subscribers currently connected to a service (the launcher's readiness check).
+    pub fn subscriber_count(&self, service: &str) -> Result<usize, BusError> {
+        Ok(match service {
+            services::FRAMES => self.frame_service()?.dynamic_config().number_of_subscribers(),
+            services::MARKERS => self
+                .message_service::<MarkerMessage>()?
+                .dynamic_config()
+                .number_of_subscribers(),
+            services::ATTITUDE => self
+                .message_service::<AttitudeMessage>()?
+                .dynamic_config()
+                .number_of_subscribers(),
+            services::DECISION => self
+                .message_service::<LandingDecision>()?
+                .dynamic_config()
+                .number_of_subscribers(),
+            other => return Err(BusError(format!("unknown service `{other}`"))),
+        })
+    }
+
+    /// Sleeps up to `timeout`; `false` when a termination signal (SIGINT, SIGTERM) arrived.
+    pub fn sleep(&self, timeout: Duration) -> bool {
+        self.node.wait(timeout).is_ok()
+    }
+}
+
+/// Why a frame could not be published.
+#[derive(Debug)]
+pub enum PublishError<E> {
+    /// No shared-memory sample was free (every one is queued or held by consumers); the frame
+    /// is dropped.
+    NoSample(String),
+    /// The producer failed to fill the frame; nothing was sent.
+    Fill(E),
+    /// The frame is larger than the service's frames (`BusSettings::max_frame_bytes`).
+    TooLarge {
+        bytes: usize,
+        max: usize,
+    },
+    Send(String),
+}
+
+impl<E: std::fmt::Display> std::fmt::Display for PublishError<E> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::NoSample(e) => write!(f, "no free frame sample in shared memory ({e})"),
+            Self::Fill(e) => write!(f, "{e}"),
+            Self::TooLarge { bytes, max } => {
+                write!(
+                    f,
+                    "frame of {bytes} bytes exceeds the configured maximum of {max}"
+                )
+            }
+            Self::Send(e) => write!(f, "sending the frame: {e}"),
+        }
+    }
+}
+
+/// Capture's frame publisher.
+pub struct FramePublisher {
+    publisher: Publisher<ipc::Service, [u8], FrameHeader>,
+    notifier: Notifier<ipc::Service>,
+    max_bytes: usize,
+}
+
+impl FramePublisher {
+    /// Loans a shared-memory sample of `header.required_len()` bytes, lets `fill` write the
+    /// pixels straight into it (and complete the header), then sends it and wakes the
+    /// subscribers. `fill` must write every byte of the slice it gets. Returns the number of
+    /// subscribers reached.
+    pub fn publish<E>(
+        &self,
+        mut header: FrameHeader,
+        fill: impl FnOnce(&mut FrameHeader, &mut [u8]) -> Result<(), E>,
+    ) -> Result<usize, PublishError<E>> {
+        let len = header.required_len();
+        if len > self.max_bytes {
+            return Err(PublishError::TooLarge {
+                bytes: len,
+                max: self.max_bytes,
+            });
+        }
+        let mut sample = self
+            .publisher
+            .loan_slice_uninit(len)
+            .map_err(|e| PublishError::NoSample(format!("{e:?}")))?;
+        let payload = sample.payload_mut();
+        // SAFETY: the sample lies in a shared-memory mapping: its bytes are initialised memory
+        // (zero-filled by the kernel, then earlier frames), and any byte is a valid u8. The
+        // slice does not outlive `sample`, and `fill` overwrites all of it before it is sent.
+        let bytes: &mut [u8] =
+            unsafe { std::slice::from_raw_parts_mut(payload.as_mut_ptr() as *mut u8, payload.len()) };
+        fill(&mut header, bytes).map_err(PublishError::Fill)?;
+        header.stamp.times.published_ns = crate::messages::monotonic_ns();
+        *sample.user_header_mut() = header;
+        // SAFETY: every byte was written by `fill` (see above).
+        let sample = unsafe { sample.assume_init() };
+        let delivered = sample.send().map_err(|e| PublishError::Send(format!("{e:?}")))?;
+        // A failed wake-up is not fatal: the subscriber still gets the frame with the next one.
+        let _ = self.notifier.notify();
+        Ok(delivered)
+    }
+}
+
+/// A frame borrowed from shared memory; the pixels stay in place until it is dropped.
+pub struct FrameSample {
+    sample: Sample<ipc::Service, [u8], FrameHeader>,
+}
+
+impl FrameSample {
+    pub fn header(&self) -> &FrameHeader {
+        self.sample.user_header()
+    }
+
+    /// The pixel bytes, in shared memory (no copy).
+    pub fn pixels(&self) -> &[u8] {
+        self.sample.payload()
+    }
+}
+
+/// A consumer of frames.
+pub struct FrameSubscriber {
+    subscriber: Subscriber<ipc::Service, [u8], FrameHeader>,
+    listener: Listener<ipc::Service>,
+    _service: PubSub<[u8], FrameHeader>,
+}
+
+impl FrameSubscriber {
+    pub fn listener(&self) -> &Listener<ipc::Service> {
+        &self.listener
+    }
+
+    /// The newest queued frame (older queued frames are released unprocessed: latest-frame
+    /// semantics) and how many were passed over.
+    pub fn receive_latest(&self) -> Result<Option<(FrameSample, u64)>, BusError> {
+        let mut newest = None;
+        let mut passed = 0u64;
+        while let Some(sample) = self.subscriber.receive().map_err(context("receiving a frame"))? {
+            if newest.replace(FrameSample { sample }).is_some() {
+                passed += 1;
+            }
+        }
+        Ok(newest.map(|s| (s, passed)))
+    }
+}
+
+/// A publisher of one message kind.
+pub struct MessagePublisher<M: Message> {
+    publisher: Publisher<ipc::Service, M, ()>,
+    notifier: Notifier<ipc::Service>,
+}
+
+impl<M: Message> MessagePublisher<M> {
+    /// Sends a copy of `message` and wakes the subscribers; the number reached.
+    pub fn send(&self, message: &M) -> Result<usize, BusError> {
+        let sample = self
+            .publisher
+            .loan_uninit()
+            .map_err(context(format!("loan on `{}`", M::SERVICE)))?;
+        let delivered = sample
+            .write_payload(*message)
+            .send()
+            .map_err(context(format!("send on `{}`", M::SERVICE)))?;
+        let _ = self.notifier.notify();
+        Ok(delivered)
+    }
+}
+
+/// A subscriber of one message kind.
+pub struct MessageSubscriber<M: Message> {
+    subscriber: Subscriber<ipc::Service, M, ()>,
+    listener: Listener<ipc::Service>,
+    service: PubSub<M, ()>,
+}
+
+impl<M: Message> MessageSubscriber<M> {
+    pub fn listener(&self) -> &Listener<ipc::Service> {
+        &self.listener
+    }
+
+    /// The next queued message, copied out of shared memory.
+    pub fn receive(&self) -> Result<Option<M>, BusError> {
+        Ok(self
+            .subscriber
+            .receive()
+            .map_err(context(format!("receive on `{}`", M::SERVICE)))?
+            .map(|s| *s.payload()))
+    }
+
+    /// Publishers currently connected.
+    pub fn publisher_count(&self) -> usize {
+        self.service.dynamic_config().number_of_publishers()
+    }
+}
+
+/// Why a stage's event loop was woken.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Wake {
+    /// The listener at this index was notified (its events are already consumed).
+    Input(usize),
+    /// The periodic tick.
+    Tick,
+}
+
+/// How an event loop ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LoopEnd {
+    /// SIGINT or SIGTERM.
+    Signal,
+    /// The handler asked to stop.
+    Stopped,
+}
+
+/// What the handler wants next.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Flow {
+    Continue,
+    Stop,
+}
+
+/// Sleeps until a listener is notified or the tick is due, calls `handler`, repeats; returns on
+/// SIGINT/SIGTERM, when the handler says stop, or with the handler's first error.
+pub fn event_loop<E>(
+    inputs: &[&Listener<ipc::Service>],
+    tick: Option<Duration>,
+    mut handler: impl FnMut(Wake) -> Result<Flow, E>,
+) -> Result<LoopEnd, E>
+where
+    E: From<BusError>,
+{
+    let waitset = WaitSetBuilder::new()
+        .create::<ipc::Service>()
+        .map_err(|e| E::from(BusError(format!("iceoryx2: creating a waitset: {e:?}"))))?;
+    let mut guards = Vec::with_capacity(inputs.len());
+    for l in inputs {
+        guards.push(
+            waitset
+                .attach_notification(*l)
+                .map_err(|e| E::from(BusError(format!("iceoryx2: attaching a listener: {e:?}"))))?,
+        );
+    }
+    let tick_guard = match tick {
+        Some(t) => Some(
+            waitset
+                .attach_interval(t)
+                .map_err(|e| E::from(BusError(format!("iceoryx2: attaching a tick: {e:?}"))))?,
+        ),
+        None => None,
+    };
+    let mut failure = None;
+    let mut stopped = false;
+    let result = waitset.wait_and_process(|id| {
+        let mut wakes = Vec::with_capacity(2);
+        for (i, g) in guards.iter().enumerate() {
+            if id.has_event_from(g) {
+                // Consume the notifications, or the waitset fires again at once.
+                let _ = inputs[i].try_wait(|_| {});
+                wakes.push(Wake::Input(i));
+            }
+        }
+        if tick_guard.as_ref().is_some_and(|g| id.has_event_from(g)) {
+            wakes.push(Wake::Tick);
+        }
+        for w in wakes {
+            match handler(w) {
+                Ok(Flow::Continue) => {}
+                Ok(Flow::Stop) => {
+                    stopped = true;
+                    return CallbackProgression::Stop;
+                }
+                Err(e) => {
+                    failure = Some(e);
+                    return CallbackProgression::Stop;
+                }
+            }
+        }
+        CallbackProgression::Continue
+    });
+    if let Some(e) = failure {
+        return Err(e);
+    }
+    match result {
+        Ok(WaitSetRunResult::TerminationRequest | WaitSetRunResult::Interrupt) => Ok(LoopEnd::Signal),
+        Ok(_) => {
+            debug_assert!(stopped);
+            Ok(LoopEnd::Stopped)
+        }
+        Err(e) => Err(E::from(BusError(format!("iceoryx2: waiting: {e:?}")))),
+    }
+}

@@ -1,0 +1,525 @@
+//! The pipeline's messages: what capture, detect, estimate and decide exchange over iceoryx2
+//! shared memory. All are `#[repr(C)]` plain data (no pointers), so they are valid in every
+//! process that maps them; each type has a versioned iceoryx2 type name, so a stage built from an
+//! incompatible revision fails to connect instead of misreading bytes.
+//!
+//! Every message starts with a [`FrameStamp`]: the frame's sequence number, when it was captured,
+//! and when each stage received and finished it (one monotonic clock for all processes), so any
+//! consumer downstream can compute per-stage latency. A [`FrameContext`] travels with it: the
+//! camera and deck the pixels refer to, the altimeter reading and, for simulated or recorded
+//! frames, the ground truth.
+
+use crate::camera::CameraModel;
+use crate::deck::DeckLayout;
+use crate::ellipse::Ellipse;
+use crate::markers::MarkerSet;
+use crate::recording::GroundTruth;
+use crate::rotation::{Euler313, Quaternion, Rpy};
+use iceoryx2::prelude::ZeroCopySend;
+
+/// Nanoseconds of `CLOCK_MONOTONIC`: one clock for every process on the machine (unlike
+/// `Instant`, its values can be compared across processes), never set back.
+pub fn monotonic_ns() -> u64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes the timespec we pass; CLOCK_MONOTONIC always exists on Linux.
+    unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
+    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
+}
+
+/// When a frame passed each stage: `CLOCK_MONOTONIC` nanoseconds, 0 = not (yet) passed.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
+#[type_name("deckwatch.StageTimes.v1")]
+pub struct StageTimes {
+    /// The frame was captured: exposure (camera), start of rendering (simulator), start of
+    /// reading (replay).
+    pub captured_ns: u64,
+    /// The frame was in shared memory and sent to detect.
+    pub published_ns: u64,
+    pub detect_received_ns: u64,
+    pub detect_finished_ns: u64,
+    pub estimate_received_ns: u64,
+    pub estimate_finished_ns: u64,
+    pub decide_received_ns: u64,
+    pub decide_finished_ns: u64,
+}
+
+/// The latency intervals deckwatch reports, in pipeline order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LatencyInterval {
+    /// Capturing the frame into shared memory (render, decode or copy).
+    Capture,
+    /// From publication to detect's receipt: the frame hop through shared memory.
+    CaptureToDetect,
+    Detect,
+    /// Hop and processing: detect finished -> estimate finished.
+    Estimate,
+    /// Hop and processing: estimate finished -> decide finished.
+    Decide,
+    /// Frame published -> decision made: what the pipeline adds after the frame exists.
+    EndToEnd,
+}
+
+impl LatencyInterval {
+    pub const ALL: [LatencyInterval; 6] = [
+        Self::Capture,
+        Self::CaptureToDetect,
+        Self::Detect,
+        Self::Estimate,
+        Self::Decide,
+        Self::EndToEnd,
+    ];
+
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Capture => "capture",
+            Self::CaptureToDetect => "capture->detect",
+            Self::Detect => "detect",
+            Self::Estimate => "estimate",
+            Self::Decide => "decide",
+            Self::EndToEnd => "end-to-end",
+        }
+    }
+}
+
+impl StageTimes {
+    /// The interval in nanoseconds, when both of its ends are stamped and in order.
+    pub fn interval_ns(&self, which: LatencyInterval) -> Option<u64> {
+        let (a, b) = match which {
+            LatencyInterval::Capture => (self.captured_ns, self.published_ns),
+            LatencyInterval::CaptureToDetect => (self.published_ns, self.detect_received_ns),
+            LatencyInterval::Detect => (self.detect_received_ns, self.detect_finished_ns),
+            LatencyInterval::Estimate => (self.detect_finished_ns, self.estimate_finished_ns),
+            LatencyInterval::Decide => (self.estimate_finished_ns, self.decide_finished_ns),
+            LatencyInterval::EndToEnd => (self.published_ns, self.decide_finished_ns),
+        };
+        (a != 0 && b >= a).then(|| b - a)
+    }
+}
+
+/// Frames lost so far, by where (cumulative counts of the process that counted them; they
+/// restart at 0 when that stage is restarted).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
+#[type_name("deckwatch.DropCounts.v1")]
+pub struct DropCounts {
+    /// Frames the source delivered that capture could not publish (no free shared-memory
+    /// sample, or capture fell behind the camera).
+    pub capture: u64,
+    /// Frames capture could not read (bad file, decode error); skipped, not published.
+    pub bad_frames: u64,
+    /// Frames published but never processed by detect (it was busy; latest-frame semantics).
+    pub detect: u64,
+    pub estimate: u64,
+    pub decide: u64,
+}
+
+impl DropCounts {
+    /// Every frame lost before the stage that reports these counts.
+    pub fn total(&self) -> u64 {
+        self.capture + self.bad_frames + self.detect + self.estimate + self.decide
+    }
+}
+
+/// Counts the frames a stage never saw: gaps in the sequence numbers of its input, minus the
+/// gaps its upstream stages already counted.
+#[derive(Debug, Default, Clone)]
+pub struct GapCounter {
+    last: Option<(u64, u64)>,
+}
+
+impl GapCounter {
+    /// Feed the next input's sequence number and its upstream drop total; returns the frames
+    /// this stage missed since the previous input. A sequence going backwards (capture was
+    /// restarted) starts counting afresh.
+    pub fn observe(&mut self, seq: u64, upstream_total: u64) -> u64 {
+        let missed = match self.last {
+            Some((last_seq, last_up)) if seq > last_seq => {
+                let gap = seq - last_seq - 1;
+                gap.saturating_sub(upstream_total.saturating_sub(last_up))
+            }
+            _ => 0,
+        };
+        self.last = Some((seq, upstream_total));
+        missed
+    }
+}
+
+/// Identity and timing of one frame, at the start of every message.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
+#[type_name("deckwatch.FrameStamp.v1")]
+pub struct FrameStamp {
+    /// Capture's count of published frames, from 0; consecutive unless frames were dropped.
+    pub seq: u64,
+    pub times: StageTimes,
+    pub drops: DropCounts,
+}
+
+/// Where frames come from.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
+#[type_name("deckwatch.FrameSource.v1")]
+pub enum FrameSource {
+    #[default]
+    Simulator = 0,
+    Replay = 1,
+    Libcamera = 2,
+}
+
+impl FrameSource {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Simulator => "sim",
+            Self::Replay => "replay",
+            Self::Libcamera => "libcamera",
+        }
+    }
+}
+
+/// Layout of a frame's pixels.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
+#[type_name("deckwatch.PixelFormat.v1")]
+pub enum PixelFormat {
+    /// 8-bit luminance, one byte a pixel, rows `stride` bytes apart.
+    #[default]
+    Gray8 = 0,
+}
+
+/// Ground truth as plain data (NaN = unknown). All attitude angles NaN with `deck_in_view`
+/// true means "not known"; `deck_in_view` false means the frame shows no deck.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[type_name("deckwatch.Truth.v1")]
+pub struct Truth {
+    /// Whether the source knows the truth at all (simulator, recordings with truth columns).
+    pub known: bool,
+    pub roll_deg: f64,
+    pub pitch_deg: f64,
+    pub yaw_deg: f64,
+    pub altitude_m: f64,
+    pub offset_x_m: f64,
+    pub offset_y_m: f64,
+}
+
+impl Default for Truth {
+    fn default() -> Self {
+        Self::UNKNOWN
+    }
+}
+
+impl Truth {
+    pub const UNKNOWN: Self = Self {
+        known: false,
+        roll_deg: f64::NAN,
+        pitch_deg: f64::NAN,
+        yaw_deg: f64::NAN,
+        altitude_m: f64::NAN,
+        offset_x_m: f64::NAN,
+        offset_y_m: f64::NAN,
+    };
+
+    /// From a recording's or the simulator's truth; `known` says whether the source has truth
+    /// columns (then missing angles mean "no deck in view").
+    pub fn from_ground_truth(t: &GroundTruth, known: bool) -> Self {
+        let f = |v: Option<f64>| v.unwrap_or(f64::NAN);
+        Self {
+            known,
+            roll_deg: f(t.roll_deg),
+            pitch_deg: f(t.pitch_deg),
+            yaw_deg: f(t.yaw_deg),
+            altitude_m: f(t.alt_m),
+            offset_x_m: f(t.offset_x_m),
+            offset_y_m: f(t.offset_y_m),
+        }
+    }
+
+    /// The true attitude, when known.
+    pub fn attitude(&self) -> Option<Rpy> {
+        let ok = self.known && self.roll_deg.is_finite() && self.pitch_deg.is_finite();
+        (ok && self.yaw_deg.is_finite())
+            .then(|| Rpy::from_degrees(self.roll_deg, self.pitch_deg, self.yaw_deg))
+    }
+
+    /// The source knows that no deck is in view.
+    pub fn no_deck(&self) -> bool {
+        self.known && self.attitude().is_none()
+    }
+}
+
+/// What a frame's pixels mean, carried from capture to decide with every message.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[type_name("deckwatch.FrameContext.v1")]
+pub struct FrameContext {
+    pub source: FrameSource,
+    /// Index of the frame at its source: recording frame index, camera sequence, simulator
+    /// frame number (differs from `FrameStamp::seq` when replay loops or frames are skipped).
+    pub source_index: u64,
+    /// The frame's own timestamp at its source (recording time, sensor timestamp), ns.
+    pub source_timestamp_ns: u64,
+    /// Altimeter reading (m) when known, else NaN.
+    pub altitude_m: f64,
+    pub camera: CameraModel,
+    pub deck: DeckLayout,
+    pub truth: Truth,
+}
+
+/// The user header of a frame sample; the payload is the `[u8]` pixel buffer itself.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[type_name("deckwatch.FrameHeader.v1")]
+pub struct FrameHeader {
+    pub stamp: FrameStamp,
+    pub context: FrameContext,
+    pub width: u32,
+    pub height: u32,
+    /// Bytes from one row to the next (>= width).
+    pub stride: u32,
+    pub pixel_format: PixelFormat,
+}
+
+impl FrameHeader {
+    /// Bytes of pixel data the header describes (the payload must hold at least this many).
+    pub fn required_len(&self) -> usize {
+        if self.height == 0 {
+            return 0;
+        }
+        (self.height as usize - 1) * self.stride as usize + self.width as usize
+    }
+}
+
+/// Detect's output for one frame.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[type_name("deckwatch.MarkerMessage.v1")]
+pub struct MarkerMessage {
+    pub stamp: FrameStamp,
+    pub context: FrameContext,
+    pub markers: MarkerSet,
+}
+
+/// Which estimator produced an attitude.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
+#[type_name("deckwatch.EstimatorKind.v1")]
+pub enum EstimatorKind {
+    /// The paper's method (ellipse of the ring), `atan2` variant.
+    #[default]
+    PaperAtan2 = 0,
+    /// The paper's method exactly as printed (acos, needs the altimeter).
+    PaperPrinted = 1,
+    /// The paper's method with the fitted ellipse's major axis (NOTES.md item 5).
+    PaperFittedMajorAxis = 2,
+}
+
+impl EstimatorKind {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::PaperAtan2 => "paper-atan2",
+            Self::PaperPrinted => "paper-printed",
+            Self::PaperFittedMajorAxis => "paper-fitted-major-axis",
+        }
+    }
+}
+
+/// Why an attitude is not valid.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
+#[type_name("deckwatch.AttitudeFailure.v1")]
+pub enum AttitudeFailure {
+    /// The attitude is valid.
+    #[default]
+    None = 0,
+    /// Detection found no deck.
+    NoDeck = 1,
+    /// The frame could not be read.
+    BadFrame = 2,
+    /// Markers were found, but not enough (or not the needed ones) for this estimator.
+    TooFewMarkers = 3,
+    /// The estimator needs an altimeter reading and has none (or an invalid one).
+    NoAltitude = 4,
+    /// The marker geometry was degenerate or inconsistent.
+    Degenerate = 5,
+}
+
+/// Estimate's output for one frame.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[type_name("deckwatch.AttitudeMessage.v1")]
+pub struct AttitudeMessage {
+    pub stamp: FrameStamp,
+    pub context: FrameContext,
+    pub estimator: EstimatorKind,
+    /// Whether the angles below mean anything; `failure` says why not.
+    pub valid: bool,
+    pub failure: AttitudeFailure,
+    pub rpy: Rpy,
+    pub quaternion: Quaternion,
+    pub euler313: Euler313,
+    /// The ring's fitted ellipse in undistorted pixel coordinates (for drawing), when
+    /// `has_image_ellipse`.
+    pub has_image_ellipse: bool,
+    pub image_ellipse: Ellipse,
+    /// Estimator-specific fit residual: the paper's method gives the RMS distance (m) of the
+    /// corrected ring points from their ellipse.
+    pub residual: f64,
+    /// Markers the estimate used.
+    pub markers_used: u32,
+}
+
+/// The decision state (see the decide crate for its meaning and transitions).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
+#[type_name("deckwatch.DecisionState.v1")]
+pub enum DecisionState {
+    /// No valid attitude: do not land.
+    #[default]
+    NoDeck = 0,
+    /// A deck is in view, but landing now is not safe.
+    Hold = 1,
+    /// Commit to landing now.
+    ClearToLand = 2,
+    /// A committed landing became unsafe: abort.
+    Abort = 3,
+}
+
+impl DecisionState {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::NoDeck => "NO-DECK",
+            Self::Hold => "HOLD",
+            Self::ClearToLand => "CLEAR",
+            Self::Abort => "ABORT",
+        }
+    }
+}
+
+/// Why the decision is what it is.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
+#[type_name("deckwatch.DecisionReason.v1")]
+pub enum DecisionReason {
+    /// Within capacity (ClearToLand).
+    #[default]
+    WithinCapacity = 0,
+    /// The attitude message is not valid.
+    InvalidAttitude = 1,
+    /// The newest attitude is older than the freshness limit.
+    StaleData = 2,
+    /// Too long a gap in the attitude stream.
+    Gap = 3,
+    /// The attitude jumped more than the deck can move.
+    Jump = 4,
+    /// Roll or pitch (or their rates) outside the capacity.
+    OutsideCapacity = 5,
+    /// Not enough history yet to predict the deck's motion.
+    Warmup = 6,
+    /// The motion model does not fit the recent history.
+    PredictionUnreliable = 7,
+    /// The deck is predicted to leave the capacity during the touchdown.
+    PredictedOutside = 8,
+}
+
+impl DecisionReason {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::WithinCapacity => "within-capacity",
+            Self::InvalidAttitude => "invalid-attitude",
+            Self::StaleData => "stale-data",
+            Self::Gap => "gap",
+            Self::Jump => "jump",
+            Self::OutsideCapacity => "outside-capacity",
+            Self::Warmup => "warmup",
+            Self::PredictionUnreliable => "prediction-unreliable",
+            Self::PredictedOutside => "predicted-outside",
+        }
+    }
+}
+
+/// Decide's output for one frame.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[type_name("deckwatch.LandingDecision.v1")]
+pub struct LandingDecision {
+    pub stamp: FrameStamp,
+    pub context: FrameContext,
+    /// The attitude the decision was made on.
+    pub attitude: AttitudeMessage,
+    pub state: DecisionState,
+    pub reason: DecisionReason,
+    /// The next predicted calm window, relative to `stamp.times.captured_ns` (s); NaN when
+    /// none is predicted.
+    pub calm_window_start_s: f64,
+    pub calm_window_length_s: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gap_counter_counts_only_its_own_misses() {
+        let mut g = GapCounter::default();
+        assert_eq!(g.observe(0, 0), 0);
+        assert_eq!(g.observe(1, 0), 0);
+        // 2 and 3 missing, upstream says it dropped one of them.
+        assert_eq!(g.observe(4, 1), 1);
+        assert_eq!(g.observe(5, 1), 0);
+        // Capture restarted: sequence starts again.
+        assert_eq!(g.observe(0, 0), 0);
+        assert_eq!(g.observe(3, 0), 2);
+    }
+
+    #[test]
+    fn intervals_need_both_ends() {
+        let t = StageTimes {
+            captured_ns: 100,
+            published_ns: 150,
+            detect_received_ns: 160,
+            detect_finished_ns: 200,
+            ..Default::default()
+        };
+        assert_eq!(t.interval_ns(LatencyInterval::Capture), Some(50));
+        assert_eq!(t.interval_ns(LatencyInterval::CaptureToDetect), Some(10));
+        assert_eq!(t.interval_ns(LatencyInterval::Detect), Some(40));
+        assert_eq!(t.interval_ns(LatencyInterval::Estimate), None);
+        assert_eq!(t.interval_ns(LatencyInterval::EndToEnd), None);
+    }
+
+    #[test]
+    fn truth_round_trip() {
+        let g = GroundTruth {
+            roll_deg: Some(1.0),
+            pitch_deg: Some(-2.0),
+            yaw_deg: Some(3.0),
+            alt_m: Some(5.0),
+            offset_x_m: None,
+            offset_y_m: None,
+        };
+        let t = Truth::from_ground_truth(&g, true);
+        assert_eq!(
+            t.attitude().unwrap().to_degrees().map(|v| v.round()),
+            [1.0, -2.0, 3.0]
+        );
+        assert!(!t.no_deck());
+        let none = Truth::from_ground_truth(&GroundTruth::default(), true);
+        assert!(none.no_deck());
+        assert!(!Truth::UNKNOWN.no_deck());
+    }
+
+    #[test]
+    fn frame_header_length() {
+        let h = FrameHeader {
+            width: 10,
+            height: 3,
+            stride: 16,
+            ..Default::default()
+        };
+        assert_eq!(h.required_len(), 2 * 16 + 10);
+    }
+}

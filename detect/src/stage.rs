@@ -1,0 +1,136 @@
+//! The detect stage's per-frame step, without transport: from a frame (header and pixels, read
+//! in place) to the [`MarkerMessage`] that goes to estimate, with the stage's timing and drop
+//! counts. A frame that does not match its header is answered with `BadFrame`, never a panic.
+
+use crate::{Detector, DetectorConfig};
+use deckwatch_common::markers::{DetectionStatus, MarkerSet};
+use deckwatch_common::messages::{monotonic_ns, FrameHeader, GapCounter, MarkerMessage, PixelFormat};
+use deckwatch_common::GrayView;
+
+/// State of the detect stage across frames.
+#[derive(Default)]
+pub struct DetectStage {
+    detector: Option<Detector>,
+    gaps: GapCounter,
+    /// Frames this stage never processed (cumulative).
+    pub dropped: u64,
+    /// Frames that did not match their header (answered with `BadFrame`).
+    pub bad_frames: u64,
+    pub processed: u64,
+}
+
+impl DetectStage {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Detects the markers of one frame received at `received_ns`; the second value says what
+    /// was wrong with a bad frame.
+    pub fn process(
+        &mut self,
+        header: &FrameHeader,
+        pixels: &[u8],
+        received_ns: u64,
+    ) -> (MarkerMessage, Option<String>) {
+        self.dropped += self.gaps.observe(header.stamp.seq, header.stamp.drops.total());
+        self.processed += 1;
+        let (markers, problem) = match self.detect(header, pixels) {
+            Ok(m) => (m, None),
+            Err(e) => {
+                self.bad_frames += 1;
+                let set = MarkerSet {
+                    status: DetectionStatus::BadFrame,
+                    ..MarkerSet::default()
+                };
+                (set, Some(format!("frame {}: {e}", header.stamp.seq)))
+            }
+        };
+        let mut stamp = header.stamp;
+        stamp.drops.detect = self.dropped;
+        stamp.times.detect_received_ns = received_ns;
+        stamp.times.detect_finished_ns = monotonic_ns();
+        let message = MarkerMessage {
+            stamp,
+            context: header.context,
+            markers,
+        };
+        (message, problem)
+    }
+
+    fn detect(&mut self, h: &FrameHeader, pixels: &[u8]) -> Result<MarkerSet, String> {
+        let camera = h.context.camera;
+        let deck = h.context.deck;
+        if h.pixel_format != PixelFormat::Gray8 {
+            return Err(format!("pixel format {:?} is not supported", h.pixel_format));
+        }
+        if (h.width, h.height) != (camera.width, camera.height) {
+            return Err(format!(
+                "frame is {}x{} but its camera is {}x{}",
+                h.width, h.height, camera.width, camera.height
+            ));
+        }
+        camera.validate().map_err(|e| format!("camera: {e}"))?;
+        deck.validate().map_err(|e| format!("deck: {e}"))?;
+        let view = GrayView::new(pixels, h.width as usize, h.height as usize, h.stride as usize)
+            .map_err(|e| format!("pixels: {e}"))?;
+        let fresh = match &self.detector {
+            Some(d) => d.camera() != &camera || d.deck() != &deck,
+            None => true,
+        };
+        if fresh {
+            self.detector = Some(Detector::new(
+                camera,
+                deck,
+                DetectorConfig::for_camera(&camera, &deck),
+            ));
+        }
+        Ok(self.detector.as_mut().expect("set above").detect(view))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use deckwatch_common::messages::FrameStamp;
+    use deckwatch_common::{CameraModel, DeckLayout};
+
+    fn header(seq: u64, w: u32, h: u32) -> FrameHeader {
+        let mut hd = FrameHeader {
+            width: w,
+            height: h,
+            stride: w,
+            ..Default::default()
+        };
+        hd.stamp = FrameStamp {
+            seq,
+            ..Default::default()
+        };
+        hd.context.camera = CameraModel::preset("rpi-v2").unwrap().scaled_to(w, h);
+        hd.context.deck = DeckLayout::paper();
+        hd
+    }
+
+    #[test]
+    fn bad_frames_are_answered_and_counted() {
+        let mut s = DetectStage::new();
+        let px = vec![0u8; 64 * 48];
+        let (m, p) = s.process(&header(0, 64, 48), &px, 1);
+        assert_eq!(m.markers.status, DetectionStatus::NoDeck);
+        assert!(p.is_none());
+        // Payload shorter than the header says.
+        let (m, p) = s.process(&header(1, 64, 48), &px[..100], 2);
+        assert_eq!(m.markers.status, DetectionStatus::BadFrame);
+        assert!(p.unwrap().contains("pixels"));
+        // Size differs from the camera's.
+        let mut h = header(2, 64, 48);
+        h.width = 32;
+        let (m, _) = s.process(&h, &px, 3);
+        assert_eq!(m.markers.status, DetectionStatus::BadFrame);
+        assert_eq!(s.bad_frames, 2);
+        // Frames 3 and 4 never arrived.
+        let (m, _) = s.process(&header(5, 64, 48), &px, 4);
+        assert_eq!(m.stamp.drops.detect, 2);
+        assert_eq!(m.stamp.times.detect_received_ns, 4);
+        assert!(m.stamp.times.detect_finished_ns >= 4);
+    }
+}

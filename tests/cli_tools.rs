@@ -161,12 +161,12 @@ fn sweep_compares_the_variants() {
 }
 
 #[test]
-fn run_replays_recordings_and_simulates() {
+fn inproc_replays_recordings_and_simulates() {
     let data = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/");
     let deckwatch = workspace_binary("deckwatch");
     let out = Command::new(&deckwatch)
         .args([
-            "run",
+            "inproc",
             "--source",
             "replay",
             "--recording",
@@ -186,7 +186,7 @@ fn run_replays_recordings_and_simulates() {
     }
     let out = Command::new(&deckwatch)
         .args([
-            "run",
+            "inproc",
             "--source",
             "replay",
             "--recording",
@@ -216,7 +216,7 @@ fn run_replays_recordings_and_simulates() {
     copy("offset-640x480");
     std::fs::write(rec.join("frames/000001.png"), b"broken").unwrap();
     let out = Command::new(&deckwatch)
-        .args(["run", "--source", "replay", "--recording"])
+        .args(["inproc", "--source", "replay", "--recording"])
         .arg(&rec)
         .output()
         .unwrap();
@@ -227,7 +227,7 @@ fn run_replays_recordings_and_simulates() {
     // The simulator source, small and quick.
     let out = Command::new(&deckwatch)
         .args([
-            "run", "--frames", "5", "--width", "640", "--height", "480", "--every", "0",
+            "inproc", "--frames", "5", "--width", "640", "--height", "480", "--every", "0",
         ])
         .output()
         .unwrap();

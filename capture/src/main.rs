@@ -12,6 +12,9 @@ use deckwatch_common::messages::{
 use std::process::ExitCode;
 use std::time::Duration;
 
+/// How long capture keeps its frames available after the source is exhausted.
+const LINGER_MS: u64 = 1000;
+
 #[derive(Parser)]
 #[command(
     version,
@@ -101,6 +104,10 @@ fn run(a: Args) -> Result<(), String> {
             Err(e) => return Err(e.to_string()),
         }
         k += 1;
+    }
+    // Frames still queued vanish with the publisher: give the consumers time to take them.
+    if source.len().is_some_and(|n| k >= n) {
+        bus.sleep(Duration::from_millis(LINGER_MS));
     }
     eprintln!(
         "deckwatch-capture: {seq} frames published, {} dropped, {} bad",

@@ -51,7 +51,7 @@ impl Default for SupervisorConfig {
             healthy_after_ms: 10_000,
             ready_timeout_ms: 10_000,
             stop_timeout_ms: 3000,
-            drain_ms: 1000,
+            drain_ms: 500,
             status_interval_ms: 1000,
         }
     }

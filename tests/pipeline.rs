@@ -272,6 +272,19 @@ fn wait_rows(csv: &Path, at_least: usize) -> Vec<Row> {
     }
 }
 
+/// The launcher, stopped (SIGTERM, which stops its stages) when a failing test unwinds.
+struct Launcher(std::process::Child);
+
+impl Drop for Launcher {
+    fn drop(&mut self) {
+        if let Ok(None) = self.0.try_wait() {
+            // SAFETY: kill(2) on our child's pid.
+            unsafe { libc::kill(self.0.id() as i32, libc::SIGTERM) };
+            let _ = self.0.wait();
+        }
+    }
+}
+
 #[test]
 fn a_killed_stage_is_restarted_and_frames_flow_again() {
     let dir = tempfile::tempdir().unwrap();
@@ -284,17 +297,19 @@ fn a_killed_stage_is_restarted_and_frames_flow_again() {
     .unwrap();
     let csv = dir.path().join("decisions.csv");
     let d = domain("kill");
-    let mut launcher = Command::new(workspace_binary("deckwatch"))
-        .args(["run", "--quiet", "--domain", &d, "--config"])
-        .arg(&cfg)
-        .arg("--decisions")
-        .arg(&csv)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut launcher = Launcher(
+        Command::new(workspace_binary("deckwatch"))
+            .args(["run", "--quiet", "--domain", &d, "--config"])
+            .arg(&cfg)
+            .arg("--decisions")
+            .arg(&csv)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap(),
+    );
     let (tx, lines) = mpsc::channel();
-    let stderr = launcher.stderr.take().unwrap();
+    let stderr = launcher.0.stderr.take().unwrap();
     std::thread::spawn(move || {
         for l in BufReader::new(stderr).lines().map_while(Result::ok) {
             let _ = tx.send(l);
@@ -322,10 +337,10 @@ fn a_killed_stage_is_restarted_and_frames_flow_again() {
     assert_eq!(last.0["valid"], "1");
     // SIGTERM: a clean stop of everything.
     // SAFETY: kill(2) on the launcher's pid.
-    assert_eq!(unsafe { libc::kill(launcher.id() as i32, libc::SIGTERM) }, 0);
-    let status = launcher.wait().unwrap();
+    assert_eq!(unsafe { libc::kill(launcher.0.id() as i32, libc::SIGTERM) }, 0);
+    let status = launcher.0.wait().unwrap();
     let mut stdout = String::new();
-    std::io::Read::read_to_string(&mut launcher.stdout.take().unwrap(), &mut stdout).unwrap();
+    std::io::Read::read_to_string(&mut launcher.0.stdout.take().unwrap(), &mut stdout).unwrap();
     assert!(status.success(), "{status:?}\n{stdout}");
     assert!(
         stdout.contains("restarts: decide 0, estimate 0, detect 1, capture 0"),

@@ -153,7 +153,7 @@ impl CaptureConfig {
         }
         let pace = match r.rate_hz {
             None => Pace::Recorded,
-            Some(hz) if hz == 0.0 => Pace::AsFastAsPossible,
+            Some(0.0) => Pace::AsFastAsPossible,
             Some(hz) if hz.is_finite() && hz > 0.0 => Pace::Fixed((1e9 / hz).round() as u64),
             Some(hz) => return Err(format!("replay.rate_hz: must be >= 0, got {hz}")),
         };

@@ -159,6 +159,9 @@ impl StageProcess {
             .arg("--domain")
             .arg(domain)
             .stdin(Stdio::null());
+        if self.restarts > 0 {
+            cmd.arg("--restarted");
+        }
         // Own process group: Ctrl-C reaches the launcher only, which stops the stages in order.
         cmd.process_group(0);
         // SAFETY: prctl is async-signal-safe; it makes the kernel send SIGTERM to the stage if
@@ -363,7 +366,7 @@ impl Observer {
             recent: Histograms::new(),
             recent_count: 0,
             counters: Default::default(),
-            gaps: GapCounter::default(),
+            gaps: GapCounter::from_start(),
             observer_missed: 0,
             states: [0; 4],
             valid: 0,

@@ -96,6 +96,10 @@ pub struct StageArgs {
     /// iceoryx2 domain (overrides `bus.domain`).
     #[arg(long)]
     pub domain: Option<String>,
+    /// This stage joins a running pipeline (the launcher restarted it): frames before the
+    /// first one it sees are not its drops.
+    #[arg(long)]
+    pub restarted: bool,
 }
 
 impl StageArgs {

@@ -129,9 +129,34 @@ impl DropCounts {
 #[derive(Debug, Default, Clone)]
 pub struct GapCounter {
     last: Option<(u64, u64)>,
+    from_start: bool,
 }
 
 impl GapCounter {
+    /// For a stage that was there when capture started: frames before the first one it sees
+    /// (from sequence 0) were missed too.
+    pub fn from_start() -> Self {
+        Self {
+            last: None,
+            from_start: true,
+        }
+    }
+
+    /// For a stage that joined a running pipeline (a restart): counting starts at the first
+    /// frame it sees.
+    pub fn joining() -> Self {
+        Self::default()
+    }
+
+    /// `joining()` or `from_start()`.
+    pub fn new(joined_late: bool) -> Self {
+        if joined_late {
+            Self::joining()
+        } else {
+            Self::from_start()
+        }
+    }
+
     /// Feed the next input's sequence number and its upstream drop total; returns the frames
     /// this stage missed since the previous input. A sequence going backwards (capture was
     /// restarted) starts counting afresh.
@@ -141,6 +166,7 @@ impl GapCounter {
                 let gap = seq - last_seq - 1;
                 gap.saturating_sub(upstream_total.saturating_sub(last_up))
             }
+            None if self.from_start => seq.saturating_sub(upstream_total),
             _ => 0,
         };
         self.last = Some((seq, upstream_total));
@@ -464,7 +490,12 @@ mod tests {
 
     #[test]
     fn gap_counter_counts_only_its_own_misses() {
-        let mut g = GapCounter::default();
+        let mut g = GapCounter::from_start();
+        // Frames 0 and 1 missed before the first one seen.
+        assert_eq!(g.observe(2, 0), 2);
+        let mut g = GapCounter::joining();
+        assert_eq!(g.observe(500, 3), 0);
+        let mut g = GapCounter::from_start();
         assert_eq!(g.observe(0, 0), 0);
         assert_eq!(g.observe(1, 0), 0);
         // 2 and 3 missing, upstream says it dropped one of them.

@@ -20,7 +20,7 @@ struct Args {
 fn run(a: Args) -> Result<(), String> {
     let (file, text) = a.stage.read_config()?;
     let bus_config = a.stage.bus_config(&file, &text)?;
-    let mut stage = DecideStage::new(DecideConfig::from_toml(&file, &text)?)?;
+    let mut stage = DecideStage::new(DecideConfig::from_toml(&file, &text)?, a.stage.restarted)?;
     quiet_logging();
     let bus = Bus::join(&bus_config.settings(1), "decide").map_err(|e| e.to_string())?;
     let input = bus.subscriber::<AttitudeMessage>().map_err(|e| e.to_string())?;

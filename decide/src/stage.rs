@@ -66,11 +66,12 @@ pub struct DecideStage {
 }
 
 impl DecideStage {
-    pub fn new(config: DecideConfig) -> Result<Self, String> {
+    /// `joined_late`: the pipeline was already running (see [`GapCounter::new`]).
+    pub fn new(config: DecideConfig, joined_late: bool) -> Result<Self, String> {
         config.validate()?;
         Ok(Self {
             config,
-            gaps: GapCounter::default(),
+            gaps: GapCounter::new(joined_late),
             dropped: 0,
             processed: 0,
         })
@@ -113,7 +114,7 @@ mod tests {
 
     #[test]
     fn invalid_stale_and_outside_never_clear() {
-        let mut s = DecideStage::new(DecideConfig::default()).unwrap();
+        let mut s = DecideStage::new(DecideConfig::default(), false).unwrap();
         let mut a = AttitudeMessage {
             valid: true,
             rpy: Rpy::from_degrees(1.0, 1.0, 0.0),

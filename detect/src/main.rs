@@ -26,7 +26,7 @@ fn run(a: Args) -> Result<(), String> {
     let bus = Bus::join(&bus_config.settings(1), "detect").map_err(|e| e.to_string())?;
     let frames = bus.frame_subscriber().map_err(|e| e.to_string())?;
     let output = bus.publisher::<MarkerMessage>().map_err(|e| e.to_string())?;
-    let mut stage = DetectStage::new();
+    let mut stage = DetectStage::new(a.stage.restarted);
     event_loop(&[frames.listener()], None, |_| {
         while let Some((frame, _passed_over)) = frames.receive_latest()? {
             let received = monotonic_ns();

@@ -20,8 +20,12 @@ pub struct DetectStage {
 }
 
 impl DetectStage {
-    pub fn new() -> Self {
-        Self::default()
+    /// `joined_late`: the pipeline was already running (see [`GapCounter::new`]).
+    pub fn new(joined_late: bool) -> Self {
+        Self {
+            gaps: GapCounter::new(joined_late),
+            ..Self::default()
+        }
     }
 
     /// Detects the markers of one frame received at `received_ns`; the second value says what
@@ -112,7 +116,7 @@ mod tests {
 
     #[test]
     fn bad_frames_are_answered_and_counted() {
-        let mut s = DetectStage::new();
+        let mut s = DetectStage::new(false);
         let px = vec![0u8; 64 * 48];
         let (m, p) = s.process(&header(0, 64, 48), &px, 1);
         assert_eq!(m.markers.status, DetectionStatus::NoDeck);

@@ -17,7 +17,7 @@ struct Args {
 fn run(a: Args) -> Result<(), String> {
     let (file, text) = a.stage.read_config()?;
     let bus_config = a.stage.bus_config(&file, &text)?;
-    let mut stage = EstimateStage::new(&EstimateConfig::from_toml(&file, &text)?)?;
+    let mut stage = EstimateStage::new(&EstimateConfig::from_toml(&file, &text)?, a.stage.restarted)?;
     quiet_logging();
     let bus = Bus::join(&bus_config.settings(1), "estimate").map_err(|e| e.to_string())?;
     let input = bus.subscriber::<MarkerMessage>().map_err(|e| e.to_string())?;

@@ -83,7 +83,8 @@ pub struct EstimateStage {
 }
 
 impl EstimateStage {
-    pub fn new(config: &EstimateConfig) -> Result<Self, String> {
+    /// `joined_late`: the pipeline was already running (see [`GapCounter::new`]).
+    pub fn new(config: &EstimateConfig, joined_late: bool) -> Result<Self, String> {
         let kind = config.kind()?;
         let variant = ESTIMATORS
             .iter()
@@ -94,7 +95,7 @@ impl EstimateStage {
             kind,
             variant,
             estimator: None,
-            gaps: GapCounter::default(),
+            gaps: GapCounter::new(joined_late),
             dropped: 0,
             processed: 0,
             estimated: 0,
@@ -199,7 +200,7 @@ mod tests {
                 ..Default::default()
             };
         }
-        let mut s = EstimateStage::new(&EstimateConfig::default()).unwrap();
+        let mut s = EstimateStage::new(&EstimateConfig::default(), false).unwrap();
         let a = s.process(&m, 7);
         assert!(a.valid);
         assert!(rpy_error_deg(&a.rpy, &truth).iter().all(|e| *e < 1e-9));

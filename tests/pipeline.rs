@@ -64,7 +64,8 @@ fn read_decisions(path: &Path) -> Vec<Row> {
         return Vec::new();
     };
     let header: Vec<String> = header.split(',').map(str::to_string).collect();
-    // A file being written may end in a partial row: only whole rows count.
+    // A file being written may end in a partial row: only whole rows count. Decide's watchdog
+    // rows (stale data after the last frame) answer no frame.
     lines
         .filter(|l| l.split(',').count() == header.len())
         .map(|l| {
@@ -74,6 +75,7 @@ fn read_decisions(path: &Path) -> Vec<Row> {
                 .zip(l.split(',').map(str::to_string))
                 .collect())
         })
+        .filter(|r| r.0.get("watchdog").is_none_or(|w| w == "0"))
         .collect()
 }
 

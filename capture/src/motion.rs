@@ -122,6 +122,36 @@ impl ShipMotion {
         }
     }
 
+    /// An irregular sea with the same energy: each sinusoid of the sea-state-6 model becomes
+    /// `spread` components with periods within +-12 % of it and random shares of its energy,
+    /// so the motion beats and changes from one minute to the next (harder to predict than
+    /// three clean sinusoids). Amplitudes scaled by `scale`.
+    pub fn irregular(seed: u64, scale: f64, spread: usize) -> Self {
+        let mut rng = SplitMix64::new(seed ^ 0x5EA5_7A7E);
+        let spread = spread.max(1);
+        let mut axis = |table: &[(f64, f64)]| -> Vec<Sinusoid> {
+            let mut out = Vec::new();
+            for &(a, p) in table {
+                let energy: Vec<f64> = (0..spread).map(|_| -(1.0 - rng.next_f64()).ln()).collect();
+                let total: f64 = energy.iter().sum();
+                for e in energy {
+                    out.push(Sinusoid {
+                        amplitude: a * scale * (e / total).sqrt(),
+                        period_s: p * (1.0 + 0.12 * (2.0 * rng.next_f64() - 1.0)),
+                        phase: TAU * rng.next_f64(),
+                    });
+                }
+            }
+            out
+        };
+        Self {
+            roll_deg: axis(&SEA_STATE_6_ROLL),
+            pitch_deg: axis(&SEA_STATE_6_PITCH),
+            yaw_deg: axis(&SEA_STATE_6_YAW),
+            tracking: TrackingError::hover(5.0),
+        }
+    }
+
     pub fn with_tracking(mut self, tracking: TrackingError) -> Self {
         self.tracking = tracking;
         self

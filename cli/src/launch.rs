@@ -11,7 +11,7 @@ use deckwatch_common::bus::{event_loop, quiet_logging, services, Bus, BusConfig,
 use deckwatch_common::messages::{DecisionState, GapCounter, LandingDecision, LatencyInterval};
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::ErrorStats;
-use deckwatch_decide::stage::DecideConfig;
+use deckwatch_decide::decision::DecisionConfig;
 use deckwatch_estimate::stage::EstimateConfig;
 use hdrhistogram::Histogram;
 use serde::{Deserialize, Serialize};
@@ -68,7 +68,7 @@ pub struct PipelineConfig {
     pub image: ImageArgs,
     pub replay: ReplayConfig,
     pub estimate: EstimateConfig,
-    pub decide: DecideConfig,
+    pub decide: DecisionConfig,
     pub supervisor: SupervisorConfig,
 }
 
@@ -246,6 +246,8 @@ impl DropReport {
 #[derive(Debug, Clone, Serialize)]
 pub struct RunReport {
     pub decisions: u64,
+    /// Stale-data decisions of decide's watchdog (no attitude in time), not answers to frames.
+    pub watchdog_decisions: u64,
     pub duration_s: f64,
     pub latency: Vec<LatencyRow>,
     pub drops: DropReport,
@@ -328,6 +330,8 @@ impl Histograms {
 /// Follows the decision stream.
 struct Observer {
     decisions: u64,
+    /// Decisions decide's watchdog issued because attitudes stopped coming.
+    watchdog: u64,
     all: Histograms,
     recent: Histograms,
     recent_count: u64,
@@ -346,7 +350,7 @@ struct Observer {
 const CSV_HEADER: &str = "seq,source_index,captured_ns,published_ns,detect_received_ns,detect_finished_ns,\
 estimate_received_ns,estimate_finished_ns,decide_received_ns,decide_finished_ns,state,reason,valid,\
 roll_deg,pitch_deg,yaw_deg,truth_roll_deg,truth_pitch_deg,truth_yaw_deg,markers,\
-drops_capture,drops_bad,drops_detect,drops_estimate,drops_decide";
+drops_capture,drops_bad,drops_detect,drops_estimate,drops_decide,calm_start_s,calm_length_s,watchdog";
 
 impl Observer {
     fn new(csv: Option<&Path>) -> Result<Self, String> {
@@ -362,6 +366,7 @@ impl Observer {
         };
         Ok(Self {
             decisions: 0,
+            watchdog: 0,
             all: Histograms::new(),
             recent: Histograms::new(),
             recent_count: 0,
@@ -379,6 +384,12 @@ impl Observer {
     }
 
     fn observe(&mut self, d: &LandingDecision) -> Result<(), String> {
+        if d.watchdog {
+            self.watchdog += 1;
+            self.write_csv(d)?;
+            self.last = Some(*d);
+            return Ok(());
+        }
         self.decisions += 1;
         self.recent_count += 1;
         self.all.record(d);
@@ -402,6 +413,14 @@ impl Observer {
                 self.attitudes_without_deck += 1;
             }
         }
+        self.write_csv(d)?;
+        self.last = Some(*d);
+        self.last_at = Instant::now();
+        Ok(())
+    }
+
+    fn write_csv(&mut self, d: &LandingDecision) -> Result<(), String> {
+        let (a, dr) = (&d.attitude, d.stamp.drops);
         if let Some(w) = &mut self.csv {
             let t = d.stamp.times;
             let [r, p, y] = if a.valid {
@@ -412,7 +431,7 @@ impl Observer {
             let tr = &d.context.truth;
             writeln!(
                 w,
-                "{},{},{},{},{},{},{},{},{},{},{},{},{},{r:.6},{p:.6},{y:.6},{:.6},{:.6},{:.6},{},{},{},{},{},{}",
+                "{},{},{},{},{},{},{},{},{},{},{},{},{},{r:.6},{p:.6},{y:.6},{:.6},{:.6},{:.6},{},{},{},{},{},{},{:.3},{:.3},{}",
                 d.stamp.seq,
                 d.context.source_index,
                 t.captured_ns,
@@ -434,13 +453,14 @@ impl Observer {
                 dr.bad_frames,
                 dr.detect,
                 dr.estimate,
-                dr.decide
+                dr.decide,
+                d.calm_window_start_s,
+                d.calm_window_length_s,
+                d.watchdog as u8
             )
             .and_then(|_| w.flush())
             .map_err(|e| format!("decisions CSV: {e}"))?;
         }
-        self.last = Some(*d);
-        self.last_at = Instant::now();
         Ok(())
     }
 
@@ -712,6 +732,7 @@ fn supervise(
     debug_assert_eq!(DecisionState::Abort as usize, 3);
     Ok(RunReport {
         decisions: observer.decisions,
+        watchdog_decisions: observer.watchdog,
         duration_s,
         latency: observer.all.rows(),
         drops: observer.drops(),
@@ -757,7 +778,11 @@ pub fn print_report(r: &RunReport) {
         d.observer
     );
     let states: Vec<String> = r.states.iter().map(|(n, c)| format!("{n} {c}")).collect();
-    println!("decisions: {}", states.join(", "));
+    println!(
+        "decisions: {}; watchdog (stale) decisions: {}",
+        states.join(", "),
+        r.watchdog_decisions
+    );
     let restarts: Vec<String> = r.restarts.iter().map(|(n, c)| format!("{n} {c}")).collect();
     println!("restarts: {}", restarts.join(", "));
     if let (Some(rmse), Some(max)) = (r.rmse_deg, r.max_error_deg) {

@@ -32,6 +32,7 @@ struct Cli {
     command: Command,
 }
 
+mod decide_eval;
 mod inproc;
 mod launch;
 mod pipeline;
@@ -46,6 +47,9 @@ enum Command {
     Latency(pipeline::LatencyArgs),
     /// The stages in one process, frame by frame (no IPC): per-stage cost and accuracy.
     Inproc(inproc::RunArgs),
+    /// Evaluate the landing decision on long simulated ship-motion series against the truth,
+    /// beside the naive rule: unsafe clearances and availability.
+    DecideEval(decide_eval::DecideEvalArgs),
     /// Run the paper's estimator on a marker table (CSV), one attitude row per frame.
     EstimateTable(tables::EstimateTableArgs),
     /// Simulate a scenario (exact marker pixels, optional noise) and compare the estimator variants.
@@ -241,6 +245,7 @@ fn main() -> ExitCode {
         Command::Run(a) => pipeline::run(a),
         Command::Latency(a) => pipeline::latency(a),
         Command::Inproc(a) => inproc::run(a),
+        Command::DecideEval(a) => decide_eval::run(a),
         Command::EstimateTable(a) => match tables::estimate_table(a) {
             Ok(true) => Ok(()),
             Ok(false) => return ExitCode::from(2), // finished, but some rows were bad

@@ -482,6 +482,9 @@ pub struct LandingDecision {
     /// none is predicted.
     pub calm_window_start_s: f64,
     pub calm_window_length_s: f64,
+    /// Issued by decide's watchdog because no attitude arrived in time (the stamp and attitude
+    /// are the last ones received), not in answer to a frame.
+    pub watchdog: bool,
 }
 
 #[cfg(test)]

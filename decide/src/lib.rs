@@ -3,6 +3,9 @@
 //! prediction and fail-safes, in its own issue) is measured against. The naive rule looks at one
 //! instant only; it is not a landing clearance.
 
+pub mod decision;
+pub mod eval;
+pub mod predict;
 pub mod stage;
 
 use deckwatch_common::Rpy;

@@ -1,10 +1,11 @@
 //! `deckwatch-decide`: the decide stage. Sleeps until estimate publishes an attitude, decides,
-//! publishes the `LandingDecision`. Runs until SIGINT/SIGTERM.
+//! publishes the `LandingDecision`; when attitudes stop coming, its watchdog publishes a stale
+//! decision (never `ClearToLand`). Runs until SIGINT/SIGTERM.
 
 use clap::Parser;
-use deckwatch_common::bus::{event_loop, quiet_logging, Bus, BusError, Flow, StageArgs};
+use deckwatch_common::bus::{event_loop, quiet_logging, Bus, BusError, Flow, StageArgs, Wake};
 use deckwatch_common::messages::{monotonic_ns, AttitudeMessage, LandingDecision};
-use deckwatch_decide::stage::{DecideConfig, DecideStage};
+use deckwatch_decide::stage::{config_from_toml, DecideStage};
 use std::process::ExitCode;
 
 #[derive(Parser)]
@@ -20,12 +21,18 @@ struct Args {
 fn run(a: Args) -> Result<(), String> {
     let (file, text) = a.stage.read_config()?;
     let bus_config = a.stage.bus_config(&file, &text)?;
-    let mut stage = DecideStage::new(DecideConfig::from_toml(&file, &text)?, a.stage.restarted)?;
+    let mut stage = DecideStage::new(config_from_toml(&file, &text)?, a.stage.restarted)?;
     quiet_logging();
     let bus = Bus::join(&bus_config.settings(1), "decide").map_err(|e| e.to_string())?;
     let input = bus.subscriber::<AttitudeMessage>().map_err(|e| e.to_string())?;
     let output = bus.publisher::<LandingDecision>().map_err(|e| e.to_string())?;
-    event_loop(&[input.listener()], None, |_| {
+    let period = stage.watchdog_period();
+    event_loop(&[input.listener()], Some(period), |wake| {
+        if wake == Wake::Tick {
+            if let Some(stale) = stage.watchdog(monotonic_ns()) {
+                output.send(&stale)?;
+            }
+        }
         while let Some(a) = input.receive()? {
             output.send(&stage.process(&a, monotonic_ns()))?;
         }

@@ -1,0 +1,197 @@
+//! `deckwatch decide-eval`: the landing decision against the true deck motion over long
+//! simulated ship-motion series (several seeds and sea states), side by side with the naive
+//! rule. Measurements are the truth plus Gaussian noise, dropped frames and outliers, as the
+//! estimate stage delivers them.
+
+use deckwatch_capture::motion::{MotionProfile, ShipMotion};
+use deckwatch_capture::rng::SplitMix64;
+use deckwatch_decide::decision::DecisionConfig;
+use deckwatch_decide::eval::{evaluate, Measured, RuleOutcome};
+use std::time::Instant;
+
+#[derive(clap::Args)]
+pub struct DecideEvalArgs {
+    /// Minutes of ship motion per series.
+    #[arg(long, default_value_t = 30.0)]
+    minutes: f64,
+    /// Attitude rate (Hz).
+    #[arg(long, default_value_t = 10.0)]
+    rate: f64,
+    /// Seeds (sea phases, noise).
+    #[arg(long, value_delimiter = ',', default_value = "1,2,3")]
+    seeds: Vec<u64>,
+    /// Sea states: 4 (x0.25 of the sea-state-6 amplitudes), 5 (x0.5), 6 (x1).
+    #[arg(long, value_delimiter = ',', default_value = "4,5,6")]
+    sea_states: Vec<u32>,
+    /// `irregular` (each mode spread over 8 nearby periods) or `regular` (three sinusoids).
+    #[arg(long, default_value = "irregular")]
+    motion: String,
+    /// Attitude noise (deg, standard deviation per angle).
+    #[arg(long, default_value_t = 0.05)]
+    noise_deg: f64,
+    /// Share of frames without a valid attitude.
+    #[arg(long, default_value_t = 0.02)]
+    dropout: f64,
+    /// Share of frames with a gross error (5-15 deg on one angle).
+    #[arg(long, default_value_t = 0.002)]
+    outliers: f64,
+    /// Capture -> decision latency (ms).
+    #[arg(long, default_value_t = 5.0)]
+    latency_ms: f64,
+    /// Pipeline configuration whose `[decide]` section to use (default: built-in).
+    #[arg(long)]
+    config: Option<std::path::PathBuf>,
+    /// One JSON object per series instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+fn scale_of(sea_state: u32) -> Result<f64, String> {
+    match sea_state {
+        4 => Ok(0.25),
+        5 => Ok(0.5),
+        6 => Ok(1.0),
+        s => Err(format!("--sea-states: {s} is not modelled (4, 5, 6)")),
+    }
+}
+
+fn row(rule: &str, o: &RuleOutcome) -> String {
+    format!(
+        "{rule:<14} {:>8} {:>8} {:>7} {:>8} {:>6} {:>8.1}%",
+        o.commits,
+        o.unsafe_commits,
+        o.aborts,
+        o.calm_windows,
+        o.calm_windows_used,
+        100.0 * o.availability()
+    )
+}
+
+pub fn run(a: DecideEvalArgs) -> Result<(), String> {
+    let config = match &a.config {
+        Some(p) => {
+            let text = std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()))?;
+            deckwatch_decide::stage::config_from_toml(&p.display().to_string(), &text)?
+        }
+        None => DecisionConfig::default(),
+    };
+    if !(a.rate > 0.0 && a.minutes > 0.0) {
+        return Err("--rate and --minutes must be positive".into());
+    }
+    let n = (a.minutes * 60.0 * a.rate) as usize;
+    if !a.json {
+        println!(
+            "{} min at {} Hz per series, {} motion, noise {} deg, dropout {}, outliers {}; capacity roll/pitch {}/{} deg, rates {}/{} deg/s, touchdown {} s",
+            a.minutes, a.rate, a.motion, a.noise_deg, a.dropout, a.outliers, config.max_abs_roll_deg,
+            config.max_abs_pitch_deg, config.max_abs_roll_rate_dps, config.max_abs_pitch_rate_dps, config.touchdown_s
+        );
+        println!(
+            "{:<10} {:<14} {:>8} {:>8} {:>7} {:>8} {:>6} {:>9}",
+            "sea/seed", "rule", "commits", "UNSAFE", "aborts", "calm win", "used", "avail"
+        );
+    }
+    let (mut total_smart, mut total_naive) = (RuleOutcome::default(), RuleOutcome::default());
+    for &ss in &a.sea_states {
+        let scale = scale_of(ss)?;
+        for &seed in &a.seeds {
+            let motion = match a.motion.as_str() {
+                "irregular" => ShipMotion::irregular(seed, scale, 8),
+                "regular" => ShipMotion::scaled(seed, scale),
+                other => return Err(format!("--motion: unknown `{other}` (irregular, regular)")),
+            };
+            let truth = |t: f64| {
+                let [r, p, _] = motion.sample(t).attitude.to_degrees();
+                [r, p]
+            };
+            let mut rng = SplitMix64::new(seed.wrapping_mul(0x9E37_79B9) ^ ss as u64);
+            let stream: Vec<Measured> = (0..n)
+                .map(|k| {
+                    let t = k as f64 / a.rate;
+                    let [r, p] = truth(t);
+                    let attitude = if rng.next_f64() < a.dropout {
+                        None
+                    } else {
+                        let mut m = [
+                            r + a.noise_deg * rng.next_gaussian(),
+                            p + a.noise_deg * rng.next_gaussian(),
+                        ];
+                        if rng.next_f64() < a.outliers {
+                            let i = (rng.next_u64() % 2) as usize;
+                            m[i] +=
+                                (5.0 + 10.0 * rng.next_f64()) * if rng.next_f64() < 0.5 { -1.0 } else { 1.0 };
+                        }
+                        Some(m)
+                    };
+                    Measured {
+                        t,
+                        attitude,
+                        now: t + a.latency_ms / 1e3,
+                    }
+                })
+                .collect();
+            let clock = Instant::now();
+            let (smart, naive) = evaluate(&truth, &config, &stream)?;
+            let per_frame_us = clock.elapsed().as_secs_f64() * 1e6 / n as f64;
+            if a.json {
+                println!(
+                    "{}",
+                    serde_json::json!({"sea_state": ss, "seed": seed, "frames": n, "state_machine": smart, "naive": naive, "us_per_frame": per_frame_us})
+                );
+            } else {
+                let reasons: Vec<String> = smart
+                    .abort_reasons
+                    .iter()
+                    .map(|(k, v)| format!("{k} {v}"))
+                    .collect();
+                println!(
+                    "{:<10} {}   aborts: {}; decision cost p50/p99/max {:.0}/{:.0}/{:.0} us",
+                    format!("{ss}/{seed}"),
+                    row("state machine", &smart),
+                    if reasons.is_empty() {
+                        "-".to_string()
+                    } else {
+                        reasons.join(", ")
+                    },
+                    smart.update_us[0],
+                    smart.update_us[1],
+                    smart.update_us[2]
+                );
+                println!("{:<10} {}", "", row("naive", &naive));
+            }
+            for (t, o) in [(&mut total_smart, &smart), (&mut total_naive, &naive)] {
+                for (k, v) in &o.abort_reasons {
+                    *t.abort_reasons.entry(k.clone()).or_default() += v;
+                }
+                for (k, v) in &o.decisions {
+                    *t.decisions.entry(k.clone()).or_default() += v;
+                }
+                t.commits += o.commits;
+                t.unsafe_commits += o.unsafe_commits;
+                t.aborts += o.aborts;
+                t.calm_windows += o.calm_windows;
+                t.calm_windows_used += o.calm_windows_used;
+            }
+        }
+    }
+    if !a.json {
+        let d: Vec<String> = total_smart
+            .decisions
+            .iter()
+            .map(|(k, v)| format!("{k} {v}"))
+            .collect();
+        println!("state machine decisions: {}", d.join(", "));
+        let reasons: Vec<String> = total_smart
+            .abort_reasons
+            .iter()
+            .map(|(k, v)| format!("{k} {v}"))
+            .collect();
+        println!(
+            "{:<10} {}   aborts: {}",
+            "all",
+            row("state machine", &total_smart),
+            reasons.join(", ")
+        );
+        println!("{:<10} {}", "", row("naive", &total_naive));
+    }
+    Ok(())
+}

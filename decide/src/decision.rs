@@ -1,0 +1,739 @@
+//! The landing decision: a state machine over the attitude stream with deck-motion prediction.
+//!
+//! - `NoDeck`: no valid attitude.
+//! - `Hold`: a deck, but committing now is not safe (or not known to be safe: warm-up, stale
+//!   data, a gap, a jump, a prediction that does not fit the history).
+//! - `ClearToLand`: commit now. The deck is predicted to stay within the capacity (angles and
+//!   rates, with a margin) from now until the end of the touchdown. Entering needs the margin;
+//!   staying (until the committed touchdown is over) needs only the prediction's own error
+//!   bound, so it does not chatter on the edge.
+//! - `Abort`: a committed landing became unsafe (or unknowable); held for `abort_hold_s`.
+//!
+//! Time is the frames' capture time (seconds of one monotonic clock); `now` is when the
+//! decision is made. Pure: no clock, no IPC; the stage and the evaluation harness drive it.
+
+use crate::predict::{ArModel, SinusoidModel};
+use deckwatch_common::messages::{DecisionReason, DecisionState};
+use serde::{Deserialize, Serialize};
+use std::collections::VecDeque;
+
+/// What the decision needs to know (the `[decide]` section of the pipeline configuration).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DecisionConfig {
+    /// The quadrotor's capacity at touchdown: deck tilt...
+    pub max_abs_roll_deg: f64,
+    pub max_abs_pitch_deg: f64,
+    /// ... and tilt rates.
+    pub max_abs_roll_rate_dps: f64,
+    pub max_abs_pitch_rate_dps: f64,
+    /// Time from commit to contact (s): the deck must stay within capacity all that time.
+    pub touchdown_s: f64,
+    /// An attitude older than this when decided on is stale (capture -> decision).
+    pub max_age_ms: f64,
+    /// A longer interval between valid attitudes is a gap.
+    pub max_gap_ms: f64,
+    /// After a gap, no clearance for this long.
+    pub gap_recovery_s: f64,
+    /// A change between consecutive attitudes faster than this is a jump (a bad estimate).
+    pub max_plausible_rate_dps: f64,
+    /// History used for the prediction.
+    pub window_s: f64,
+    /// No clearance before this much history.
+    pub min_history_s: f64,
+    /// Refit the motion model this often (s).
+    pub refit_interval_s: f64,
+    /// `ar` (autoregressive: follows an irregular sea) or `sinusoids` (dominant sinusoids of
+    /// the window: exact for a regular one).
+    pub predictor: String,
+    /// Order of the autoregressive predictor (on a 5 Hz grid).
+    pub ar_order: usize,
+    /// Sinusoids per angle.
+    pub components: usize,
+    /// Samples weigh `exp(-age / fit_memory_s)` in the fit: the newest motion counts most.
+    pub fit_memory_s: f64,
+    /// Safety margin on the predicted angles to enter `ClearToLand` (deg), added to the
+    /// prediction's measured error.
+    pub margin_deg: f64,
+    /// The same for rates (deg/s).
+    pub rate_margin_dps: f64,
+    /// The prediction is unreliable if it misses the newest seconds of history by more.
+    pub max_holdout_error_deg: f64,
+    /// Seconds of history held out to measure the prediction error.
+    pub holdout_s: f64,
+    /// The prediction error bound is this factor times the largest held-out error of the last
+    /// `error_memory_s` (the error of an irregular sea varies from minute to minute).
+    pub error_factor: f64,
+    pub error_memory_s: f64,
+    /// ... or if a new attitude is further than this from the model's value.
+    pub max_innovation_deg: f64,
+    /// ... or if the model's rate differs from the measured rate by more than this (deg/s).
+    pub max_rate_innovation_dps: f64,
+    /// How far ahead calm windows are searched (s).
+    pub horizon_s: f64,
+    /// How long `Abort` is held.
+    pub abort_hold_s: f64,
+}
+
+impl Default for DecisionConfig {
+    fn default() -> Self {
+        Self {
+            max_abs_roll_deg: 5.0,
+            max_abs_pitch_deg: 5.0,
+            max_abs_roll_rate_dps: 5.0,
+            max_abs_pitch_rate_dps: 5.0,
+            touchdown_s: 2.0,
+            max_age_ms: 300.0,
+            max_gap_ms: 500.0,
+            gap_recovery_s: 1.0,
+            max_plausible_rate_dps: 40.0,
+            window_s: 40.0,
+            min_history_s: 20.0,
+            refit_interval_s: 1.0,
+            predictor: "sinusoids".into(),
+            ar_order: 12,
+            components: 4,
+            fit_memory_s: 10.0,
+            margin_deg: 0.5,
+            rate_margin_dps: 0.5,
+            max_holdout_error_deg: 2.0,
+            holdout_s: 2.0,
+            error_factor: 1.2,
+            error_memory_s: 30.0,
+            max_innovation_deg: 1.0,
+            max_rate_innovation_dps: 1.0,
+            horizon_s: 20.0,
+            abort_hold_s: 2.0,
+        }
+    }
+}
+
+impl DecisionConfig {
+    /// Checks every field; the error names it.
+    pub fn validate(&self) -> Result<(), String> {
+        let positive = [
+            ("max_abs_roll_deg", self.max_abs_roll_deg),
+            ("max_abs_pitch_deg", self.max_abs_pitch_deg),
+            ("max_abs_roll_rate_dps", self.max_abs_roll_rate_dps),
+            ("max_abs_pitch_rate_dps", self.max_abs_pitch_rate_dps),
+            ("touchdown_s", self.touchdown_s),
+            ("max_age_ms", self.max_age_ms),
+            ("max_gap_ms", self.max_gap_ms),
+            ("max_plausible_rate_dps", self.max_plausible_rate_dps),
+            ("window_s", self.window_s),
+            ("min_history_s", self.min_history_s),
+            ("refit_interval_s", self.refit_interval_s),
+            ("max_holdout_error_deg", self.max_holdout_error_deg),
+            ("holdout_s", self.holdout_s),
+            ("error_factor", self.error_factor),
+            ("fit_memory_s", self.fit_memory_s),
+            ("error_memory_s", self.error_memory_s),
+            ("max_innovation_deg", self.max_innovation_deg),
+            ("horizon_s", self.horizon_s),
+            ("max_rate_innovation_dps", self.max_rate_innovation_dps),
+        ];
+        for (k, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!("{k}: must be positive, got {v}"));
+            }
+        }
+        for (k, v) in [
+            ("margin_deg", self.margin_deg),
+            ("rate_margin_dps", self.rate_margin_dps),
+            ("gap_recovery_s", self.gap_recovery_s),
+            ("abort_hold_s", self.abort_hold_s),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!("{k}: must be >= 0, got {v}"));
+            }
+        }
+        if self.max_abs_roll_deg >= 90.0 || self.max_abs_pitch_deg >= 90.0 {
+            return Err("max_abs_roll_deg/max_abs_pitch_deg: must be below 90".into());
+        }
+        if self.predictor != "ar" && self.predictor != "sinusoids" {
+            return Err(format!("predictor: unknown `{}` (ar, sinusoids)", self.predictor));
+        }
+        if !(2..=40).contains(&self.ar_order) {
+            return Err(format!("ar_order: must be 2..=40, got {}", self.ar_order));
+        }
+        if !(1..=8).contains(&self.components) {
+            return Err(format!("components: must be 1..=8, got {}", self.components));
+        }
+        if self.min_history_s > self.window_s {
+            return Err("min_history_s: must not exceed window_s".into());
+        }
+        if self.holdout_s * 2.0 > self.min_history_s {
+            return Err("holdout_s: must be at most half of min_history_s".into());
+        }
+        Ok(())
+    }
+}
+
+/// One decision.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Decision {
+    pub state: DecisionState,
+    pub reason: DecisionReason,
+    /// The next predicted calm window (start relative to `now`, length; s), if any.
+    pub calm_window: Option<(f64, f64)>,
+    /// This decision starts a new commitment (a new touchdown window begins now).
+    pub new_commit: bool,
+}
+
+#[derive(Debug, Clone)]
+struct Models {
+    roll: Track,
+    pitch: Track,
+    /// Bound on the prediction error (deg): `error_factor` times the largest error, over the
+    /// last `error_memory_s`, of a model fitted `holdout_s` earlier on the samples since.
+    holdout_error: f64,
+}
+
+/// One angle's predictor.
+#[derive(Debug, Clone)]
+enum Track {
+    Sinusoids(SinusoidModel),
+    Autoregressive(ArModel),
+}
+
+impl Track {
+    fn t0(&self) -> f64 {
+        match self {
+            Self::Sinusoids(m) => m.t0,
+            Self::Autoregressive(m) => m.t0,
+        }
+    }
+    fn value(&self, t: f64) -> f64 {
+        match self {
+            Self::Sinusoids(m) => m.value(t),
+            Self::Autoregressive(m) => m.value(t),
+        }
+    }
+    fn rate(&self, t: f64) -> f64 {
+        match self {
+            Self::Sinusoids(m) => m.rate(t),
+            Self::Autoregressive(m) => m.rate(t),
+        }
+    }
+}
+
+/// Samples closer than this are thinned out for the fit (ship motion is below 0.5 Hz).
+const FIT_SPACING_S: f64 = 0.2;
+/// A full frequency search at most this often; warm refits in between.
+const REGRID_INTERVAL_S: f64 = 10.0;
+const F_MIN_HZ: f64 = 0.03;
+/// After a model misses, the next refit comes this soon (s).
+const RETRY_S: f64 = 0.3;
+/// Window of the measured rate (s).
+const RATE_WINDOW_S: f64 = 0.6;
+const F_MAX_HZ: f64 = 0.5;
+
+/// The decision state machine.
+pub struct LandingDecider {
+    config: DecisionConfig,
+    history: VecDeque<(f64, f64, f64)>,
+    models: Option<Models>,
+    /// Earlier fits (newest last), to measure how well they predicted what came after.
+    past: VecDeque<(Track, Track)>,
+    /// (time, held-out error) of recent refits.
+    errors: VecDeque<(f64, f64)>,
+    last_fit: f64,
+    last_grid: f64,
+    jump_run: u32,
+    gap_until: f64,
+    state: DecisionState,
+    commit_end: f64,
+    abort_until: f64,
+    abort_reason: DecisionReason,
+    /// The calm window found at the last refit (absolute start, length), and that refit's time.
+    calm_cache: Option<(f64, Option<(f64, f64)>)>,
+    last_input: Option<f64>,
+}
+
+const STEP_S: f64 = 0.05;
+
+impl LandingDecider {
+    pub fn new(config: DecisionConfig) -> Result<Self, String> {
+        config.validate()?;
+        Ok(Self {
+            config,
+            history: VecDeque::new(),
+            models: None,
+            past: VecDeque::new(),
+            errors: VecDeque::new(),
+            last_fit: f64::NEG_INFINITY,
+            last_grid: f64::NEG_INFINITY,
+            jump_run: 0,
+            gap_until: f64::NEG_INFINITY,
+            state: DecisionState::NoDeck,
+            commit_end: f64::NEG_INFINITY,
+            abort_until: f64::NEG_INFINITY,
+            abort_reason: DecisionReason::PredictedOutside,
+            calm_cache: None,
+            last_input: None,
+        })
+    }
+
+    pub fn config(&self) -> &DecisionConfig {
+        &self.config
+    }
+
+    pub fn state(&self) -> DecisionState {
+        self.state
+    }
+
+    /// Decides on the attitude of a frame captured at `t` (roll and pitch in degrees; None: no
+    /// valid attitude), at time `now`.
+    pub fn update(&mut self, t: f64, attitude: Option<[f64; 2]>, now: f64) -> Decision {
+        self.last_input = Some(now);
+        let verdict = self.check(t, attitude, now);
+        self.transition(verdict, now)
+    }
+
+    /// Called when no input arrived: once the newest attitude is older than `max_age_ms`, the
+    /// decision becomes stale (`Abort` if committed, else `NoDeck`).
+    pub fn timeout(&mut self, now: f64) -> Option<Decision> {
+        let last = self.last_input?;
+        if now - last <= self.config.max_age_ms / 1e3 {
+            return None;
+        }
+        self.last_input = None;
+        Some(self.transition(Err(DecisionReason::StaleData), now))
+    }
+
+    fn check(&mut self, t: f64, attitude: Option<[f64; 2]>, now: f64) -> Result<(), DecisionReason> {
+        let c = self.config.clone();
+        let Some([roll, pitch]) = attitude.filter(|a| a.iter().all(|v| v.is_finite())) else {
+            return Err(DecisionReason::InvalidAttitude);
+        };
+        if !(t.is_finite() && now - t <= c.max_age_ms / 1e3) {
+            return Err(DecisionReason::StaleData);
+        }
+        if let Some(&(tp, rp, pp)) = self.history.back() {
+            let dt = t - tp;
+            if !(dt > 0.0) {
+                return Err(DecisionReason::StaleData); // out of order or repeated
+            }
+            if dt > c.max_gap_ms / 1e3 {
+                self.gap_until = t + c.gap_recovery_s;
+            }
+            let rate = (roll - rp).abs().max((pitch - pp).abs()) / dt;
+            if rate > c.max_plausible_rate_dps {
+                self.jump_run += 1;
+                if self.jump_run < 3 {
+                    return Err(DecisionReason::Jump);
+                }
+                // Three in a row agree with each other, not with the history: start afresh.
+                self.history.clear();
+                self.models = None;
+                self.past.clear();
+                self.errors.clear();
+            }
+        }
+        self.jump_run = 0;
+        self.history.push_back((t, roll, pitch));
+        while self
+            .history
+            .front()
+            .is_some_and(|&(t0, _, _)| t - t0 > c.window_s)
+        {
+            self.history.pop_front();
+        }
+        if t < self.gap_until {
+            return Err(DecisionReason::Gap);
+        }
+        let span = t - self.history.front().map_or(t, |h| h.0);
+        if span < c.min_history_s {
+            self.models = None;
+            self.past.clear();
+            self.errors.clear();
+            return Err(DecisionReason::Warmup);
+        }
+        if self.models.is_none() || t - self.last_fit >= c.refit_interval_s {
+            self.last_fit = t;
+            self.models = self.fit();
+        }
+        let m = self.models.as_ref().ok_or(DecisionReason::PredictionUnreliable)?;
+        if m.holdout_error > c.max_holdout_error_deg {
+            return Err(DecisionReason::PredictionUnreliable);
+        }
+        let innovation = (m.roll.value(t) - roll)
+            .abs()
+            .max((m.pitch.value(t) - pitch).abs());
+        if innovation > c.max_innovation_deg {
+            self.refit_soon(t);
+            return Err(DecisionReason::PredictionUnreliable);
+        }
+        // The model's rate must match the measured one (a local line through the newest
+        // samples): a fit that turns the motion around where the deck does not is caught here.
+        if let Some([rr, pr]) = self.measured_rate(t, RATE_WINDOW_S) {
+            let miss = (m.roll.rate(t) - rr).abs().max((m.pitch.rate(t) - pr).abs());
+            if miss > c.max_rate_innovation_dps {
+                self.refit_soon(t);
+                return Err(DecisionReason::PredictionUnreliable);
+            }
+        }
+        Ok(())
+    }
+
+    /// The model missed: refit within `RETRY_S` (not at once: a refit every frame would cost
+    /// milliseconds per decision while the motion is unpredictable).
+    fn refit_soon(&mut self, t: f64) {
+        self.last_fit = self.last_fit.min(t - self.config.refit_interval_s + RETRY_S);
+    }
+
+    /// Roll and pitch rates (deg/s) from a least-squares line through the samples of the last
+    /// `window` seconds; None with fewer than 4 samples.
+    fn measured_rate(&self, t: f64, window: f64) -> Option<[f64; 2]> {
+        let recent: Vec<&(f64, f64, f64)> = self
+            .history
+            .iter()
+            .rev()
+            .take_while(|h| t - h.0 <= window)
+            .collect();
+        if recent.len() < 4 {
+            return None;
+        }
+        let n = recent.len() as f64;
+        let mt = recent.iter().map(|h| h.0).sum::<f64>() / n;
+        let stt: f64 = recent.iter().map(|h| (h.0 - mt).powi(2)).sum();
+        if !(stt > 0.0) {
+            return None;
+        }
+        let slope = |k: usize| {
+            let mv = recent.iter().map(|h| if k == 0 { h.1 } else { h.2 }).sum::<f64>() / n;
+            recent
+                .iter()
+                .map(|h| (h.0 - mt) * (if k == 0 { h.1 } else { h.2 } - mv))
+                .sum::<f64>()
+                / stt
+        };
+        Some([slope(0), slope(1)])
+    }
+
+    fn fit(&mut self) -> Option<Models> {
+        let c = self.config.clone();
+        let (mut t, mut roll, mut pitch) = (Vec::new(), Vec::new(), Vec::new());
+        // Newest sample always in; older ones thinned to the fit spacing.
+        for &(ti, r, p) in self.history.iter().rev() {
+            if t.last().is_none_or(|&last: &f64| last - ti >= FIT_SPACING_S) {
+                t.push(ti);
+                roll.push(r);
+                pitch.push(p);
+            }
+        }
+        t.reverse();
+        roll.reverse();
+        pitch.reverse();
+        let end = *t.last()?;
+        let (r, p) = if c.predictor == "sinusoids" {
+            let warm = match self.past.back() {
+                Some((Track::Sinusoids(r0), Track::Sinusoids(p0)))
+                    if end - self.last_grid < REGRID_INTERVAL_S =>
+                {
+                    r0.refit(&t, &roll, F_MIN_HZ, F_MAX_HZ, c.fit_memory_s)
+                        .zip(p0.refit(&t, &pitch, F_MIN_HZ, F_MAX_HZ, c.fit_memory_s))
+                }
+                _ => None,
+            };
+            let (r, p) = match warm {
+                Some(rp) => rp,
+                None => {
+                    self.last_grid = end;
+                    let fit = |y: &[f64]| {
+                        SinusoidModel::fit(&t, y, c.components, F_MIN_HZ, F_MAX_HZ, c.fit_memory_s)
+                    };
+                    (fit(&roll)?, fit(&pitch)?)
+                }
+            };
+            (Track::Sinusoids(r), Track::Sinusoids(p))
+        } else {
+            let horizon = c.horizon_s + c.touchdown_s + c.holdout_s;
+            let fit = |y: &[f64]| ArModel::fit(&t, y, c.ar_order, FIT_SPACING_S, horizon);
+            (
+                Track::Autoregressive(fit(&roll)?),
+                Track::Autoregressive(fit(&pitch)?),
+            )
+        };
+        // How well did the fit of `holdout_s` ago predict the samples since?
+        let old = self.past.iter().rev().find(|(m, _)| end - m.t0() >= c.holdout_s);
+        let holdout_error = match old {
+            Some((r_old, p_old)) => self
+                .history
+                .iter()
+                .filter(|h| h.0 > r_old.t0() && h.0 <= r_old.t0() + c.holdout_s)
+                .map(|&(ti, rv, pv)| (r_old.value(ti) - rv).abs().max((p_old.value(ti) - pv).abs()))
+                .fold(0.0, f64::max),
+            None => f64::INFINITY, // no track record yet
+        };
+        self.errors.push_back((end, holdout_error));
+        while self
+            .errors
+            .front()
+            .is_some_and(|&(te, _)| end - te > c.error_memory_s)
+        {
+            self.errors.pop_front();
+        }
+        // Consecutive fits must agree on the coming touchdown; a disagreement is an error of one
+        // of them and widens the bound like one.
+        let disagreement = match self.past.back() {
+            Some((r_prev, p_prev)) => (0..=20)
+                .map(|k| end + c.touchdown_s * k as f64 / 20.0)
+                .map(|ti| {
+                    (r_prev.value(ti) - r.value(ti))
+                        .abs()
+                        .max((p_prev.value(ti) - p.value(ti)).abs())
+                })
+                .fold(0.0, f64::max),
+            None => f64::INFINITY,
+        };
+        let recent_max = self.errors.iter().map(|e| e.1).fold(0.0, f64::max);
+        let holdout_error = c.error_factor * recent_max.max(disagreement);
+        self.past.push_back((r.clone(), p.clone()));
+        while self
+            .past
+            .front()
+            .is_some_and(|(m, _)| end - m.t0() > c.holdout_s + 2.0 * c.refit_interval_s)
+        {
+            self.past.pop_front();
+        }
+        Some(Models {
+            roll: r,
+            pitch: p,
+            holdout_error,
+        })
+    }
+
+    /// Whether the model keeps the deck within capacity (less `margin`) over [from, to].
+    fn predicted_within(&self, m: &Models, from: f64, to: f64, margin: f64) -> bool {
+        let c = &self.config;
+        let rate_margin = c.rate_margin_dps * (margin > 0.0) as u8 as f64;
+        let steps = ((to - from) / STEP_S).ceil().max(0.0) as usize;
+        (0..=steps).all(|k| {
+            let t = (from + k as f64 * STEP_S).min(to);
+            m.roll.value(t).abs() <= c.max_abs_roll_deg - margin
+                && m.pitch.value(t).abs() <= c.max_abs_pitch_deg - margin
+                && m.roll.rate(t).abs() <= c.max_abs_roll_rate_dps - rate_margin
+                && m.pitch.rate(t).abs() <= c.max_abs_pitch_rate_dps - rate_margin
+        })
+    }
+
+    /// The first window within the horizon in which a commit would be safe.
+    fn calm_window(&self, m: &Models, now: f64, margin: f64) -> Option<(f64, f64)> {
+        let c = &self.config;
+        let steps = (c.horizon_s / STEP_S) as usize;
+        let ok: Vec<bool> = (0..=steps)
+            .map(|k| {
+                let t = now + k as f64 * STEP_S;
+                self.predicted_within(m, t, t, margin)
+            })
+            .collect();
+        let need = (c.touchdown_s / STEP_S).ceil() as usize;
+        let mut k = 0;
+        while k < ok.len() {
+            if ok[k] {
+                let len = ok[k..].iter().take_while(|&&v| v).count();
+                if len > need {
+                    return Some((k as f64 * STEP_S, len as f64 * STEP_S));
+                }
+                k += len;
+            } else {
+                k += 1;
+            }
+        }
+        None
+    }
+
+    /// The calm window, searched once per model (the search walks the whole horizon).
+    fn cached_calm_window(&mut self, m: &Models, now: f64, margin: f64) -> Option<(f64, f64)> {
+        let fresh = match self.calm_cache {
+            Some((fit, Some((start, len)))) => {
+                fit == self.last_fit && now <= start + len - self.config.touchdown_s
+            }
+            Some((fit, None)) => fit == self.last_fit,
+            None => false,
+        };
+        if !fresh {
+            let w = self.calm_window(m, now, margin).map(|(s, l)| (now + s, l));
+            self.calm_cache = Some((self.last_fit, w));
+        }
+        let (start, len) = self.calm_cache?.1?;
+        let passed = (now - start).max(0.0);
+        Some(((start - now).max(0.0), len - passed))
+    }
+
+    fn transition(&mut self, verdict: Result<(), DecisionReason>, now: f64) -> Decision {
+        let committed = self.state == DecisionState::ClearToLand && now < self.commit_end;
+        let aborting = self.state == DecisionState::Abort && now < self.abort_until;
+        let mut decision = Decision {
+            state: DecisionState::Hold,
+            reason: DecisionReason::WithinCapacity,
+            calm_window: None,
+            new_commit: false,
+        };
+        match verdict {
+            Err(reason) => {
+                decision.reason = reason;
+                decision.state = if committed || aborting {
+                    DecisionState::Abort
+                } else if matches!(
+                    reason,
+                    DecisionReason::InvalidAttitude | DecisionReason::StaleData
+                ) {
+                    DecisionState::NoDeck
+                } else {
+                    DecisionState::Hold
+                };
+            }
+            Ok(()) => {
+                let m = self.models.clone().expect("checked");
+                let margin = self.config.margin_deg + m.holdout_error;
+                decision.calm_window = self.cached_calm_window(&m, now, margin);
+                if committed {
+                    // Staying needs only the prediction's own error bound.
+                    if self.predicted_within(&m, now, self.commit_end, m.holdout_error) {
+                        decision.state = DecisionState::ClearToLand;
+                    } else {
+                        decision.state = DecisionState::Abort;
+                        decision.reason = DecisionReason::PredictedOutside;
+                    }
+                } else if aborting {
+                    // Held: still the reason the landing was aborted for.
+                    decision.state = DecisionState::Abort;
+                    decision.reason = self.abort_reason;
+                } else if self.predicted_within(&m, now, now + self.config.touchdown_s, margin) {
+                    decision.state = DecisionState::ClearToLand;
+                    decision.new_commit = true;
+                    self.commit_end = now + self.config.touchdown_s;
+                } else {
+                    decision.reason = if self.predicted_within(&m, now, now, 0.0) {
+                        DecisionReason::PredictedOutside
+                    } else {
+                        DecisionReason::OutsideCapacity
+                    };
+                }
+            }
+        }
+        if decision.state == DecisionState::Abort && self.state != DecisionState::Abort {
+            self.abort_reason = decision.reason;
+            self.abort_until = now + self.config.abort_hold_s;
+            self.commit_end = f64::NEG_INFINITY;
+        }
+        self.state = decision.state;
+        decision
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::TAU;
+
+    fn sea(t: f64, scale: f64) -> [f64; 2] {
+        [
+            scale * (4.0 * (TAU * t / 11.0).sin() + 2.0 * (TAU * t / 8.3 + 1.0).sin()),
+            scale * (1.5 * (TAU * t / 6.4 + 0.5).sin() + 0.8 * (TAU * t / 8.9).sin()),
+        ]
+    }
+
+    fn run(
+        decider: &mut LandingDecider,
+        from: f64,
+        to: f64,
+        f: impl Fn(f64) -> Option<[f64; 2]>,
+    ) -> Vec<(f64, Decision)> {
+        let mut out = Vec::new();
+        let mut t = from;
+        while t < to {
+            out.push((t, decider.update(t, f(t), t + 0.005)));
+            t += 0.1;
+        }
+        out
+    }
+
+    #[test]
+    fn warms_up_then_clears_only_into_calm_windows() {
+        let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
+        let out = run(&mut d, 0.0, 120.0, |t| Some(sea(t, 0.8)));
+        assert!(out
+            .iter()
+            .take_while(|(t, _)| *t < 19.9)
+            .all(|(_, d)| d.state == DecisionState::Hold && d.reason == DecisionReason::Warmup));
+        let commits: Vec<f64> = out
+            .iter()
+            .filter(|(_, d)| d.new_commit)
+            .map(|(t, _)| *t)
+            .collect();
+        assert!(!commits.is_empty(), "a moderate sea has calm windows");
+        let c = d.config().clone();
+        for tc in commits {
+            let mut t = tc;
+            while t <= tc + c.touchdown_s {
+                let [r, p] = sea(t, 0.8);
+                assert!(
+                    r.abs() <= c.max_abs_roll_deg && p.abs() <= c.max_abs_pitch_deg,
+                    "unsafe at {t}"
+                );
+                t += 0.01;
+            }
+        }
+        assert!(out.iter().any(|(_, d)| d.calm_window.is_some()));
+    }
+
+    #[test]
+    fn fail_safes_never_clear_and_say_why() {
+        let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
+        run(&mut d, 0.0, 30.0, |t| Some(sea(t, 0.3)));
+        // Stale: decided long after capture.
+        let r = d.update(30.0, Some(sea(30.0, 0.3)), 31.0);
+        assert_eq!(
+            (r.state, r.reason),
+            (DecisionState::NoDeck, DecisionReason::StaleData)
+        );
+        // Invalid.
+        let r = d.update(30.1, None, 30.105);
+        assert_eq!(
+            (r.state, r.reason),
+            (DecisionState::NoDeck, DecisionReason::InvalidAttitude)
+        );
+        // A jump of 20 deg since the last accepted attitude (0.3 s ago).
+        let [a, b] = sea(30.2, 0.3);
+        let r = d.update(30.2, Some([a + 20.0, b]), 30.205);
+        assert_eq!(r.reason, DecisionReason::Jump);
+        assert_ne!(r.state, DecisionState::ClearToLand);
+        // A gap of 2 s.
+        let r = d.update(32.3, Some(sea(32.3, 0.3)), 32.305);
+        assert_eq!(r.reason, DecisionReason::Gap);
+        // Watchdog: nothing arrives.
+        assert!(d.timeout(32.4).is_none());
+        let r = d.timeout(33.0).unwrap();
+        assert_eq!(r.reason, DecisionReason::StaleData);
+        assert_ne!(r.state, DecisionState::ClearToLand);
+    }
+
+    #[test]
+    fn a_changed_sea_is_unreliable_not_cleared() {
+        let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
+        run(&mut d, 0.0, 40.0, |t| Some(sea(t, 0.3)));
+        // The motion suddenly changes character (new frequencies, bigger): no clearance until the
+        // model has learned it.
+        let out = run(&mut d, 40.0, 44.0, |t| Some([3.0 * (TAU * t / 3.0).sin(), 0.0]));
+        assert!(out
+            .iter()
+            .any(|(_, d)| d.reason == DecisionReason::PredictionUnreliable));
+        for (t, dd) in &out {
+            if dd.new_commit {
+                panic!("cleared at {t} on an unknown motion");
+            }
+        }
+    }
+
+    #[test]
+    fn config_errors_name_the_field() {
+        let c = DecisionConfig {
+            touchdown_s: -1.0,
+            ..Default::default()
+        };
+        assert!(c.validate().unwrap_err().starts_with("touchdown_s"));
+    }
+}

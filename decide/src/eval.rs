@@ -1,0 +1,217 @@
+//! Evaluation of landing rules against the true deck motion: how often a rule commits although
+//! the true deck leaves the capacity during the touchdown (unsafe clearances: must be 0), and
+//! how many of the truly calm windows it uses (availability). Pure: the caller supplies the
+//! true motion and the measured attitude stream (with its noise, dropouts and outliers).
+
+use crate::decision::{DecisionConfig, LandingDecider};
+use deckwatch_common::messages::DecisionState;
+
+/// One measured frame: capture time, measured roll/pitch (None: no valid attitude), decision time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Measured {
+    pub t: f64,
+    pub attitude: Option<[f64; 2]>,
+    pub now: f64,
+}
+
+/// Outcome of one rule over one series.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct RuleOutcome {
+    pub commits: u64,
+    /// Commits during whose touchdown the true deck left the capacity.
+    pub unsafe_commits: u64,
+    /// Commits later aborted (the state machine only).
+    pub aborts: u64,
+    /// Truly calm windows (at least one touchdown long).
+    pub calm_windows: u64,
+    /// Calm windows with a safe commit inside.
+    pub calm_windows_used: u64,
+    /// Share of the series' time during which a commit would truly have been safe.
+    pub safe_time_share: f64,
+    /// Aborts by the reason given (state machine only).
+    pub abort_reasons: std::collections::BTreeMap<String, u64>,
+    /// Decisions by state and reason (state machine only).
+    pub decisions: std::collections::BTreeMap<String, u64>,
+    /// Cost of one decision (us): p50, p99, max (state machine only).
+    pub update_us: [f64; 3],
+}
+
+impl RuleOutcome {
+    pub fn availability(&self) -> f64 {
+        if self.calm_windows == 0 {
+            f64::NAN
+        } else {
+            self.calm_windows_used as f64 / self.calm_windows as f64
+        }
+    }
+}
+
+/// The capacity as the truth is judged by (angles and rates).
+fn truly_within(truth: &dyn Fn(f64) -> [f64; 2], c: &DecisionConfig, t: f64) -> bool {
+    let h = 1e-3;
+    let [r, p] = truth(t);
+    let [r1, p1] = truth(t + h);
+    let [r0, p0] = truth(t - h);
+    let (rr, pr) = ((r1 - r0) / (2.0 * h), (p1 - p0) / (2.0 * h));
+    r.abs() <= c.max_abs_roll_deg
+        && p.abs() <= c.max_abs_pitch_deg
+        && rr.abs() <= c.max_abs_roll_rate_dps
+        && pr.abs() <= c.max_abs_pitch_rate_dps
+}
+
+const TRUTH_STEP_S: f64 = 0.02;
+
+/// The truly calm intervals in [t0, t1] of at least `touchdown_s`.
+fn calm_intervals(
+    truth: &dyn Fn(f64) -> [f64; 2],
+    c: &DecisionConfig,
+    t0: f64,
+    t1: f64,
+) -> (Vec<(f64, f64)>, f64) {
+    let mut out = Vec::new();
+    let mut start: Option<f64> = None;
+    let mut safe_time = 0.0;
+    let n = ((t1 - t0) / TRUTH_STEP_S) as usize;
+    for k in 0..=n {
+        let t = t0 + k as f64 * TRUTH_STEP_S;
+        let ok = k < n && truly_within(truth, c, t);
+        match (ok, start) {
+            (true, None) => start = Some(t),
+            (false, Some(s)) => {
+                if t - s >= c.touchdown_s {
+                    out.push((s, t));
+                    safe_time += t - s - c.touchdown_s;
+                }
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    (out, safe_time / (t1 - t0))
+}
+
+fn judge(
+    truth: &dyn Fn(f64) -> [f64; 2],
+    c: &DecisionConfig,
+    commits: &[f64],
+    outcome: &mut RuleOutcome,
+    t0: f64,
+    t1: f64,
+) {
+    let (calm, share) = calm_intervals(truth, c, t0, t1 + c.touchdown_s);
+    outcome.calm_windows = calm.len() as u64;
+    outcome.safe_time_share = share;
+    outcome.commits = commits.len() as u64;
+    let mut used = vec![false; calm.len()];
+    for &tc in commits {
+        let steps = (c.touchdown_s / TRUTH_STEP_S).ceil() as usize;
+        let safe =
+            (0..=steps).all(|k| truly_within(truth, c, tc + (k as f64 * TRUTH_STEP_S).min(c.touchdown_s)));
+        if !safe {
+            outcome.unsafe_commits += 1;
+            continue;
+        }
+        if let Some(i) = calm
+            .iter()
+            .position(|&(a, b)| a <= tc + 1e-9 && tc + c.touchdown_s <= b + 1e-9)
+        {
+            used[i] = true;
+        }
+    }
+    outcome.calm_windows_used = used.iter().filter(|&&u| u).count() as u64;
+}
+
+/// Runs the state machine and the naive rule ("current angles within the limits") over the
+/// same measured stream; returns (state machine, naive).
+pub fn evaluate(
+    truth: &dyn Fn(f64) -> [f64; 2],
+    config: &DecisionConfig,
+    stream: &[Measured],
+) -> Result<(RuleOutcome, RuleOutcome), String> {
+    let (Some(first), Some(last)) = (stream.first(), stream.last()) else {
+        return Ok(Default::default());
+    };
+    let mut decider = LandingDecider::new(config.clone())?;
+    let (mut commits, mut naive_commits) = (Vec::new(), Vec::new());
+    let mut smart = RuleOutcome::default();
+    let mut naive_until = f64::NEG_INFINITY;
+    let mut previous = DecisionState::NoDeck;
+    let mut cost_us = Vec::with_capacity(stream.len());
+    for m in stream {
+        let clock = std::time::Instant::now();
+        let d = decider.update(m.t, m.attitude, m.now);
+        cost_us.push(clock.elapsed().as_secs_f64() * 1e6);
+        *smart
+            .decisions
+            .entry(format!("{} {}", d.state.name(), d.reason.name()))
+            .or_default() += 1;
+        if d.new_commit {
+            commits.push(m.now);
+        }
+        if d.state == DecisionState::Abort && previous != DecisionState::Abort {
+            smart.aborts += 1;
+            *smart
+                .abort_reasons
+                .entry(d.reason.name().to_string())
+                .or_default() += 1;
+        }
+        previous = d.state;
+        // The naive rule commits whenever the current angles are within the limits and no
+        // touchdown of its own is under way.
+        if let Some([r, p]) = m.attitude {
+            if m.now >= naive_until
+                && r.abs() <= config.max_abs_roll_deg
+                && p.abs() <= config.max_abs_pitch_deg
+            {
+                naive_commits.push(m.now);
+                naive_until = m.now + config.touchdown_s;
+            }
+        }
+    }
+    if let Some(p) = deckwatch_common::stats::Percentiles::of(&mut cost_us) {
+        smart.update_us = [p.p50, p.p99, p.max];
+    }
+    let mut naive = RuleOutcome::default();
+    judge(truth, config, &commits, &mut smart, first.t, last.t);
+    judge(truth, config, &naive_commits, &mut naive, first.t, last.t);
+    Ok((smart, naive))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::TAU;
+
+    #[test]
+    fn a_calm_sea_is_used_and_the_naive_rule_is_unsafe_on_a_rough_one() {
+        let c = DecisionConfig::default();
+        let calm = |t: f64| [1.0 * (TAU * t / 9.0).sin(), 0.5 * (TAU * t / 6.0).sin()];
+        let stream: Vec<Measured> = (0..1200)
+            .map(|k| {
+                let t = k as f64 * 0.1;
+                Measured {
+                    t,
+                    attitude: Some(calm(t)),
+                    now: t + 0.005,
+                }
+            })
+            .collect();
+        let (smart, naive) = evaluate(&calm, &c, &stream).unwrap();
+        assert_eq!(smart.unsafe_commits, 0);
+        assert_eq!(smart.calm_windows, 1, "always calm: one long window");
+        assert_eq!(smart.calm_windows_used, 1);
+        assert_eq!(naive.unsafe_commits, 0);
+        // Rough: angles pass through the limits fast; the naive rule commits on the way out.
+        let rough = |t: f64| [9.0 * (TAU * t / 9.0).sin(), 0.5 * (TAU * t / 6.0).sin()];
+        let stream: Vec<Measured> = stream
+            .iter()
+            .map(|m| Measured {
+                attitude: Some(rough(m.t)),
+                ..*m
+            })
+            .collect();
+        let (smart, naive) = evaluate(&rough, &c, &stream).unwrap();
+        assert_eq!(smart.unsafe_commits, 0);
+        assert!(naive.unsafe_commits > 0);
+    }
+}

@@ -1,0 +1,451 @@
+//! Short-term prediction of one deck angle: the dominant sinusoids of a sliding window.
+//!
+//! Ship motion is narrow-band: a few periods of 5-20 s dominate roll and pitch. The model is
+//! `y(t) = c + sum_k a_k cos(w_k (t - t0)) + b_k sin(w_k (t - t0))`, with `t0` the newest sample.
+//! Fitting: the strongest frequency on a grid (least-squares periodogram of the residual), one
+//! component at a time, each time re-solving all amplitudes jointly; then Gauss-Newton on every
+//! parameter, frequencies included. Samples need not be uniform (dropped frames are fine).
+
+use nalgebra::{DMatrix, DVector};
+use std::f64::consts::TAU;
+
+/// One fitted angle.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SinusoidModel {
+    /// Time origin (s): the newest sample of the fit.
+    pub t0: f64,
+    pub mean: f64,
+    /// `(w, a, b)` per component: angular frequency (rad/s) and cosine/sine amplitudes.
+    pub components: Vec<(f64, f64, f64)>,
+    /// RMS of the fit residual over the window (same unit as the samples).
+    pub fit_rms: f64,
+}
+
+impl SinusoidModel {
+    pub fn value(&self, t: f64) -> f64 {
+        let tau = t - self.t0;
+        self.mean
+            + self
+                .components
+                .iter()
+                .map(|&(w, a, b)| {
+                    let (s, c) = (w * tau).sin_cos();
+                    a * c + b * s
+                })
+                .sum::<f64>()
+    }
+
+    /// Time derivative (unit per second).
+    pub fn rate(&self, t: f64) -> f64 {
+        let tau = t - self.t0;
+        self.components
+            .iter()
+            .map(|&(w, a, b)| {
+                let (s, c) = (w * tau).sin_cos();
+                w * (b * c - a * s)
+            })
+            .sum()
+    }
+
+    /// Fits `components` sinusoids with frequencies in `[f_min_hz, f_max_hz]` to the samples
+    /// (`t` increasing, seconds), weighting each by `exp(-age / memory_s)` (infinite: all
+    /// alike) so that the fit follows the newest motion. None when there are too few samples
+    /// or the solve fails.
+    pub fn fit(
+        t: &[f64],
+        y: &[f64],
+        components: usize,
+        f_min_hz: f64,
+        f_max_hz: f64,
+        memory_s: f64,
+    ) -> Option<Self> {
+        let n = t.len();
+        if n != y.len() || n < 4 * components + 4 || !(f_max_hz > f_min_hz && f_min_hz > 0.0) {
+            return None;
+        }
+        let t0 = t[n - 1];
+        let span = t0 - t[0];
+        if !(span > 0.0) {
+            return None;
+        }
+        let tau: Vec<f64> = t.iter().map(|&ti| ti - t0).collect();
+        let w = weights(&tau, memory_s);
+        let mut omegas: Vec<f64> = Vec::with_capacity(components);
+        let mut params = linear_fit(&tau, y, &w, &omegas)?;
+        // Grid fine enough to land within a quarter of the window's frequency resolution.
+        let df = 0.25 / span;
+        let steps = ((f_max_hz - f_min_hz) / df).ceil() as usize + 1;
+        for _ in 0..components {
+            let residual = residuals(&tau, y, &omegas, &params);
+            let mut best = (0.0, f64::NAN);
+            for j in 0..steps {
+                let om = TAU * (f_min_hz + j as f64 * df).min(f_max_hz);
+                if omegas.iter().any(|&o| (o - om).abs() < 0.5 * TAU * df) {
+                    continue;
+                }
+                let gain = periodogram_gain(&tau, &residual, &w, om);
+                if gain > best.0 {
+                    best = (gain, om);
+                }
+            }
+            if !best.1.is_finite() {
+                break;
+            }
+            omegas.push(best.1);
+            params = linear_fit(&tau, y, &w, &omegas)?;
+        }
+        let mut model = refine(&tau, y, &w, &omegas, &params, f_min_hz, f_max_hz);
+        model.t0 = t0;
+        Some(model)
+    }
+}
+
+impl SinusoidModel {
+    /// Refits to new samples starting from this model's frequencies (no grid search): cheap,
+    /// for a sliding window that moved on by a little. None if the solve fails.
+    pub fn refit(&self, t: &[f64], y: &[f64], f_min_hz: f64, f_max_hz: f64, memory_s: f64) -> Option<Self> {
+        let n = t.len();
+        if n != y.len() || n < 4 * self.components.len() + 4 {
+            return None;
+        }
+        let t0 = t[n - 1];
+        let tau: Vec<f64> = t.iter().map(|&ti| ti - t0).collect();
+        let w = weights(&tau, memory_s);
+        let omegas: Vec<f64> = self.components.iter().map(|c| c.0).collect();
+        let params = linear_fit(&tau, y, &w, &omegas)?;
+        let mut model = refine(&tau, y, &w, &omegas, &params, f_min_hz, f_max_hz);
+        model.t0 = t0;
+        Some(model)
+    }
+}
+
+/// Weights of the samples (by age, `tau <= 0`).
+fn weights(tau: &[f64], memory_s: f64) -> Vec<f64> {
+    tau.iter()
+        .map(|&t| {
+            if memory_s.is_finite() {
+                (t / memory_s).exp()
+            } else {
+                1.0
+            }
+        })
+        .collect()
+}
+
+/// Weighted least-squares reduction of the residual by one sinusoid of frequency `w`.
+fn periodogram_gain(tau: &[f64], r: &[f64], wts: &[f64], w: f64) -> f64 {
+    let (mut cc, mut ss, mut cs, mut rc, mut rs) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for ((&t, &v), &q) in tau.iter().zip(r).zip(wts) {
+        let (s, c) = (w * t).sin_cos();
+        let (s, c, v) = (s * q.sqrt(), c * q.sqrt(), v * q.sqrt());
+        cc += c * c;
+        ss += s * s;
+        cs += c * s;
+        rc += v * c;
+        rs += v * s;
+    }
+    let det = cc * ss - cs * cs;
+    if !(det.abs() > 1e-12) {
+        return 0.0;
+    }
+    let a = (rc * ss - rs * cs) / det;
+    let b = (rs * cc - rc * cs) / det;
+    a * rc + b * rs
+}
+
+/// Mean and amplitudes for fixed frequencies: `[c, a_1, b_1, ...]`.
+fn linear_fit(tau: &[f64], y: &[f64], wts: &[f64], omegas: &[f64]) -> Option<Vec<f64>> {
+    let m = 1 + 2 * omegas.len();
+    let a = DMatrix::from_fn(tau.len(), m, |i, j| wts[i].sqrt() * basis(tau[i], omegas, j));
+    let b = DVector::from_iterator(y.len(), y.iter().zip(wts).map(|(v, q)| v * q.sqrt()));
+    let x = (a.transpose() * &a).cholesky()?.solve(&(a.transpose() * b));
+    Some(x.iter().copied().collect())
+}
+
+fn basis(t: f64, omegas: &[f64], j: usize) -> f64 {
+    if j == 0 {
+        return 1.0;
+    }
+    let w = omegas[(j - 1) / 2];
+    if j % 2 == 1 {
+        (w * t).cos()
+    } else {
+        (w * t).sin()
+    }
+}
+
+fn eval(t: f64, omegas: &[f64], p: &[f64]) -> f64 {
+    p[0] + omegas
+        .iter()
+        .enumerate()
+        .map(|(k, &w)| {
+            let (s, c) = (w * t).sin_cos();
+            p[1 + 2 * k] * c + p[2 + 2 * k] * s
+        })
+        .sum::<f64>()
+}
+
+fn residuals(tau: &[f64], y: &[f64], omegas: &[f64], p: &[f64]) -> Vec<f64> {
+    tau.iter().zip(y).map(|(&t, &v)| v - eval(t, omegas, p)).collect()
+}
+
+fn cost(tau: &[f64], y: &[f64], wts: &[f64], omegas: &[f64], p: &[f64]) -> f64 {
+    residuals(tau, y, omegas, p)
+        .iter()
+        .zip(wts)
+        .map(|(r, q)| q * r * r)
+        .sum()
+}
+
+/// Levenberg-Marquardt on `[c, a_k, b_k]` and the frequencies together.
+fn refine(
+    tau: &[f64],
+    y: &[f64],
+    wts: &[f64],
+    omegas: &[f64],
+    p: &[f64],
+    f_min: f64,
+    f_max: f64,
+) -> SinusoidModel {
+    let k = omegas.len();
+    let (mut w, mut p) = (omegas.to_vec(), p.to_vec());
+    let mut c = cost(tau, y, wts, &w, &p);
+    let total_weight: f64 = wts.iter().sum();
+    let mut lambda = 1e-3;
+    for _ in 0..20 {
+        // Parameters: p (1 + 2k) then w (k).
+        let m = 1 + 3 * k;
+        let jac = DMatrix::from_fn(tau.len(), m, |i, j| {
+            let t = tau[i];
+            let sw = wts[i].sqrt();
+            if j < 1 + 2 * k {
+                sw * basis(t, &w, j)
+            } else {
+                let q = j - 1 - 2 * k;
+                let (s, co) = (w[q] * t).sin_cos();
+                sw * t * (p[2 + 2 * q] * co - p[1 + 2 * q] * s)
+            }
+        });
+        let r = DVector::from_iterator(
+            tau.len(),
+            residuals(tau, y, &w, &p)
+                .iter()
+                .zip(wts)
+                .map(|(r, q)| r * q.sqrt()),
+        );
+        let jt = jac.transpose();
+        let mut h = &jt * &jac;
+        let g = &jt * r;
+        for d in 0..m {
+            h[(d, d)] *= 1.0 + lambda;
+        }
+        let Some(ch) = h.cholesky() else { break };
+        let step = ch.solve(&g);
+        let p2: Vec<f64> = p.iter().zip(step.iter()).map(|(a, d)| a + d).collect();
+        let w2: Vec<f64> = w
+            .iter()
+            .enumerate()
+            .map(|(q, a)| (a + step[1 + 2 * k + q]).clamp(TAU * f_min, TAU * f_max))
+            .collect();
+        let c2 = cost(tau, y, wts, &w2, &p2);
+        if c2 < c {
+            let converged = (c - c2) < 1e-12 * c.max(1e-300);
+            (p, w, c) = (p2, w2, c2);
+            lambda = (lambda * 0.3).max(1e-9);
+            if converged {
+                break;
+            }
+        } else {
+            lambda *= 10.0;
+            if lambda > 1e6 {
+                break;
+            }
+        }
+    }
+    SinusoidModel {
+        t0: 0.0,
+        mean: p[0],
+        components: (0..k).map(|q| (w[q], p[1 + 2 * q], p[2 + 2 * q])).collect(),
+        fit_rms: (c / total_weight).sqrt(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn truth(t: f64) -> f64 {
+        13.0 * (TAU * t / 11.0 + 0.3).sin()
+            + 8.0 * (TAU * t / 8.3 + 2.0).sin()
+            + 4.0 * (TAU * t / 14.7).sin()
+            + 0.5
+    }
+
+    #[test]
+    fn recovers_three_sinusoids_and_predicts() {
+        let t: Vec<f64> = (0..600).map(|i| i as f64 * 0.1).collect();
+        let y: Vec<f64> = t.iter().map(|&t| truth(t)).collect();
+        let m = SinusoidModel::fit(&t, &y, 3, 0.03, 0.5, f64::INFINITY).unwrap();
+        assert!(m.fit_rms < 1e-6, "rms {}", m.fit_rms);
+        for dt in [0.5, 2.0, 5.0] {
+            let tt = 59.9 + dt;
+            assert!((m.value(tt) - truth(tt)).abs() < 1e-4, "dt {dt}");
+        }
+        let h = 1e-5;
+        let numeric = (truth(61.0 + h) - truth(61.0 - h)) / (2.0 * h);
+        assert!((m.rate(61.0) - numeric).abs() < 1e-3);
+    }
+
+    #[test]
+    fn noise_and_gaps_still_predict_seconds_ahead() {
+        let mut rng = 12345u64;
+        let mut noise = || {
+            rng = rng
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((rng >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.2
+        };
+        let (mut t, mut y) = (Vec::new(), Vec::new());
+        for i in 0..600 {
+            if i % 7 == 3 {
+                continue; // dropped frames
+            }
+            let ti = i as f64 * 0.1;
+            t.push(ti);
+            y.push(truth(ti) + noise());
+        }
+        let m = SinusoidModel::fit(&t, &y, 3, 0.03, 0.5, f64::INFINITY).unwrap();
+        assert!(m.fit_rms < 0.1, "rms {}", m.fit_rms);
+        for dt in [0.5, 1.0, 3.0] {
+            let tt = 59.9 + dt;
+            assert!(
+                (m.value(tt) - truth(tt)).abs() < 0.1,
+                "dt {dt}: {}",
+                m.value(tt) - truth(tt)
+            );
+        }
+    }
+
+    #[test]
+    fn refuses_too_few_samples() {
+        assert!(SinusoidModel::fit(&[0.0, 1.0], &[0.0, 1.0], 3, 0.03, 0.5, 10.0).is_none());
+    }
+}
+
+/// An autoregressive predictor of one angle: the history resampled on a uniform grid, `x_k` as a
+/// linear combination of the `order` values before it (least squares over the window), run
+/// forward to give the prediction. Narrow-band motion whose amplitudes drift (an irregular sea)
+/// is followed locally, without resolving its frequencies.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArModel {
+    /// Time of the newest sample (s); `predicted[0]` is the (resampled) value there.
+    pub t0: f64,
+    pub dt: f64,
+    pub predicted: Vec<f64>,
+    /// RMS of the one-step-ahead residual over the window.
+    pub fit_rms: f64,
+}
+
+impl ArModel {
+    /// Fits on samples `t` (increasing, s), resampled every `dt`, and predicts `horizon_s`.
+    pub fn fit(t: &[f64], y: &[f64], order: usize, dt: f64, horizon_s: f64) -> Option<Self> {
+        let n_in = t.len();
+        if n_in < 2 || n_in != y.len() || !(dt > 0.0) {
+            return None;
+        }
+        let t0 = t[n_in - 1];
+        let n = ((t0 - t[0]) / dt).floor() as usize + 1;
+        if n < 3 * order + 2 {
+            return None;
+        }
+        // Uniform grid ending at t0, linear interpolation between samples (bridges gaps).
+        let mut x = vec![0.0; n];
+        let mut j = n_in - 1;
+        for (k, xk) in x.iter_mut().enumerate().rev() {
+            let g = t0 - (n - 1 - k) as f64 * dt;
+            while j > 0 && t[j - 1] >= g {
+                j -= 1;
+            }
+            *xk = if j == 0 {
+                y[0]
+            } else {
+                let (ta, tb) = (t[j - 1], t[j]);
+                let f = if tb > ta { (g - ta) / (tb - ta) } else { 1.0 };
+                y[j - 1] + f.clamp(0.0, 1.0) * (y[j] - y[j - 1])
+            };
+        }
+        // x_k = c + sum_i a_i x_{k-i}: the intercept keeps an offset deck exact.
+        let rows = n - order;
+        let a = DMatrix::from_fn(rows, order + 1, |r, i| {
+            if i == order {
+                1.0
+            } else {
+                x[r + order - 1 - i]
+            }
+        });
+        let b = DVector::from_fn(rows, |r, _| x[r + order]);
+        let mut ata = a.transpose() * &a;
+        let ridge = 1e-9 * ata.trace().max(1e-12);
+        for d in 0..=order {
+            ata[(d, d)] += ridge;
+        }
+        let coef = ata.cholesky()?.solve(&(a.transpose() * &b));
+        let resid = &b - &a * &coef;
+        let fit_rms = (resid.norm_squared() / rows as f64).sqrt();
+        let steps = (horizon_s / dt).ceil() as usize;
+        let mut series = x[n - order..].to_vec();
+        let mut predicted = Vec::with_capacity(steps + 1);
+        predicted.push(x[n - 1]);
+        for _ in 0..steps {
+            let m = series.len();
+            let next: f64 = coef[order] + (0..order).map(|i| coef[i] * series[m - 1 - i]).sum::<f64>();
+            series.push(next);
+            predicted.push(next);
+        }
+        Some(Self {
+            t0,
+            dt,
+            predicted,
+            fit_rms,
+        })
+    }
+
+    /// The predicted value at `t` (clamped to the predicted span).
+    pub fn value(&self, t: f64) -> f64 {
+        let s = ((t - self.t0) / self.dt).max(0.0);
+        let k = (s.floor() as usize).min(self.predicted.len() - 1);
+        let k1 = (k + 1).min(self.predicted.len() - 1);
+        let f = (s - k as f64).clamp(0.0, 1.0);
+        self.predicted[k] + f * (self.predicted[k1] - self.predicted[k])
+    }
+
+    /// The predicted rate at `t` (unit per second).
+    pub fn rate(&self, t: f64) -> f64 {
+        let s = ((t - self.t0) / self.dt).max(0.0);
+        let k = (s.floor() as usize).min(self.predicted.len() - 2);
+        (self.predicted[k + 1] - self.predicted[k]) / self.dt
+    }
+}
+
+#[cfg(test)]
+mod ar_tests {
+    use super::*;
+
+    #[test]
+    fn ar_predicts_a_sum_of_sinusoids() {
+        let f = |t: f64| 4.0 * (TAU * t / 11.0).sin() + 2.0 * (TAU * t / 8.3 + 1.0).sin();
+        let t: Vec<f64> = (0..400).map(|i| i as f64 * 0.1).collect();
+        let y: Vec<f64> = t.iter().map(|&t| f(t)).collect();
+        let m = ArModel::fit(&t, &y, 8, 0.25, 5.0).unwrap();
+        for dt in [0.5, 2.0, 3.0] {
+            let tt = 39.9 + dt;
+            assert!(
+                (m.value(tt) - f(tt)).abs() < 0.05,
+                "dt {dt}: {}",
+                m.value(tt) - f(tt)
+            );
+        }
+        let h = 1e-4;
+        assert!((m.rate(41.0) - (f(41.0 + h) - f(41.0 - h)) / (2.0 * h)).abs() < 0.1);
+    }
+}

@@ -180,3 +180,36 @@ fn tracking_follows_the_deck_and_falls_back_when_lost() {
     let small = GrayImage::new(640, 480);
     assert_eq!(det.detect(small.view()).status, DetectionStatus::BadFrame);
 }
+
+#[test]
+fn dull_markers_among_saturated_glints() {
+    // A dull deck (marker contrast 0.35 of the usual) with specular glints: the brightest
+    // samples are the glints, so the threshold halfway to them misses the markers; the
+    // detector retries without the saturated samples.
+    let cam = CameraModel::rpi_v2().scaled_to(1640, 1232);
+    let deck = DeckLayout::paper();
+    let mut o = RenderOptions::realistic();
+    o.marker_dn = o.deck_dn + 0.35 * (o.marker_dn - o.deck_dn);
+    o.glints = 6;
+    let mut sim = simulator(Scenario::Ship, cam, o, 1.0 / 1.7, 7);
+    let mut det = Detector::new(cam, deck, DetectorConfig::for_camera(&cam, &deck));
+    let mut img = GrayImage::new(cam.width as usize, cam.height as usize);
+    let mut found = 0;
+    for k in 0..10 {
+        let truth = sim.render_frame(k, &mut img.view_mut()).unwrap();
+        det.reset_tracking();
+        let set = det.detect(img.view());
+        if set.status == DetectionStatus::NoDeck {
+            continue;
+        }
+        found += 1;
+        for (i, (m, t)) in set.markers.iter().zip(&truth.markers).take(9).enumerate() {
+            if m.valid {
+                let t = t.unwrap();
+                let e = ((m.u - t[0]).powi(2) + (m.v - t[1]).powi(2)).sqrt();
+                assert!(e < 0.5, "frame {k}: marker {i} off by {e} px");
+            }
+        }
+    }
+    assert!(found >= 7, "deck found in {found} of 10 frames");
+}

@@ -45,6 +45,11 @@ pub struct RenderOptions {
     pub shot_noise_dn: f64,
     /// Side of the square flight deck, metres (the paper: 10 m).
     pub deck_size_m: f64,
+    /// A marker hidden under something deck-coloured (a person, a chock): not drawn.
+    pub occluded_marker: Option<usize>,
+    /// Specular glints per frame: saturated spots of 2-40 px radius at random places (seeded
+    /// per frame), some of them marker-sized.
+    pub glints: u32,
 }
 
 impl Default for RenderOptions {
@@ -63,6 +68,8 @@ impl Default for RenderOptions {
             read_noise_dn: 0.0,
             shot_noise_dn: 0.0,
             deck_size_m: 10.0,
+            occluded_marker: None,
+            glints: 0,
         }
     }
 }
@@ -272,7 +279,37 @@ impl Renderer {
         self.draw_patches(exposure);
         self.blur_patches();
         self.composite(&h_mid, &mid, noise_seed, out);
+        self.draw_glints(noise_seed, out);
         Ok(())
+    }
+
+    /// Saturated specular spots (drawn last: a glint clips whatever is under it).
+    fn draw_glints(&self, noise_seed: u64, out: &mut GrayViewMut<'_>) {
+        let mut rng = SplitMix64::new(noise_seed ^ 0x0006_11A7_5EED);
+        let (w, h) = (out.width() as f64, out.height() as f64);
+        for _ in 0..self.options.glints {
+            let (cu, cv) = (rng.next_f64() * w, rng.next_f64() * h);
+            let r = 2.0 + 38.0 * rng.next_f64().powi(2);
+            let (y0, y1) = (
+                (cv - r).floor().max(0.0) as usize,
+                ((cv + r).ceil().min(h - 1.0)) as usize,
+            );
+            let (x0, x1) = (
+                (cu - r).floor().max(0.0) as usize,
+                ((cu + r).ceil().min(w - 1.0)) as usize,
+            );
+            for y in y0..=y1 {
+                let row = out.row_mut(y);
+                for (x, px) in row.iter_mut().enumerate().take(x1 + 1).skip(x0) {
+                    let d = ((x as f64 - cu).powi(2) + (y as f64 - cv).powi(2)).sqrt();
+                    // One pixel of soft edge.
+                    let c = (r + 0.5 - d).clamp(0.0, 1.0);
+                    if c > 0.0 {
+                        *px = (*px as f64 + c * (250.0 - *px as f64)).round() as u8;
+                    }
+                }
+            }
+        }
     }
 
     /// Disc coverage of every marker in its patch, averaged over the sub-exposures.
@@ -284,6 +321,11 @@ impl Renderer {
         let n = self.options.supersample as usize;
         let inv_n = 1.0 / n as f64;
         for m in 0..self.deck.marker_count() {
+            if self.options.occluded_marker == Some(m) {
+                self.patches[m].w = 0; // an empty patch is not drawn
+                self.patches[m].h = 0;
+                continue;
+            }
             let centre = self.deck.marker_position(m);
             let (mx, my) = (centre.x, centre.y);
             let rho = self.deck.disc_radius(m);

@@ -159,6 +159,16 @@ pub struct ImageArgs {
     /// Deck and sea texture contrast, 0-1.
     #[arg(long)]
     pub texture: Option<f64>,
+    /// Marker contrast against the deck, relative to the look's (1 = unchanged; 0.3 = a dull,
+    /// wet or shadowed deck).
+    #[arg(long)]
+    pub contrast: Option<f64>,
+    /// Hide this marker (index; 0 = centre, 1 = bow) as if something deck-coloured covered it.
+    #[arg(long)]
+    pub occlude: Option<usize>,
+    /// Specular glints per frame (saturated spots at random places).
+    #[arg(long)]
+    pub glints: Option<u32>,
     /// Lens distortion k1,k2,p1,p2,k3 (OpenCV order).
     #[arg(long, value_delimiter = ',', num_args = 5)]
     pub distortion: Option<Vec<f64>>,
@@ -214,6 +224,22 @@ impl ImageArgs {
         set(&mut o.vignetting, self.vignetting);
         set(&mut o.illumination_gradient, self.gradient);
         set(&mut o.texture, self.texture);
+        if let Some(c) = self.contrast {
+            if !(c.is_finite() && c > 0.0 && c <= 2.0) {
+                return Err(format!("--contrast: must be within (0, 2], got {c}"));
+            }
+            o.marker_dn = (o.deck_dn + c * (o.marker_dn - o.deck_dn)).min(255.0);
+        }
+        if let Some(m) = self.occlude {
+            if m >= sim.deck.marker_count() {
+                return Err(format!(
+                    "--occlude: marker {m} does not exist (0..{})",
+                    sim.deck.marker_count()
+                ));
+            }
+            o.occluded_marker = Some(m);
+        }
+        o.glints = self.glints.unwrap_or(0);
         o.validate().map_err(|e| format!("render options: {e}"))?;
         Ok((camera, o))
     }
@@ -271,11 +297,16 @@ mod tests {
             vignetting: None,
             gradient: None,
             texture: None,
+            contrast: Some(0.5),
+            occlude: Some(4),
+            glints: Some(3),
             distortion: Some(vec![-0.1, 0.0, 0.0, 0.0, 0.0]),
         };
         let (cam, o) = a.resolve(&sim).unwrap();
         assert_eq!((cam.width, cam.height, cam.distortion.k1), (640, 480, -0.1));
         assert_eq!(o.optical_blur_px, 1.0);
+        assert_eq!((o.occluded_marker, o.glints), (Some(4), 3));
+        assert_eq!(o.marker_dn, o.deck_dn + 0.5 * (RenderOptions::default().marker_dn - o.deck_dn));
         assert_eq!(o.read_noise_dn, 0.0);
         a.look = "fancy".into();
         assert!(a.resolve(&sim).unwrap_err().contains("--look"));

@@ -33,6 +33,7 @@ struct Cli {
 }
 
 mod decide_eval;
+mod eval;
 mod inproc;
 mod launch;
 mod pipeline;
@@ -47,6 +48,9 @@ enum Command {
     Latency(pipeline::LatencyArgs),
     /// The stages in one process, frame by frame (no IPC): per-stage cost and accuracy.
     Inproc(inproc::RunArgs),
+    /// Detection and every estimator on recordings, against their ground truth: RMSE and max
+    /// error of the angles (and altitude/offset), misses, attitudes without a deck, cost.
+    Eval(eval::EvalArgs),
     /// Evaluate the landing decision on long simulated ship-motion series against the truth,
     /// beside the naive rule: unsafe clearances and availability.
     DecideEval(decide_eval::DecideEvalArgs),
@@ -70,7 +74,7 @@ enum Command {
 enum SimCommand {
     /// Render a scenario's frames into a recording (camera.json, frames.csv with ground truth,
     /// 8-bit grayscale PNGs).
-    Record(RecordArgs),
+    Record(Box<RecordArgs>),
     /// Write a scenario's exact (or noisy) marker pixels with ground truth as a marker table.
     Markers(tables::MarkersArgs),
 }
@@ -246,6 +250,7 @@ fn main() -> ExitCode {
         Command::Latency(a) => pipeline::latency(a),
         Command::Inproc(a) => inproc::run(a),
         Command::DecideEval(a) => decide_eval::run(a),
+        Command::Eval(a) => eval::run(a),
         Command::EstimateTable(a) => match tables::estimate_table(a) {
             Ok(true) => Ok(()),
             Ok(false) => return ExitCode::from(2), // finished, but some rows were bad
@@ -257,7 +262,7 @@ fn main() -> ExitCode {
         Command::Sweep(a) => sweep(a),
         Command::Sim {
             command: SimCommand::Record(a),
-        } => record(a),
+        } => record(*a),
         Command::Recording {
             command: RecordingCommand::Check { dir },
         } => check_recording(&dir),

@@ -62,6 +62,9 @@ pub struct MarkerSet {
     pub count: u32,
     /// Whether the markers were found by tracking (regions around the previous frame's).
     pub tracked: bool,
+    /// Whether the centres are free of the perspective bias of disc centroids (NOTES.md item 6);
+    /// false: raw centroids, an estimator should correct them.
+    pub perspective_corrected: bool,
     pub markers: [Marker; MAX_MARKERS],
     pub rejected: RejectCounts,
 }

@@ -341,6 +341,8 @@ pub enum EstimatorKind {
     PaperPrinted = 1,
     /// The paper's method with the fitted ellipse's major axis (NOTES.md item 5).
     PaperFittedMajorAxis = 2,
+    /// Full planar pose from every visible marker (`estimate::pose`).
+    FullPose = 3,
 }
 
 impl EstimatorKind {
@@ -349,6 +351,7 @@ impl EstimatorKind {
             Self::PaperAtan2 => "paper-atan2",
             Self::PaperPrinted => "paper-printed",
             Self::PaperFittedMajorAxis => "paper-fitted-major-axis",
+            Self::FullPose => "full-pose",
         }
     }
 }
@@ -396,6 +399,26 @@ pub struct AttitudeMessage {
     pub residual: f64,
     /// Markers the estimate used.
     pub markers_used: u32,
+    /// Standard deviation of roll, pitch, yaw (deg) when the estimator gives one (full pose),
+    /// else NaN.
+    pub rpy_std_deg: [f64; 3],
+    /// The camera's position over the deck centre (offset x, offset y, altitude; m) when the
+    /// estimator gives it (full pose), else NaN.
+    pub camera_position_m: [f64; 3],
+    /// The other estimator's result on the same markers, for comparison (when enabled).
+    pub alternative: AlternativeAttitude,
+}
+
+/// A second estimator's attitude for the same frame.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[type_name("deckwatch.AlternativeAttitude.v1")]
+pub struct AlternativeAttitude {
+    /// Whether a second estimator ran.
+    pub present: bool,
+    pub estimator: EstimatorKind,
+    pub valid: bool,
+    pub rpy: Rpy,
 }
 
 /// The decision state (see the decide crate for its meaning and transitions).

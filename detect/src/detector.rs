@@ -21,6 +21,11 @@ use deckwatch_common::image::{GrayView, ImageError};
 use deckwatch_common::markers::{DetectionStatus, Marker, MarkerSet, RejectCounts};
 use deckwatch_common::{CameraModel, DeckLayout};
 
+/// Samples at or above this level are taken as saturated (glints, not markers).
+const SATURATED: usize = 248;
+/// At most this many extra candidates (or missing markers) are searched for the pattern.
+const MAX_EXTRAS: usize = 4;
+
 /// Tuning of the detector.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DetectorConfig {
@@ -161,13 +166,28 @@ impl Detector {
 
     /// Full-frame detection (ignores and then replaces the tracking state).
     pub fn detect_full(&mut self, frame: GrayView<'_>) -> MarkerSet {
-        let mut rejected = RejectCounts::default();
-        self.candidates.clear();
-        let (w, h) = (frame.width(), frame.height());
-        let Some(threshold) = self.global_threshold(frame) else {
+        let Some((threshold, unsaturated)) = self.global_threshold(frame) else {
             self.previous = None;
             return MarkerSet::default(); // no contrast: no deck
         };
+        let set = self.detect_at(frame, threshold);
+        // Saturated glints pull the threshold above dull markers: try again at the markers' level.
+        match unsaturated {
+            Some(t)
+                if set.status == DetectionStatus::NoDeck
+                    && threshold - t >= self.config.min_contrast / 2.0 =>
+            {
+                self.detect_at(frame, t)
+            }
+            _ => set,
+        }
+    }
+
+    /// Full-frame detection at one global threshold.
+    fn detect_at(&mut self, frame: GrayView<'_>, threshold: f64) -> MarkerSet {
+        let mut rejected = RejectCounts::default();
+        self.candidates.clear();
+        let (w, h) = (frame.width(), frame.height());
         // Coarse scan: one cell per `step` x `step` pixels, sampled at its corner.
         let step = (self.config.min_radius_px.floor() as usize).clamp(1, 4);
         let (gw, gh) = (w.div_ceil(step), h.div_ceil(step));
@@ -279,7 +299,10 @@ impl Detector {
 
     /// Median of a sparse sample of the frame plus half the way to its brightest sample (at least
     /// half the minimum contrast); None when the frame has no contrast.
-    fn global_threshold(&self, frame: GrayView<'_>) -> Option<f64> {
+    /// Threshold halfway between the frame's median (deck, sea) and its brightest samples
+    /// (markers); and, when lower, halfway to the dimmest bright mode below saturation (the
+    /// markers' level when saturated glints are the brightest things in view).
+    fn global_threshold(&self, frame: GrayView<'_>) -> Option<(f64, Option<f64>)> {
         let (w, h) = (frame.width(), frame.height());
         let step = (((w * h) as f64 / 16384.0).sqrt() as usize).clamp(1, 16);
         let mut hist = [0u32; 256];
@@ -300,7 +323,19 @@ impl Detector {
         if top - median < self.config.min_contrast {
             return None;
         }
-        Some(median + ((top - median) / 2.0).max(self.config.min_contrast / 2.0))
+        let threshold = |top: f64| median + ((top - median) / 2.0).max(self.config.min_contrast / 2.0);
+        // The dimmest bright mode: the markers' level when brighter things (glints) exist.
+        let lo = ((median + self.config.min_contrast).ceil() as usize).min(SATURATED);
+        let bright: u32 = hist[lo..SATURATED].iter().sum();
+        let smooth = |i: usize| hist[i.saturating_sub(3)..(i + 4).min(256)].iter().sum::<u32>();
+        let dim_mode = (lo..SATURATED)
+            .find(|&i| {
+                let c = smooth(i);
+                c * 20 >= bright.max(20) && c >= smooth(i + 1) && (i == 0 || c >= smooth(i - 1))
+            })
+            .map(|i| threshold(i as f64))
+            .filter(|&t| t < threshold(top) - self.config.min_contrast / 2.0);
+        Some((threshold(top), dim_mode))
     }
 
     /// Measures the blob in a region (x0, y0, x1, y1), half-open.
@@ -479,13 +514,20 @@ impl Detector {
     /// Identifies the candidates (trying subsets when there are extras) and builds the set.
     fn assemble(&mut self, mut rejected: RejectCounts, tracked: bool) -> MarkerSet {
         let n_markers = self.deck.marker_count();
-        let cands = std::mem::take(&mut self.candidates);
+        let mut cands = std::mem::take(&mut self.candidates);
+        // Too many candidates to search: drop the saturated ones first (specular glints clip;
+        // markers of a properly exposed frame do not).
+        if cands.len() > n_markers + MAX_EXTRAS {
+            let before = cands.len();
+            cands.retain(|c| c.plateau < SATURATED as f64 - 2.0);
+            rejected.unassigned += (before - cands.len()) as u32;
+        }
         // (markers, residual, assignment) of the best consistent subset so far.
         let mut best: Option<(usize, f64, Assignment)> = None;
         // At most 4 extras (or missing markers) are searched: beyond, the frame is not a deck.
         let n = cands.len();
-        if n >= 6 && n <= n_markers + 4 {
-            let min_size = 6.max(n.saturating_sub(4));
+        if n >= 6 && n <= n_markers + MAX_EXTRAS {
+            let min_size = 6.max(n.saturating_sub(MAX_EXTRAS));
             for size in (min_size..=n.min(n_markers)).rev() {
                 for_each_subset(n, size, &mut |subset: &[usize]| {
                     let blobs: Vec<Blob> = subset
@@ -566,6 +608,7 @@ impl Detector {
             let h = homography::fit(&src, &dst)?;
             Some((h, src, dst))
         });
+        set.perspective_corrected = self.config.correct_perspective && fit.is_some();
         for (k, (m, c)) in assigned.iter().enumerate() {
             let (mut u, mut v) = (c.u, c.v);
             let mut residual = 0.0;

@@ -6,7 +6,9 @@
 
 pub mod ellipse;
 pub mod paper;
+pub mod pose;
 pub mod stage;
 
 pub use ellipse::{Ellipse, EllipseFit, EllipseFitError};
 pub use paper::{NotEstimable, PaperEstimate, PaperEstimator, PaperVariant};
+pub use pose::{PoseConfig, PoseError, PoseEstimate, PoseEstimator};

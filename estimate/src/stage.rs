@@ -1,10 +1,13 @@
 //! The estimate stage's per-frame step, without transport: from a [`MarkerMessage`] to the
-//! [`AttitudeMessage`] that goes to decide, and the stage's `[estimate]` configuration.
+//! [`AttitudeMessage`] that goes to decide, and the stage's `[estimate]` configuration. The
+//! configured estimator's result is the message's attitude; with `compare`, the other family's
+//! result rides along (`AttitudeMessage::alternative`).
 
-use crate::{NotEstimable, PaperEstimator, PaperVariant};
+use crate::{NotEstimable, PaperEstimator, PaperVariant, PoseConfig, PoseError, PoseEstimator};
 use deckwatch_common::markers::DetectionStatus;
 use deckwatch_common::messages::{
-    monotonic_ns, AttitudeFailure, AttitudeMessage, EstimatorKind, GapCounter, MarkerMessage,
+    monotonic_ns, AlternativeAttitude, AttitudeFailure, AttitudeMessage, EstimatorKind, GapCounter,
+    MarkerMessage,
 };
 use serde::{Deserialize, Serialize};
 
@@ -12,17 +15,29 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct EstimateConfig {
-    /// `paper-atan2` (default), `paper-printed` or `paper-fitted-major-axis`.
+    /// `full-pose` (default: it measures better, BENCHMARKS.md), `paper-atan2`,
+    /// `paper-printed` or `paper-fitted-major-axis`.
     pub estimator: String,
+    /// Also run the other family (paper `atan2` beside the full pose, or the full pose beside
+    /// a paper variant) and publish its result for comparison.
+    pub compare: bool,
 }
 
 impl Default for EstimateConfig {
     fn default() -> Self {
         Self {
-            estimator: EstimatorKind::PaperAtan2.name().into(),
+            estimator: EstimatorKind::FullPose.name().into(),
+            compare: true,
         }
     }
 }
+
+const ESTIMATORS: [EstimatorKind; 4] = [
+    EstimatorKind::FullPose,
+    EstimatorKind::PaperAtan2,
+    EstimatorKind::PaperPrinted,
+    EstimatorKind::PaperFittedMajorAxis,
+];
 
 impl EstimateConfig {
     /// The `[estimate]` section of a pipeline configuration (TOML); errors name file, line, key.
@@ -39,11 +54,10 @@ impl EstimateConfig {
 
     pub fn kind(&self) -> Result<EstimatorKind, String> {
         ESTIMATORS
-            .iter()
-            .find(|(k, _)| k.name() == self.estimator)
-            .map(|(k, _)| *k)
+            .into_iter()
+            .find(|k| k.name() == self.estimator)
             .ok_or_else(|| {
-                let names: Vec<&str> = ESTIMATORS.iter().map(|(k, _)| k.name()).collect();
+                let names: Vec<&str> = ESTIMATORS.iter().map(|k| k.name()).collect();
                 format!(
                     "estimate.estimator: unknown `{}` ({})",
                     self.estimator,
@@ -53,13 +67,16 @@ impl EstimateConfig {
     }
 }
 
-const ESTIMATORS: [(EstimatorKind, PaperVariant); 3] = [
-    (EstimatorKind::PaperAtan2, PaperVariant::Atan2),
-    (EstimatorKind::PaperPrinted, PaperVariant::Printed),
-    (EstimatorKind::PaperFittedMajorAxis, PaperVariant::FittedMajorAxis),
-];
+fn paper_variant(kind: EstimatorKind) -> Option<PaperVariant> {
+    match kind {
+        EstimatorKind::PaperAtan2 => Some(PaperVariant::Atan2),
+        EstimatorKind::PaperPrinted => Some(PaperVariant::Printed),
+        EstimatorKind::PaperFittedMajorAxis => Some(PaperVariant::FittedMajorAxis),
+        EstimatorKind::FullPose => None,
+    }
+}
 
-fn failure_of(e: &NotEstimable) -> AttitudeFailure {
+fn paper_failure(e: &NotEstimable) -> AttitudeFailure {
     match e {
         NotEstimable::CentreMissing
         | NotEstimable::BowMissing
@@ -71,11 +88,56 @@ fn failure_of(e: &NotEstimable) -> AttitudeFailure {
     }
 }
 
+fn pose_failure(e: &PoseError) -> AttitudeFailure {
+    match e {
+        PoseError::TooFewMarkers { .. }
+        | PoseError::BowMissing
+        | PoseError::BowOutlier
+        | PoseError::WrongMarkerCount { .. } => AttitudeFailure::TooFewMarkers,
+        PoseError::Undistortion { .. } | PoseError::Degenerate(_) => AttitudeFailure::Degenerate,
+    }
+}
+
+/// One estimator's attitude, as it goes into a message.
+struct Estimate {
+    attitude: deckwatch_common::Attitude,
+    image_ellipse: Option<deckwatch_common::ellipse::Ellipse>,
+    residual: f64,
+    markers_used: u32,
+    rpy_std_deg: [f64; 3],
+    camera_position_m: [f64; 3],
+}
+
+impl Estimate {
+    fn write(&self, out: &mut AttitudeMessage) {
+        out.rpy = self.attitude.rpy;
+        out.quaternion = self.attitude.quaternion;
+        out.euler313 = self.attitude.euler313;
+        out.has_image_ellipse = self.image_ellipse.is_some();
+        out.image_ellipse = self.image_ellipse.unwrap_or_default();
+        out.residual = self.residual;
+        out.markers_used = self.markers_used;
+        out.rpy_std_deg = self.rpy_std_deg;
+        out.camera_position_m = self.camera_position_m;
+    }
+}
+
+struct Outcome {
+    kind: EstimatorKind,
+    result: Result<Estimate, AttitudeFailure>,
+}
+
+/// Both estimator families, built for the camera and deck of the frames.
+struct Estimators {
+    paper: PaperEstimator,
+    pose: PoseEstimator,
+}
+
 /// State of the estimate stage across frames.
 pub struct EstimateStage {
-    kind: EstimatorKind,
-    variant: PaperVariant,
-    estimator: Option<PaperEstimator>,
+    primary: EstimatorKind,
+    secondary: Option<EstimatorKind>,
+    estimators: Option<Estimators>,
     gaps: GapCounter,
     pub dropped: u64,
     pub processed: u64,
@@ -85,16 +147,16 @@ pub struct EstimateStage {
 impl EstimateStage {
     /// `joined_late`: the pipeline was already running (see [`GapCounter::new`]).
     pub fn new(config: &EstimateConfig, joined_late: bool) -> Result<Self, String> {
-        let kind = config.kind()?;
-        let variant = ESTIMATORS
-            .iter()
-            .find(|(k, _)| *k == kind)
-            .map(|(_, v)| *v)
-            .expect("listed");
+        let primary = config.kind()?;
+        let secondary = config.compare.then_some(if primary == EstimatorKind::FullPose {
+            EstimatorKind::PaperAtan2
+        } else {
+            EstimatorKind::FullPose
+        });
         Ok(Self {
-            kind,
-            variant,
-            estimator: None,
+            primary,
+            secondary,
+            estimators: None,
             gaps: GapCounter::new(joined_late),
             dropped: 0,
             processed: 0,
@@ -109,48 +171,101 @@ impl EstimateStage {
         let mut out = AttitudeMessage {
             stamp: m.stamp,
             context: m.context,
-            estimator: self.kind,
+            estimator: self.primary,
+            rpy_std_deg: [f64::NAN; 3],
+            camera_position_m: [f64::NAN; 3],
+            residual: f64::NAN,
             ..Default::default()
         };
         out.stamp.drops.estimate = self.dropped;
         out.stamp.times.estimate_received_ns = received_ns;
-        out.failure = match m.markers.status {
-            DetectionStatus::NoDeck => AttitudeFailure::NoDeck,
-            DetectionStatus::BadFrame => AttitudeFailure::BadFrame,
-            DetectionStatus::Ok | DetectionStatus::Partial => self.estimate(m, &mut out),
-        };
+        match self.run(self.primary, m).result {
+            Ok(e) => e.write(&mut out),
+            Err(f) => out.failure = f,
+        }
         out.valid = out.failure == AttitudeFailure::None;
+        if let Some(kind) = self.secondary {
+            let second = self.run(kind, m);
+            out.alternative = AlternativeAttitude {
+                present: true,
+                estimator: second.kind,
+                valid: second.result.is_ok(),
+                rpy: second.result.map(|e| e.attitude.rpy).unwrap_or_default(),
+            };
+        }
         self.estimated += out.valid as u64;
         out.stamp.times.estimate_finished_ns = monotonic_ns();
         out
     }
 
-    fn estimate(&mut self, m: &MarkerMessage, out: &mut AttitudeMessage) -> AttitudeFailure {
+    fn run(&mut self, kind: EstimatorKind, m: &MarkerMessage) -> Outcome {
+        let fail = |failure| Outcome {
+            kind,
+            result: Err(failure),
+        };
+        match m.markers.status {
+            DetectionStatus::NoDeck => return fail(AttitudeFailure::NoDeck),
+            DetectionStatus::BadFrame => return fail(AttitudeFailure::BadFrame),
+            DetectionStatus::Ok | DetectionStatus::Partial => {}
+        }
         let (camera, deck) = (m.context.camera, m.context.deck);
         if camera.validate().is_err() || deck.validate().is_err() {
-            return AttitudeFailure::BadFrame;
+            return fail(AttitudeFailure::BadFrame);
         }
         let stale = self
-            .estimator
+            .estimators
             .as_ref()
-            .is_none_or(|e| e.camera() != &camera || e.deck() != &deck);
+            .is_none_or(|e| e.paper.camera() != &camera || e.paper.deck() != &deck);
         if stale {
-            self.estimator = Some(PaperEstimator::new(camera, deck, self.variant));
+            self.estimators = Some(Estimators {
+                paper: PaperEstimator::new(camera, deck, PaperVariant::Atan2),
+                pose: PoseEstimator::new(camera, deck, PoseConfig::default()),
+            });
         }
-        let est = self.estimator.as_ref().expect("set above");
-        let altitude = m.context.altitude_m.is_finite().then_some(m.context.altitude_m);
-        match est.estimate(&m.markers.pixels(deck.marker_count()), altitude) {
-            Ok(e) => {
-                out.rpy = e.attitude.rpy;
-                out.quaternion = e.attitude.quaternion;
-                out.euler313 = e.attitude.euler313;
-                out.has_image_ellipse = e.image_ellipse.is_some();
-                out.image_ellipse = e.image_ellipse.unwrap_or_default();
-                out.residual = e.fit_rms_m;
-                out.markers_used = (e.ring_markers_used + 2) as u32;
-                AttitudeFailure::None
+        let est = self.estimators.as_ref().expect("set above");
+        let pixels = m.markers.pixels(deck.marker_count());
+        match paper_variant(kind) {
+            Some(variant) => {
+                let paper = PaperEstimator::new(camera, deck, variant);
+                let paper = if variant == PaperVariant::Atan2 {
+                    &est.paper
+                } else {
+                    &paper
+                };
+                let altitude = m.context.altitude_m.is_finite().then_some(m.context.altitude_m);
+                match paper.estimate(&pixels, altitude) {
+                    Ok(e) => Outcome {
+                        kind,
+                        result: Ok(Estimate {
+                            attitude: e.attitude,
+                            image_ellipse: e.image_ellipse,
+                            residual: e.fit_rms_m,
+                            markers_used: (e.ring_markers_used + 2) as u32,
+                            rpy_std_deg: [f64::NAN; 3],
+                            camera_position_m: [f64::NAN; 3],
+                        }),
+                    },
+                    Err(e) => fail(paper_failure(&e)),
+                }
             }
-            Err(e) => failure_of(&e),
+            None => match est.pose.estimate(&pixels, m.markers.perspective_corrected) {
+                Ok(e) => Outcome {
+                    kind,
+                    result: Ok(Estimate {
+                        attitude: e.attitude,
+                        image_ellipse: None,
+                        residual: e.reprojection_rms_px,
+                        markers_used: e.markers_used(),
+                        rpy_std_deg: e.rpy_std_deg(),
+                        camera_position_m: [
+                            e.viewpoint.offset_x_m,
+                            e.viewpoint.offset_y_m,
+                            e.viewpoint.altitude_m,
+                        ],
+                    }),
+                },
+                Err(e) => fail(pose_failure(&e)),
+            },
         }
     }
 }
@@ -171,14 +286,14 @@ mod tests {
     }
 
     #[test]
-    fn exact_markers_give_the_attitude_and_no_deck_gives_none() {
+    fn both_estimators_on_exact_markers_and_no_deck_gives_none() {
         let camera = CameraModel::preset("rpi-v2").unwrap();
         let deck = DeckLayout::paper();
         let truth = Rpy::from_degrees(3.0, -2.0, 10.0);
         let scene = SceneGeometry {
             attitude: truth.to_matrix(),
             viewpoint: Viewpoint {
-                offset_x_m: 0.0,
+                offset_x_m: 0.1,
                 offset_y_m: 0.0,
                 altitude_m: 5.0,
             },
@@ -189,6 +304,7 @@ mod tests {
         m.context.altitude_m = 5.0;
         m.markers = MarkerSet {
             status: DetectionStatus::Ok,
+            perspective_corrected: true,
             ..Default::default()
         };
         for (i, p) in scene.project_markers(&camera, &deck).iter().enumerate() {
@@ -202,12 +318,14 @@ mod tests {
         }
         let mut s = EstimateStage::new(&EstimateConfig::default(), false).unwrap();
         let a = s.process(&m, 7);
-        assert!(a.valid);
-        assert!(rpy_error_deg(&a.rpy, &truth).iter().all(|e| *e < 1e-9));
-        assert!(a.has_image_ellipse);
+        assert!(a.valid && a.estimator == EstimatorKind::FullPose);
+        assert!(rpy_error_deg(&a.rpy, &truth).iter().all(|e| *e < 1e-8));
+        assert!((a.camera_position_m[2] - 5.0).abs() < 1e-9 && (a.camera_position_m[0] - 0.1).abs() < 1e-9);
+        assert!(a.alternative.present && a.alternative.valid);
+        assert_eq!(a.alternative.estimator, EstimatorKind::PaperAtan2);
         m.markers.status = DetectionStatus::NoDeck;
         let a = s.process(&m, 8);
-        assert!(!a.valid);
-        assert_eq!(a.failure, AttitudeFailure::NoDeck);
+        assert!(!a.valid && a.failure == AttitudeFailure::NoDeck);
+        assert!(a.alternative.present && !a.alternative.valid);
     }
 }

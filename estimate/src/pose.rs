@@ -1,0 +1,518 @@
+//! Beyond the paper: the full planar pose from every visible marker and the known deck layout.
+//!
+//! The paper needs an altimeter and a camera centred over the deck, and takes yaw from one
+//! marker. Here the marker centres (undistorted, normalised image coordinates) and their deck
+//! positions give a homography (normalised DLT), which is decomposed into an initial pose; then
+//! Levenberg-Marquardt minimises the reprojection error in pixels over the rotation vector and
+//! the translation. A marker that reprojects worse than `max_reprojection_px` is dropped and the
+//! pose re-solved (at least 4 markers, the bow among them, must remain). Centroids still biased
+//! by perspective (NOTES.md item 6) are corrected with the pose and the pose solved again. The
+//! angles' covariance comes from the Jacobian at the optimum, scaled by the residual.
+//!
+//! Conventions as everywhere (`common::scene`): `p_cam = R_CW (R P_deck - C)`, so the deck
+//! attitude is `R = R_CW^T R_cam_deck` and the camera position `C = -R_CW^T t` (offset and
+//! altitude over the deck centre, no altimeter needed). The attitude is relative to the camera's
+//! level frame: a tilted camera must be compensated with the vehicle's own attitude.
+
+use deckwatch_common::deck::BOW;
+use deckwatch_common::homography;
+use deckwatch_common::scene::camera_from_world;
+use deckwatch_common::{Attitude, CameraModel, DeckLayout, Rpy, Viewpoint};
+use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, Vector3};
+
+/// Settings of the full-pose estimator.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseConfig {
+    /// A marker reprojecting further than this (pixels) is an outlier.
+    pub max_reprojection_px: f64,
+    /// Remove the perspective bias of the centres with the pose (for centroids that were not
+    /// corrected upstream).
+    pub correct_perspective: bool,
+    pub max_iterations: usize,
+}
+
+impl Default for PoseConfig {
+    fn default() -> Self {
+        Self {
+            max_reprojection_px: 3.0,
+            correct_perspective: true,
+            max_iterations: 20,
+        }
+    }
+}
+
+/// Why no pose: never a guess.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PoseError {
+    /// Fewer than 4 usable markers (after dropping outliers).
+    TooFewMarkers { usable: usize },
+    /// The bow marker is needed to fix the yaw (and to trust the identification).
+    BowMissing,
+    /// The bow marker itself reprojects as an outlier.
+    BowOutlier,
+    /// The marker list does not have one entry per marker of the deck layout.
+    WrongMarkerCount { expected: usize, got: usize },
+    /// A marker's pixel lies where the lens model does not invert.
+    Undistortion { index: usize },
+    /// The markers determine no pose (collinear, deck behind the camera, no convergence).
+    Degenerate(&'static str),
+}
+
+impl std::fmt::Display for PoseError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::TooFewMarkers { usable } => write!(f, "{usable} usable markers, at least 4 are needed"),
+            Self::BowMissing => write!(f, "the bow marker is not visible"),
+            Self::BowOutlier => write!(f, "the bow marker does not fit the other markers"),
+            Self::WrongMarkerCount { expected, got } => {
+                write!(f, "{got} marker entries, the deck has {expected} markers")
+            }
+            Self::Undistortion { index } => {
+                write!(f, "marker {index} lies outside the lens model's valid field")
+            }
+            Self::Degenerate(why) => write!(f, "degenerate marker geometry: {why}"),
+        }
+    }
+}
+
+impl std::error::Error for PoseError {}
+
+/// The full pose of the deck relative to the camera.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseEstimate {
+    pub attitude: Attitude,
+    /// The camera's position over the deck centre (world frame): offset and altitude.
+    pub viewpoint: Viewpoint,
+    /// RMS reprojection error of the markers used (pixels).
+    pub reprojection_rms_px: f64,
+    /// Markers used (bit i = marker i).
+    pub used_mask: u32,
+    /// Markers dropped as outliers (bit i = marker i).
+    pub outlier_mask: u32,
+    /// Covariance of roll, pitch, yaw (deg^2), from the Jacobian scaled by the residual.
+    pub rpy_covariance_deg2: [[f64; 3]; 3],
+}
+
+impl PoseEstimate {
+    pub fn markers_used(&self) -> u32 {
+        self.used_mask.count_ones()
+    }
+
+    /// Standard deviations of roll, pitch, yaw (deg).
+    pub fn rpy_std_deg(&self) -> [f64; 3] {
+        [0, 1, 2].map(|i| self.rpy_covariance_deg2[i][i].max(0.0).sqrt())
+    }
+}
+
+/// The full-pose estimator for one camera and deck layout.
+#[derive(Debug, Clone)]
+pub struct PoseEstimator {
+    camera: CameraModel,
+    deck: DeckLayout,
+    config: PoseConfig,
+}
+
+type Pose = (Rotation3<f64>, Vector3<f64>);
+
+struct Observation {
+    index: usize,
+    deck: Vector3<f64>,
+    /// Measured, undistorted, normalised image coordinates.
+    xy: [f64; 2],
+}
+
+impl PoseEstimator {
+    pub fn new(camera: CameraModel, deck: DeckLayout, config: PoseConfig) -> Self {
+        Self { camera, deck, config }
+    }
+
+    pub fn camera(&self) -> &CameraModel {
+        &self.camera
+    }
+    pub fn deck(&self) -> &DeckLayout {
+        &self.deck
+    }
+
+    /// The pose from marker pixels by marker index (None = not seen). `centres_corrected`:
+    /// the pixels are already free of the perspective bias (the detector's default).
+    pub fn estimate(
+        &self,
+        markers: &[Option<[f64; 2]>],
+        centres_corrected: bool,
+    ) -> Result<PoseEstimate, PoseError> {
+        let n = self.deck.marker_count();
+        if markers.len() != n {
+            return Err(PoseError::WrongMarkerCount {
+                expected: n,
+                got: markers.len(),
+            });
+        }
+        if markers[BOW].is_none() {
+            return Err(PoseError::BowMissing);
+        }
+        let mut obs = Vec::with_capacity(n);
+        for (index, m) in markers.iter().enumerate() {
+            let Some(uv) = m else { continue };
+            if !(uv[0].is_finite() && uv[1].is_finite()) {
+                continue;
+            }
+            let xy = self
+                .camera
+                .unproject(*uv)
+                .ok_or(PoseError::Undistortion { index })?;
+            obs.push(Observation {
+                index,
+                deck: self.deck.marker_position(index),
+                xy,
+            });
+        }
+        let mut outliers = 0u32;
+        let mut pose = loop {
+            if obs.len() < 4 {
+                return Err(PoseError::TooFewMarkers { usable: obs.len() });
+            }
+            let initial = self.initial_pose(&obs)?;
+            let pose = self.refine(&obs, initial);
+            let (worst, err) = self.worst(&obs, &pose);
+            if err <= self.config.max_reprojection_px {
+                break pose;
+            }
+            if obs[worst].index == BOW {
+                return Err(PoseError::BowOutlier);
+            }
+            outliers |= 1 << obs[worst].index;
+            obs.remove(worst);
+        };
+        if self.config.correct_perspective && !centres_corrected {
+            let measured: Vec<[f64; 2]> = obs.iter().map(|o| o.xy).collect();
+            for _ in 0..2 {
+                let h = plane_homography(&pose);
+                for (o, m) in obs.iter_mut().zip(&measured) {
+                    let c = [o.deck.x, o.deck.y];
+                    if let Some((centre, image)) =
+                        homography::imaged_circle_centre(&h, c, self.deck.disc_radius(o.index))
+                    {
+                        o.xy = [m[0] - (centre[0] - image[0]), m[1] - (centre[1] - image[1])];
+                    }
+                }
+                pose = self.refine(&obs, pose);
+            }
+        }
+        Ok(self.result(&obs, &pose, outliers))
+    }
+
+    fn pixel_residuals(&self, obs: &[Observation], (r, t): &Pose) -> Option<Vec<f64>> {
+        let mut res = Vec::with_capacity(2 * obs.len());
+        for o in obs {
+            let p = r * o.deck + t;
+            if !(p.z > 0.0) {
+                return None;
+            }
+            res.push(self.camera.fx * (p.x / p.z - o.xy[0]));
+            res.push(self.camera.fy * (p.y / p.z - o.xy[1]));
+        }
+        Some(res)
+    }
+
+    fn worst(&self, obs: &[Observation], pose: &Pose) -> (usize, f64) {
+        let res = self
+            .pixel_residuals(obs, pose)
+            .unwrap_or_else(|| vec![f64::INFINITY; 2 * obs.len()]);
+        (0..obs.len())
+            .map(|i| (i, res[2 * i].hypot(res[2 * i + 1])))
+            .fold((0, -1.0), |a, b| if b.1 > a.1 { b } else { a })
+    }
+
+    /// Pose from the plane homography: `H ~ [r1 r2 t]` in normalised coordinates.
+    fn initial_pose(&self, obs: &[Observation]) -> Result<Pose, PoseError> {
+        let src: Vec<[f64; 2]> = obs.iter().map(|o| [o.deck.x, o.deck.y]).collect();
+        let dst: Vec<[f64; 2]> = obs.iter().map(|o| o.xy).collect();
+        let h = homography::fit(&src, &dst).ok_or(PoseError::Degenerate("no homography"))?;
+        let (h1, h2, h3) = (h.column(0), h.column(1), h.column(2));
+        let scale = 2.0 / (h1.norm() + h2.norm());
+        // The deck is in front of the camera: t_z > 0.
+        let sign = if h3.z * scale > 0.0 { 1.0 } else { -1.0 };
+        let (r1, r2, t) = (h1 * scale * sign, h2 * scale * sign, h3 * scale * sign);
+        let m = Matrix3::from_columns(&[r1, r2, r1.cross(&r2)]);
+        // Nearest rotation.
+        let svd = m.svd(true, true);
+        let (u, vt) = (
+            svd.u.ok_or(PoseError::Degenerate("svd"))?,
+            svd.v_t.ok_or(PoseError::Degenerate("svd"))?,
+        );
+        let mut r = u * vt;
+        if r.determinant() < 0.0 {
+            r = -r;
+        }
+        if !(t.z > 0.0) {
+            return Err(PoseError::Degenerate("deck behind the camera"));
+        }
+        Ok((Rotation3::from_matrix_unchecked(r), t))
+    }
+
+    fn refine(&self, obs: &[Observation], start: Pose) -> Pose {
+        let apply = |(r, t): &Pose, d: &SVector<f64, 6>| -> Pose {
+            let dr = Rotation3::from_scaled_axis(Vector3::new(d[0], d[1], d[2]));
+            (r * dr, t + Vector3::new(d[3], d[4], d[5]))
+        };
+        let cost = |p: &Pose| {
+            self.pixel_residuals(obs, p)
+                .map(|r| r.iter().map(|v| v * v).sum::<f64>())
+        };
+        let mut pose = start;
+        let Some(mut c) = cost(&pose) else { return pose };
+        let mut lambda = 1e-3;
+        for _ in 0..self.config.max_iterations {
+            let Some(jac) = self.jacobian(obs, &pose) else {
+                break;
+            };
+            let res = self.pixel_residuals(obs, &pose).expect("cost was finite");
+            let (mut jtj, mut jtr) = (SMatrix::<f64, 6, 6>::zeros(), SVector::<f64, 6>::zeros());
+            for (row, r) in jac.iter().zip(&res) {
+                jtj += row * row.transpose();
+                jtr += row * *r;
+            }
+            let mut improved = false;
+            while lambda < 1e8 {
+                let mut a = jtj;
+                for d in 0..6 {
+                    a[(d, d)] += lambda * jtj[(d, d)].max(1e-12);
+                }
+                let Some(step) = a.cholesky().map(|ch| ch.solve(&(-jtr))) else {
+                    break;
+                };
+                let trial = apply(&pose, &step);
+                match cost(&trial) {
+                    Some(c2) if c2 < c => {
+                        let done = c - c2 < 1e-14 * c.max(1e-300) || step.norm() < 1e-13;
+                        (pose, c) = (trial, c2);
+                        lambda = (lambda * 0.2).max(1e-12);
+                        improved = !done;
+                        break;
+                    }
+                    _ => lambda *= 10.0,
+                }
+            }
+            if !improved {
+                break;
+            }
+        }
+        pose
+    }
+
+    /// Jacobian rows (one per residual) of the pixel residuals with respect to a right
+    /// perturbation of the rotation and a shift of the translation (analytic).
+    fn jacobian(&self, obs: &[Observation], (r, t): &Pose) -> Option<Vec<SVector<f64, 6>>> {
+        let mut rows = Vec::with_capacity(2 * obs.len());
+        for o in obs {
+            let q = r * o.deck; // rotated deck point
+            let p = q + t;
+            if !(p.z > 0.0) {
+                return None;
+            }
+            let iz = 1.0 / p.z;
+            // d(x/z)/dp and d(y/z)/dp.
+            let dx = Vector3::new(iz, 0.0, -p.x * iz * iz);
+            let dy = Vector3::new(0.0, iz, -p.y * iz * iz);
+            // dp/d(delta) for R exp([delta]x): -R [P]x.
+            let dp_dd = -(r.matrix() * o.deck.cross_matrix());
+            let rx = dp_dd.transpose() * dx * self.camera.fx;
+            let ry = dp_dd.transpose() * dy * self.camera.fy;
+            rows.push(SVector::<f64, 6>::from_column_slice(&[
+                rx.x,
+                rx.y,
+                rx.z,
+                dx.x * self.camera.fx,
+                dx.y * self.camera.fx,
+                dx.z * self.camera.fx,
+            ]));
+            rows.push(SVector::<f64, 6>::from_column_slice(&[
+                ry.x,
+                ry.y,
+                ry.z,
+                dy.x * self.camera.fy,
+                dy.y * self.camera.fy,
+                dy.z * self.camera.fy,
+            ]));
+        }
+        Some(rows)
+    }
+
+    fn result(&self, obs: &[Observation], pose: &Pose, outlier_mask: u32) -> PoseEstimate {
+        let c = camera_from_world();
+        let r_deck = c.transpose() * pose.0.matrix();
+        let position = -(c.transpose() * pose.1);
+        let res = self.pixel_residuals(obs, pose).unwrap_or_default();
+        let ssr: f64 = res.iter().map(|v| v * v).sum();
+        let rms = (ssr / obs.len().max(1) as f64).sqrt();
+        // Covariance of the perturbation: s^2 (J^T J)^-1 with s^2 = SSR / (2N - 6).
+        let dof = (2 * obs.len()).saturating_sub(6).max(1) as f64;
+        let mut cov_rpy = [[f64::NAN; 3]; 3];
+        if let Some(jac) = self.jacobian(obs, pose) {
+            let jtj = jac
+                .iter()
+                .fold(SMatrix::<f64, 6, 6>::zeros(), |a, row| a + row * row.transpose());
+            if let Some(inv) = jtj.try_inverse() {
+                let cov_d = inv.fixed_view::<3, 3>(0, 0) * (ssr / dof);
+                // d(rpy)/d(delta), numerically: rpy of C^T R exp([delta]x).
+                let rpy0 = Rpy::from_matrix(&r_deck).to_degrees();
+                let h = 1e-6;
+                let mut a = Matrix3::zeros();
+                for k in 0..3 {
+                    let mut d = Vector3::zeros();
+                    d[k] = h;
+                    let rk = c.transpose() * (pose.0 * Rotation3::from_scaled_axis(d)).matrix();
+                    let rpy = Rpy::from_matrix(&rk).to_degrees();
+                    for i in 0..3 {
+                        let mut diff = rpy[i] - rpy0[i];
+                        diff -= 360.0 * (diff / 360.0).round(); // yaw wraps
+                        a[(i, k)] = diff / h;
+                    }
+                }
+                let cr = a * cov_d * a.transpose();
+                cov_rpy = [0, 1, 2].map(|i| [0, 1, 2].map(|j| cr[(i, j)]));
+            }
+        }
+        PoseEstimate {
+            attitude: Attitude::from_matrix(r_deck),
+            viewpoint: Viewpoint {
+                offset_x_m: position.x,
+                offset_y_m: position.y,
+                altitude_m: position.z,
+            },
+            reprojection_rms_px: rms,
+            used_mask: obs.iter().fold(0, |m, o| m | 1 << o.index),
+            outlier_mask,
+            rpy_covariance_deg2: cov_rpy,
+        }
+    }
+}
+
+/// Deck plane (x, y) -> normalised image coordinates of a pose.
+fn plane_homography((r, t): &Pose) -> Matrix3<f64> {
+    let m = r.matrix();
+    Matrix3::from_columns(&[m.column(0).into_owned(), m.column(1).into_owned(), *t])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use deckwatch_common::rotation::rpy_error_deg;
+    use deckwatch_common::SceneGeometry;
+
+    fn scene(rpy: Rpy, vp: Viewpoint) -> SceneGeometry {
+        SceneGeometry {
+            attitude: rpy.to_matrix(),
+            viewpoint: vp,
+        }
+    }
+
+    #[test]
+    fn exact_markers_give_the_exact_pose_without_an_altimeter() {
+        let cam = CameraModel::preset("rpi-v2").unwrap();
+        let deck = DeckLayout::paper();
+        let est = PoseEstimator::new(cam, deck, PoseConfig::default());
+        for (rpy, vp) in [
+            (Rpy::from_degrees(0.0, 0.0, 0.0), Viewpoint::centred(5.0)),
+            (Rpy::from_degrees(14.0, -6.0, 170.0), Viewpoint::centred(4.5)),
+            (
+                Rpy::from_degrees(-20.0, 7.5, -35.0),
+                Viewpoint {
+                    offset_x_m: 0.3,
+                    offset_y_m: -0.2,
+                    altitude_m: 5.5,
+                },
+            ),
+        ] {
+            let px = scene(rpy, vp).project_markers(&cam, &deck);
+            let e = est.estimate(&px, true).unwrap();
+            let err = rpy_error_deg(&e.attitude.rpy, &rpy);
+            assert!(err.iter().all(|v| *v < 1e-8), "{err:?}");
+            assert!((e.viewpoint.altitude_m - vp.altitude_m).abs() < 1e-9);
+            assert!((e.viewpoint.offset_x_m - vp.offset_x_m).abs() < 1e-9);
+            assert!((e.viewpoint.offset_y_m - vp.offset_y_m).abs() < 1e-9);
+            assert!(e.reprojection_rms_px < 1e-6);
+            assert_eq!(e.markers_used(), 9);
+        }
+    }
+
+    #[test]
+    fn four_markers_with_the_bow_suffice_and_outliers_are_dropped() {
+        let cam = CameraModel::preset("rpi-v2").unwrap();
+        let deck = DeckLayout::paper();
+        let est = PoseEstimator::new(cam, deck, PoseConfig::default());
+        let truth = Rpy::from_degrees(5.0, 3.0, 20.0);
+        let px = scene(truth, Viewpoint::centred(5.0)).project_markers(&cam, &deck);
+        let mut four = vec![None; 9];
+        for i in [0, 1, 3, 6] {
+            four[i] = px[i];
+        }
+        let e = est.estimate(&four, true).unwrap();
+        assert!(rpy_error_deg(&e.attitude.rpy, &truth).iter().all(|v| *v < 1e-7));
+        // A misplaced marker (a glint taken for marker 5) is found and dropped.
+        let mut bad = px.clone();
+        let p = bad[5].unwrap();
+        bad[5] = Some([p[0] + 40.0, p[1] - 25.0]);
+        let e = est.estimate(&bad, true).unwrap();
+        assert_eq!(e.outlier_mask, 1 << 5);
+        assert!(rpy_error_deg(&e.attitude.rpy, &truth).iter().all(|v| *v < 1e-7));
+        // Without the bow, or with three markers: not estimable.
+        let mut no_bow = px.clone();
+        no_bow[1] = None;
+        assert_eq!(est.estimate(&no_bow, true).unwrap_err(), PoseError::BowMissing);
+        let mut three = vec![None; 9];
+        for i in [0, 1, 3] {
+            three[i] = px[i];
+        }
+        assert_eq!(
+            est.estimate(&three, true).unwrap_err(),
+            PoseError::TooFewMarkers { usable: 3 }
+        );
+    }
+
+    #[test]
+    fn perspective_bias_is_removed_and_noise_gives_a_covariance() {
+        let cam = CameraModel::preset("rpi-v2").unwrap();
+        let deck = DeckLayout::paper();
+        let truth = Rpy::from_degrees(-12.0, 5.0, 60.0);
+        let sc = scene(truth, Viewpoint::centred(4.5));
+        // Biased centroids: the centres of the imaged discs (undistorted camera here).
+        let k = Matrix3::new(cam.fx, 0.0, cam.cx, 0.0, cam.fy, cam.cy, 0.0, 0.0, 1.0);
+        let rc = camera_from_world() * sc.attitude;
+        let tc = camera_from_world() * (-sc.viewpoint.position());
+        let h = k * Matrix3::from_columns(&[rc.column(0).into_owned(), rc.column(1).into_owned(), tc]);
+        let biased: Vec<Option<[f64; 2]>> = (0..9)
+            .map(|i| {
+                let p = deck.marker_position(i);
+                homography::imaged_circle_centre(&h, [p.x, p.y], deck.disc_radius(i)).map(|(c, _)| c)
+            })
+            .collect();
+        let est = PoseEstimator::new(cam, deck, PoseConfig::default());
+        let raw = est.estimate(&biased, true).unwrap();
+        let fixed = est.estimate(&biased, false).unwrap();
+        let e_raw = rpy_error_deg(&raw.attitude.rpy, &truth);
+        let e_fixed = rpy_error_deg(&fixed.attitude.rpy, &truth);
+        assert!(
+            e_fixed.iter().all(|v| *v < 1e-6),
+            "{e_fixed:?} (uncorrected {e_raw:?})"
+        );
+        assert!(e_raw.iter().any(|v| *v > 1e-4), "the bias matters: {e_raw:?}");
+        // Noisy pixels: a finite, positive spread.
+        let noisy: Vec<Option<[f64; 2]>> = sc
+            .project_markers(&cam, &deck)
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                p.map(|[u, v]| {
+                    [
+                        u + 0.3 * ((i * 7 % 5) as f64 - 2.0),
+                        v - 0.2 * ((i * 3 % 4) as f64 - 1.5),
+                    ]
+                })
+            })
+            .collect();
+        let e = est.estimate(&noisy, true).unwrap();
+        let sd = e.rpy_std_deg();
+        assert!(sd.iter().all(|s| s.is_finite() && *s > 0.0 && *s < 1.0), "{sd:?}");
+    }
+}

@@ -9,6 +9,7 @@ use deckwatch_common::bus::{quiet_logging, Bus, PublishError, StageArgs};
 use deckwatch_common::messages::{
     monotonic_ns, DropCounts, FrameContext, FrameHeader, FrameStamp, PixelFormat, StageTimes, Truth,
 };
+use deckwatch_viz::{Item, ItemKind, Logger, RerunConfig};
 use std::process::ExitCode;
 use std::time::Duration;
 
@@ -29,6 +30,7 @@ fn run(a: Args) -> Result<(), String> {
     let (file, text) = a.stage.read_config()?;
     let config = CaptureConfig::from_toml(&file, &text)?;
     let bus_config = a.stage.bus_config(&file, &text)?;
+    let logger = Logger::start(&RerunConfig::from_toml(&file, &text)?, "capture")?;
     let mut source = config.open()?;
     let camera = *source.camera();
     let deck = *source.deck();
@@ -83,16 +85,50 @@ fn run(a: Args) -> Result<(), String> {
             pixel_format: PixelFormat::Gray8,
         };
         let frame = k;
+        let mut logged = None;
         let result = publisher.publish(header, |h, pixels| {
             let f = source.capture(frame, pixels, width as usize)?;
             h.context.source_index = f.source_index;
             h.context.source_timestamp_ns = f.source_timestamp_ns;
             h.context.altitude_m = f.altitude_m.unwrap_or(f64::NAN);
             h.context.truth = Truth::from_ground_truth(&f.truth, f.truth_known);
+            // For the viewer: the truth, and a downscaled copy of the image taken before the
+            // frame is sent.
+            if let Some(l) = &logger {
+                let t = h.stamp.times.captured_ns;
+                let image = l
+                    .wants_image(seq)
+                    .then(|| l.image(seq, t, pixels, width as usize, height as usize, width as usize));
+                logged = Some((t, image, h.context.truth));
+            }
             Ok::<(), String>(())
         });
         match result {
-            Ok(_) => seq += 1,
+            Ok(_) => {
+                if let (Some(l), Some((t, image, truth))) = (&logger, logged) {
+                    if let Some(image) = image {
+                        l.log(image);
+                    }
+                    if truth.known {
+                        let values = [
+                            ("roll", truth.roll_deg),
+                            ("pitch", truth.pitch_deg),
+                            ("yaw", truth.yaw_deg),
+                        ];
+                        l.log(Item {
+                            seq,
+                            captured_ns: t,
+                            kind: ItemKind::Scalars(
+                                values
+                                    .iter()
+                                    .map(|(a, v)| (format!("attitude/{a}/truth"), *v))
+                                    .collect(),
+                            ),
+                        });
+                    }
+                }
+                seq += 1
+            }
             Err(PublishError::NoSample(e)) => {
                 drops.capture += 1;
                 eprintln!("deckwatch-capture: frame {frame} dropped: {e}");
@@ -110,8 +146,10 @@ fn run(a: Args) -> Result<(), String> {
         bus.sleep(Duration::from_millis(LINGER_MS));
     }
     eprintln!(
-        "deckwatch-capture: {seq} frames published, {} dropped, {} bad",
-        drops.capture, drops.bad_frames
+        "deckwatch-capture: {seq} frames published, {} dropped, {} bad; {} log items dropped",
+        drops.capture,
+        drops.bad_frames,
+        logger.as_ref().map_or(0, |l| l.dropped())
     );
     Ok(())
 }

@@ -306,7 +306,10 @@ mod tests {
         assert_eq!((cam.width, cam.height, cam.distortion.k1), (640, 480, -0.1));
         assert_eq!(o.optical_blur_px, 1.0);
         assert_eq!((o.occluded_marker, o.glints), (Some(4), 3));
-        assert_eq!(o.marker_dn, o.deck_dn + 0.5 * (RenderOptions::default().marker_dn - o.deck_dn));
+        assert_eq!(
+            o.marker_dn,
+            o.deck_dn + 0.5 * (RenderOptions::default().marker_dn - o.deck_dn)
+        );
         assert_eq!(o.read_noise_dn, 0.0);
         a.look = "fancy".into();
         assert!(a.resolve(&sim).unwrap_err().contains("--look"));

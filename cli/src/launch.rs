@@ -70,6 +70,7 @@ pub struct PipelineConfig {
     pub estimate: EstimateConfig,
     pub decide: DecisionConfig,
     pub supervisor: SupervisorConfig,
+    pub rerun: deckwatch_viz::RerunConfig,
 }
 
 impl PipelineConfig {
@@ -92,6 +93,7 @@ impl PipelineConfig {
         self.capture().check()?;
         self.estimate.kind()?;
         self.decide.validate().map_err(|e| format!("decide.{e}"))?;
+        self.rerun.validate().map_err(|e| format!("rerun.{e}"))?;
         let s = &self.supervisor;
         for (k, v) in [
             ("ready_timeout_ms", s.ready_timeout_ms),
@@ -553,6 +555,11 @@ pub fn launch(config: &PipelineConfig, options: &LaunchOptions) -> Result<RunRep
             finished: false,
         });
     }
+    // rerun: every process logs into one recording. With `spawn` the launcher starts the viewer
+    // and the stages connect to it; with `save` each process writes a part, merged at the end.
+    let mut config = config.clone();
+    let viewer = start_viewer(&mut config)?;
+    let config = &config;
     // The stages read the same configuration, as the launcher resolved it.
     let run_dir = std::env::temp_dir().join(format!("deckwatch-{domain}-{}", std::process::id()));
     std::fs::create_dir_all(&run_dir).map_err(|e| format!("{}: {e}", run_dir.display()))?;
@@ -574,7 +581,44 @@ pub fn launch(config: &PipelineConfig, options: &LaunchOptions) -> Result<RunRep
     if let Err(e) = Bus::remove_idle_domain(&domain) {
         say(e);
     }
+    drop(viewer); // flushes the launcher's part (the blueprint)
+    if config.rerun.sink == "save" {
+        if let Some(path) = &config.rerun.path {
+            match deckwatch_viz::merge_parts(path, &["launcher", "capture", "detect", "estimate", "decide"]) {
+                Ok(n) => say(format_args!("rerun recording: {} ({n} messages)", path.display())),
+                Err(e) => say(format_args!(
+                    "rerun: could not merge the parts into {}: {e}",
+                    path.display()
+                )),
+            }
+        }
+    }
     result
+}
+
+/// Opens the launcher's own rerun stream (which carries the blueprint) and points the stages at
+/// the same recording.
+fn start_viewer(config: &mut PipelineConfig) -> Result<Option<rerun::RecordingStream>, String> {
+    let r = &mut config.rerun;
+    if r.sink == "off" {
+        return Ok(None);
+    }
+    if r.recording_id.is_none() {
+        let now = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap_or_default();
+        r.recording_id = Some(format!("deckwatch-{}-{}", now.as_secs(), std::process::id()));
+    }
+    let stream = deckwatch_viz::open_stream(r, "launcher")?;
+    if let Some(s) = &stream {
+        deckwatch_viz::send_blueprint(s)?;
+    }
+    if r.sink == "spawn" {
+        // The viewer is up: the stages connect to it rather than spawning their own.
+        r.sink = "connect".into();
+        r.address = Some(deckwatch_viz::DEFAULT_ADDRESS.into());
+    }
+    Ok(stream)
 }
 
 fn stop_all(stages: &mut [StageProcess], timeout: Duration) {

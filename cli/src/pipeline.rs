@@ -35,6 +35,33 @@ pub struct RunArgs {
     /// Print the final report as JSON.
     #[arg(long)]
     json: bool,
+    /// rerun logging: `off`, `spawn` (start a viewer), `connect [ADDR]`, `save FILE.rrd`.
+    #[arg(long, num_args = 1..=2, value_names = ["MODE", "ARG"])]
+    rerun: Vec<String>,
+}
+
+/// Applies `--rerun MODE [ARG]`.
+fn apply_rerun(c: &mut PipelineConfig, args: &[String]) -> Result<(), String> {
+    let r = &mut c.rerun;
+    match args {
+        [] => {}
+        [m] if m == "off" || m == "spawn" || m == "connect" => r.sink = m.clone(),
+        [m, addr] if m == "connect" => {
+            r.sink = m.clone();
+            r.address = Some(addr.clone());
+        }
+        [m, path] if m == "save" => {
+            r.sink = m.clone();
+            r.path = Some(PathBuf::from(path));
+        }
+        other => {
+            return Err(format!(
+                "--rerun: expected `off`, `spawn`, `connect [ADDR]` or `save FILE.rrd`, got `{}`",
+                other.join(" ")
+            ))
+        }
+    }
+    Ok(())
 }
 
 fn load(config: &Option<PathBuf>) -> Result<PipelineConfig, String> {
@@ -91,6 +118,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
     if let Some(d) = a.domain {
         c.bus.domain = d;
     }
+    apply_rerun(&mut c, &a.rerun)?;
     if a.print_config {
         c.validate()?;
         print!("{}", toml::to_string(&c).map_err(|e| e.to_string())?);
@@ -132,6 +160,9 @@ pub struct LatencyArgs {
     /// Machine-readable output.
     #[arg(long)]
     json: bool,
+    /// rerun logging (default off): `spawn`, `connect [ADDR]`, `save FILE.rrd`.
+    #[arg(long, num_args = 1..=2, value_names = ["MODE", "ARG"])]
+    rerun: Vec<String>,
 }
 
 pub fn latency(a: LatencyArgs) -> Result<(), String> {
@@ -145,6 +176,7 @@ pub fn latency(a: LatencyArgs) -> Result<(), String> {
         c.replay.frames = n;
     }
     c.bus.domain = a.domain;
+    apply_rerun(&mut c, &a.rerun)?;
     let options = LaunchOptions {
         status: false,
         decisions_csv: a.decisions,

@@ -186,6 +186,15 @@ impl EstimateStage {
         out.valid = out.failure == AttitudeFailure::None;
         if let Some(kind) = self.secondary {
             let second = self.run(kind, m);
+            // The paper's ring ellipse is worth drawing whichever estimator leads.
+            if let Ok(Estimate {
+                image_ellipse: Some(el),
+                ..
+            }) = &second.result
+            {
+                out.has_image_ellipse = true;
+                out.image_ellipse = *el;
+            }
             out.alternative = AlternativeAttitude {
                 present: true,
                 estimator: second.kind,

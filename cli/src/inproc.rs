@@ -5,11 +5,11 @@
 
 use deckwatch_capture::scenario::SimulationArgs;
 use deckwatch_capture::sim::ImageArgs;
-use deckwatch_capture::{FrameSimulator, Renderer};
+use deckwatch_capture::source::{CaptureConfig, ReplayConfig, SourceConfig};
 use deckwatch_common::markers::DetectionStatus;
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::{ErrorStats, Percentiles};
-use deckwatch_common::{CameraModel, DeckLayout, GrayImage, GroundTruth, Recording};
+use deckwatch_common::GrayImage;
 use deckwatch_detect::{Detector, DetectorConfig};
 use deckwatch_estimate::{PaperEstimator, PaperVariant};
 use std::time::Instant;
@@ -34,55 +34,6 @@ pub struct RunArgs {
     every: usize,
 }
 
-enum Source {
-    Sim(Box<FrameSimulator>, u64, u64),
-    Replay(Recording, usize),
-}
-
-/// One captured frame's metadata.
-struct Captured {
-    index: u64,
-    timestamp_ns: u64,
-    truth: GroundTruth,
-}
-
-impl Source {
-    /// The next frame into `img`; Some(Err) for a frame that could not be read (it is skipped).
-    fn next(&mut self, img: &mut GrayImage) -> Option<Result<Captured, String>> {
-        match self {
-            Source::Sim(sim, k, n) => {
-                if *k >= *n {
-                    return None;
-                }
-                let index = *k;
-                *k += 1;
-                Some(
-                    sim.render_frame(index, &mut img.view_mut())
-                        .map_err(|e| e.to_string())
-                        .map(|t| Captured {
-                            index,
-                            timestamp_ns: t.timestamp_ns,
-                            truth: t.ground_truth(),
-                        }),
-                )
-            }
-            Source::Replay(rec, k) => {
-                let f = rec.frames.get(*k)?.clone();
-                *k += 1;
-                Some(
-                    rec.read_image_into(&f, &mut img.data)
-                        .map_err(|e| e.to_string())
-                        .map(|_| Captured {
-                            index: f.index,
-                            timestamp_ns: f.timestamp_ns,
-                            truth: f.truth,
-                        }),
-                )
-            }
-        }
-    }
-}
-
 pub fn run(a: RunArgs) -> Result<(), String> {
     let variant = PaperVariant::from_name(&a.variant).ok_or_else(|| {
         format!(
@@ -90,58 +41,48 @@ pub fn run(a: RunArgs) -> Result<(), String> {
             a.variant
         )
     })?;
-    let (mut source, camera, deck): (Source, CameraModel, DeckLayout) = match a.source.as_str() {
-        "sim" => {
-            let sim = a.sim.resolve()?;
-            let (camera, options) = a.image.resolve(&sim)?;
-            let renderer = Renderer::new(camera, sim.deck, options, a.sim.seed)?;
-            let frames = FrameSimulator::new(
-                sim.scenario.profile(a.sim.seed),
-                renderer,
-                a.sim.rate,
-                a.image.exposure_ms / 1e3,
-                8,
-                a.sim.seed,
-            )?;
-            println!(
-                "source: simulator, scenario {}, {}x{} ({}), {} frames at {} Hz, look {}",
-                sim.scenario.name(),
-                camera.width,
-                camera.height,
-                sim.camera_name,
-                a.sim.frames,
-                a.sim.rate,
-                a.image.look
-            );
-            (
-                Source::Sim(Box::new(frames), 0, a.sim.frames as u64),
-                camera,
-                sim.deck,
-            )
-        }
-        "replay" => {
-            let dir = a
-                .recording
+    // The capture stage's own sources: replay as fast as possible, decoding frame by frame.
+    if a.source == "replay" && a.recording.is_none() {
+        return Err("--source replay needs --recording DIR".into());
+    }
+    let config = CaptureConfig {
+        source: SourceConfig {
+            kind: a.source.clone(),
+            altimeter: true,
+        },
+        sim: a.sim.clone(),
+        image: a.image.clone(),
+        replay: ReplayConfig {
+            recording: a.recording.clone(),
+            rate_hz: Some(0.0),
+            preload: false,
+            ..ReplayConfig::default()
+        },
+    };
+    let mut source = config.open()?;
+    let (camera, deck) = (*source.camera(), *source.deck());
+    let n_frames = source.len().unwrap_or(0);
+    match a.source.as_str() {
+        "sim" => println!(
+            "source: simulator, scenario {}, {}x{} ({}), {} frames at {} Hz, look {}",
+            a.sim.scenario,
+            camera.width,
+            camera.height,
+            a.sim.camera.as_deref().unwrap_or("the scenario's camera"),
+            n_frames,
+            a.sim.rate,
+            a.image.look
+        ),
+        _ => println!(
+            "source: replay of {} ({} frames, {}x{})",
+            a.recording
                 .as_ref()
-                .ok_or("--source replay needs --recording DIR")?;
-            let rec = Recording::open(dir).map_err(|e| e.to_string())?;
-            println!(
-                "source: replay of {} ({} frames, {}x{})",
-                dir.display(),
-                rec.frames.len(),
-                rec.camera.width,
-                rec.camera.height
-            );
-            let (camera, deck) = (rec.camera, rec.deck);
-            (Source::Replay(rec, 0), camera, deck)
-        }
-        other => return Err(format!("--source: unknown `{other}` (sim, replay)")),
-    };
-    // Whether a missing attitude truth means "no deck in view" (not merely "unknown").
-    let knows_deck = match &source {
-        Source::Sim(..) => true,
-        Source::Replay(rec, _) => rec.has_attitude_truth(),
-    };
+                .map_or(String::new(), |d| d.display().to_string()),
+            n_frames,
+            camera.width,
+            camera.height
+        ),
+    }
     let mut detector = Detector::new(camera, deck, DetectorConfig::for_camera(&camera, &deck));
     let estimator = PaperEstimator::new(camera, deck, variant);
     let mut img = GrayImage::new(camera.width as usize, camera.height as usize);
@@ -157,12 +98,9 @@ pub fn run(a: RunArgs) -> Result<(), String> {
         mut estimated,
         mut false_attitudes,
     ) = (0, 0, 0, 0, 0, 0, 0, 0);
-    loop {
+    for k in 0..n_frames {
         let t0 = Instant::now();
-        let Some(captured) = source.next(&mut img) else {
-            break;
-        };
-        let captured = match captured {
+        let captured = match source.capture(k, &mut img.data, camera.width as usize) {
             Ok(c) => c,
             Err(e) => {
                 eprintln!("skipped a bad frame: {e}");
@@ -198,7 +136,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
                 Some(err)
             }
             // The source says no deck was in view, yet an attitude came out.
-            (Some(_), None) if knows_deck => {
+            (Some(_), None) if captured.truth_known => {
                 false_attitudes += 1;
                 None
             }
@@ -215,8 +153,8 @@ pub fn run(a: RunArgs) -> Result<(), String> {
             });
             println!(
                 "frame {:5} t {:8.3} s: {:?} {} markers{} | {att}{err}",
-                captured.index,
-                captured.timestamp_ns as f64 / 1e9,
+                captured.source_index,
+                captured.source_timestamp_ns as f64 / 1e9,
                 set.status,
                 set.count,
                 if set.tracked { " (tracked)" } else { "" },

@@ -3,12 +3,14 @@
 //! random generator) and the replay of recordings, behind one [`source::CaptureSource`] that the
 //! capture stage (`src/main.rs`) publishes from.
 
+pub mod camera;
 pub mod motion;
 pub mod render;
 pub mod rng;
 pub mod scenario;
 pub mod sim;
 pub mod source;
+pub mod virtual_camera;
 
 pub use motion::{Case1Sweep, MotionProfile, MotionSample, ShipMotion, TrackingError};
 pub use render::{RenderOptions, Renderer};

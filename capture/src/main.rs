@@ -1,7 +1,8 @@
-//! `deckwatch-capture`: the capture stage. Takes frames from the configured source (simulator or
-//! replay), writes each straight into a loaned iceoryx2 sample and publishes it, paced at the
-//! source's rate. If it falls behind, the frames whose time has passed are skipped and counted,
-//! as a camera would drop them. Exits when the source is exhausted or on SIGINT/SIGTERM.
+//! `deckwatch-capture`: the capture stage. Takes frames from the configured source (simulator,
+//! replay or a libcamera camera), writes each straight into a loaned iceoryx2 sample and
+//! publishes it, paced at the source's rate (a camera paces itself). If it falls behind, the
+//! frames whose time has passed are skipped and counted, as a camera would drop them; a camera's
+//! own sequence gaps count the same way. Exits when the source is exhausted or on SIGINT/SIGTERM.
 
 use clap::Parser;
 use deckwatch_capture::source::CaptureConfig;
@@ -32,6 +33,7 @@ fn run(a: Args) -> Result<(), String> {
     let bus_config = a.stage.bus_config(&file, &text)?;
     let logger = Logger::start(&RerunConfig::from_toml(&file, &text)?, "capture")?;
     let mut source = config.open()?;
+    eprintln!("deckwatch-capture: {}", source.describe());
     let camera = *source.camera();
     let deck = *source.deck();
     let (width, height) = (camera.width, camera.height);
@@ -45,6 +47,13 @@ fn run(a: Args) -> Result<(), String> {
     loop {
         if source.len().is_some_and(|n| k >= n) {
             break;
+        }
+        // A camera: wait for its next frame, in slices so that a stop request is seen.
+        if !source.wait_ready(Duration::from_millis(100))? {
+            if !bus.sleep(Duration::ZERO) {
+                break;
+            }
+            continue;
         }
         // Pace: sleep (signal-aware) until frame k is due; skip frames whose time has passed.
         if let Some(due) = source.due_ns(k) {
@@ -86,8 +95,14 @@ fn run(a: Args) -> Result<(), String> {
         };
         let frame = k;
         let mut logged = None;
+        let mut lost_before = 0;
         let result = publisher.publish(header, |h, pixels| {
             let f = source.capture(frame, pixels, width as usize)?;
+            if let Some(t) = f.captured_ns {
+                h.stamp.times.captured_ns = t;
+            }
+            lost_before = f.dropped_before;
+            h.stamp.drops.capture += f.dropped_before;
             h.context.source_index = f.source_index;
             h.context.source_timestamp_ns = f.source_timestamp_ns;
             h.context.altitude_m = f.altitude_m.unwrap_or(f64::NAN);
@@ -105,6 +120,7 @@ fn run(a: Args) -> Result<(), String> {
         });
         match result {
             Ok(_) => {
+                drops.capture += lost_before;
                 if let (Some(l), Some((t, image, truth))) = (&logger, logged) {
                     if let Some(image) = image {
                         l.log(image);

@@ -1,8 +1,9 @@
-//! The capture stage's sources and its part of the pipeline configuration: the simulator, or
-//! the replay of a recording (at its recorded rate, at a given rate, or as fast as possible).
-//! A source fills a frame into the caller's buffer (the loaned shared-memory sample), so each
-//! frame is written once.
+//! The capture stage's sources and its part of the pipeline configuration: the simulator, the
+//! replay of a recording (at its recorded rate, at a given rate, or as fast as possible), or a
+//! real camera through libcamera (the `libcamera` feature). A source fills a frame into the
+//! caller's buffer (the loaned shared-memory sample), so each frame is written once.
 
+use crate::camera::CameraConfig;
 use crate::scenario::SimulationArgs;
 use crate::sim::ImageArgs;
 use crate::{FrameSimulator, Renderer};
@@ -10,6 +11,7 @@ use deckwatch_common::messages::FrameSource;
 use deckwatch_common::{CameraModel, DeckLayout, GrayViewMut, GroundTruth, Recording};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
+use std::time::Duration;
 
 /// `[source]`: which source, and what it tells beside the pixels.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
@@ -71,6 +73,7 @@ pub struct CaptureConfig {
     pub sim: SimulationArgs,
     pub image: ImageArgs,
     pub replay: ReplayConfig,
+    pub libcamera: CameraConfig,
 }
 
 impl CaptureConfig {
@@ -102,6 +105,19 @@ impl CaptureConfig {
                 }
                 Ok(())
             }
+            "libcamera" => {
+                self.libcamera.validate()?;
+                if let Some(size) = self.libcamera.requested_size()? {
+                    self.libcamera.camera_model(size.0, size.1)?;
+                }
+                if !crate::camera::LIBCAMERA_BUILT_IN {
+                    return Err(format!(
+                        "source.kind = \"libcamera\": {}",
+                        crate::camera::NOT_BUILT
+                    ));
+                }
+                Ok(())
+            }
             _ => self.open().map(|_| ()),
         }
     }
@@ -111,7 +127,7 @@ impl CaptureConfig {
         match self.source.kind.as_str() {
             "sim" => self.open_sim(),
             "replay" => self.open_replay(),
-            "libcamera" => Err("source.kind: `libcamera` is not built into this capture stage".into()),
+            "libcamera" => self.open_camera(),
             other => Err(format!("source.kind: unknown `{other}` (sim, replay, libcamera)")),
         }
     }
@@ -137,6 +153,30 @@ impl CaptureConfig {
                 sim: Box::new(frames),
                 frames: self.sim.frames as u64,
                 period_ns: (1e9 / self.sim.rate).round() as u64,
+            },
+        })
+    }
+
+    #[cfg(not(feature = "libcamera"))]
+    fn open_camera(&self) -> Result<CaptureSource, String> {
+        self.libcamera.validate()?;
+        Err(format!(
+            "source.kind = \"libcamera\": {}",
+            crate::camera::NOT_BUILT
+        ))
+    }
+
+    #[cfg(feature = "libcamera")]
+    fn open_camera(&self) -> Result<CaptureSource, String> {
+        let camera = crate::camera::LibcameraSource::open(&self.libcamera)?;
+        let (model, deck) = self.libcamera.camera_model(camera.width(), camera.height())?;
+        Ok(CaptureSource {
+            camera: model,
+            deck,
+            altimeter: false,
+            inner: Inner::Camera {
+                camera: Box::new(camera),
+                frames: self.libcamera.frames,
             },
         })
     }
@@ -214,6 +254,11 @@ pub struct CapturedFrame {
     pub truth_known: bool,
     /// The altimeter reading when the source has one.
     pub altitude_m: Option<f64>,
+    /// When the frame was taken (CLOCK_MONOTONIC ns), when the source knows (a camera's sensor
+    /// timestamp); None: the time it was captured into shared memory.
+    pub captured_ns: Option<u64>,
+    /// Frames the source lost just before this one (a camera's sequence gaps).
+    pub dropped_before: u64,
 }
 
 enum Inner {
@@ -229,6 +274,11 @@ enum Inner {
         loops: u32,
         max_frames: u64,
         truth_known: bool,
+    },
+    #[cfg(feature = "libcamera")]
+    Camera {
+        camera: Box<crate::camera::LibcameraSource>,
+        frames: u64,
     },
 }
 
@@ -253,6 +303,8 @@ impl CaptureSource {
         match self.inner {
             Inner::Sim { .. } => FrameSource::Simulator,
             Inner::Replay { .. } => FrameSource::Replay,
+            #[cfg(feature = "libcamera")]
+            Inner::Camera { .. } => FrameSource::Libcamera,
         }
     }
 
@@ -278,6 +330,8 @@ impl CaptureSource {
                     (Some(a), m) => Some(a.min(m)),
                 }
             }
+            #[cfg(feature = "libcamera")]
+            Inner::Camera { frames, .. } => (*frames > 0).then_some(*frames),
         }
     }
 
@@ -302,6 +356,40 @@ impl CaptureSource {
                     Some(lap * (last + period) + rec.frames[j].timestamp_ns.saturating_sub(t0))
                 }
             },
+            // A camera sets its own pace: frames are taken as they arrive.
+            #[cfg(feature = "libcamera")]
+            Inner::Camera { .. } => None,
+        }
+    }
+
+    /// Waits up to `wait` until the next frame can be captured: at once for the simulator and
+    /// replay; for a camera, until it delivers one (Ok(false): not yet, ask again). An error
+    /// means the source failed (a camera that stopped delivering).
+    pub fn wait_ready(&mut self, wait: Duration) -> Result<bool, String> {
+        match &mut self.inner {
+            #[cfg(feature = "libcamera")]
+            Inner::Camera { camera, .. } => camera.wait(wait),
+            _ => {
+                let _ = wait;
+                Ok(true)
+            }
+        }
+    }
+
+    /// A line on what the source is (for a camera: the mode it opened).
+    pub fn describe(&self) -> String {
+        match &self.inner {
+            Inner::Sim { period_ns, .. } => format!(
+                "simulator, {}x{} at {:.1} fps",
+                self.camera.width,
+                self.camera.height,
+                1e9 / *period_ns as f64
+            ),
+            Inner::Replay { rec, .. } => {
+                format!("replay of {} ({} frames)", rec.dir.display(), rec.frames.len())
+            }
+            #[cfg(feature = "libcamera")]
+            Inner::Camera { camera, .. } => camera.summary().to_string(),
         }
     }
 
@@ -321,6 +409,8 @@ impl CaptureSource {
                     altitude_m: if altimeter { truth.alt_m } else { None },
                     truth,
                     truth_known: true,
+                    captured_ns: None,
+                    dropped_before: 0,
                 })
             }
             Inner::Replay {
@@ -351,6 +441,22 @@ impl CaptureSource {
                     truth: f.truth,
                     truth_known: *truth_known,
                     altitude_m: if altimeter { f.truth.alt_m } else { None },
+                    captured_ns: None,
+                    dropped_before: 0,
+                })
+            }
+            #[cfg(feature = "libcamera")]
+            Inner::Camera { camera, .. } => {
+                let _ = altimeter;
+                let f = camera.take(out, stride)?;
+                Ok(CapturedFrame {
+                    source_index: f.sequence.map_or(camera.delivered() - 1, u64::from),
+                    source_timestamp_ns: f.timestamp_ns,
+                    truth: GroundTruth::default(),
+                    truth_known: false,
+                    altitude_m: None,
+                    captured_ns: Some(f.timestamp_ns),
+                    dropped_before: f.dropped_before,
                 })
             }
         }

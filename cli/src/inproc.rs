@@ -58,6 +58,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
             preload: false,
             ..ReplayConfig::default()
         },
+        libcamera: Default::default(),
     };
     let mut source = config.open()?;
     let (camera, deck) = (*source.camera(), *source.deck());

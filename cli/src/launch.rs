@@ -4,6 +4,7 @@
 //! latency histograms, drops, accuracy against the ground truth) and stops everything cleanly
 //! on Ctrl-C/SIGTERM or when the source is exhausted.
 
+use deckwatch_capture::camera::CameraConfig;
 use deckwatch_capture::scenario::SimulationArgs;
 use deckwatch_capture::sim::ImageArgs;
 use deckwatch_capture::source::{CaptureConfig, ReplayConfig, SourceConfig};
@@ -67,6 +68,7 @@ pub struct PipelineConfig {
     pub sim: SimulationArgs,
     pub image: ImageArgs,
     pub replay: ReplayConfig,
+    pub libcamera: CameraConfig,
     pub estimate: EstimateConfig,
     pub decide: DecisionConfig,
     pub supervisor: SupervisorConfig,
@@ -114,6 +116,7 @@ impl PipelineConfig {
             sim: self.sim.clone(),
             image: self.image.clone(),
             replay: self.replay.clone(),
+            libcamera: self.libcamera.clone(),
         }
     }
 }
@@ -581,7 +584,9 @@ pub fn launch(config: &PipelineConfig, options: &LaunchOptions) -> Result<RunRep
     if let Err(e) = Bus::remove_idle_domain(&domain) {
         say(e);
     }
-    drop(viewer); // flushes the launcher's part (the blueprint)
+    if let Some(v) = viewer {
+        v.close(); // flushes the launcher's part (the blueprint)
+    }
     if config.rerun.sink == "save" {
         if let Some(path) = &config.rerun.path {
             match deckwatch_viz::merge_parts(path, &["launcher", "capture", "detect", "estimate", "decide"]) {
@@ -598,7 +603,7 @@ pub fn launch(config: &PipelineConfig, options: &LaunchOptions) -> Result<RunRep
 
 /// Opens the launcher's own rerun stream (which carries the blueprint) and points the stages at
 /// the same recording.
-fn start_viewer(config: &mut PipelineConfig) -> Result<Option<rerun::RecordingStream>, String> {
+fn start_viewer(config: &mut PipelineConfig) -> Result<Option<deckwatch_viz::Viewer>, String> {
     let r = &mut config.rerun;
     if r.sink == "off" {
         return Ok(None);
@@ -609,16 +614,13 @@ fn start_viewer(config: &mut PipelineConfig) -> Result<Option<rerun::RecordingSt
             .unwrap_or_default();
         r.recording_id = Some(format!("deckwatch-{}-{}", now.as_secs(), std::process::id()));
     }
-    let stream = deckwatch_viz::open_stream(r, "launcher")?;
-    if let Some(s) = &stream {
-        deckwatch_viz::send_blueprint(s)?;
-    }
+    let viewer = deckwatch_viz::open_viewer(r, "launcher")?;
     if r.sink == "spawn" {
         // The viewer is up: the stages connect to it rather than spawning their own.
         r.sink = "connect".into();
         r.address = Some(deckwatch_viz::DEFAULT_ADDRESS.into());
     }
-    Ok(stream)
+    Ok(viewer)
 }
 
 fn stop_all(stages: &mut [StageProcess], timeout: Duration) {

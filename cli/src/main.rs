@@ -7,12 +7,15 @@
 //! - `deckwatch sim markers` / `deckwatch estimate-table`: the marker-table tools.
 //! - `deckwatch sweep`: simulate a scenario at the level of marker points and run every variant of
 //!   the paper's estimator on it, side by side (accuracy and per-frame cost).
-//! - `deckwatch sim record`: render a scenario into a recording with ground truth.
+//! - `deckwatch sim record`: render a scenario into a recording with ground truth (optionally
+//!   also as frames for libcamera's virtual camera).
+//! - `deckwatch cameras`: the cameras libcamera sees, their formats and controls.
 //! - `deckwatch recording check DIR`: validate a recording (camera.json, frames.csv, every image).
 
 use clap::{Parser, Subcommand};
 use deckwatch_capture::scenario::SimulationArgs;
 use deckwatch_capture::sim::ImageArgs;
+use deckwatch_capture::virtual_camera::VirtualCameraWriter;
 use deckwatch_capture::{FrameSimulator, Renderer};
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::{ErrorStats, Percentiles};
@@ -63,6 +66,28 @@ enum Command {
         #[command(subcommand)]
         command: SimCommand,
     },
+    /// List the cameras libcamera sees: id, model, the video stream's pixel formats and sizes
+    /// (and whether deckwatch reads each), and the frame-rate, exposure and gain controls.
+    /// Needs a build with `--features libcamera`.
+    Cameras {
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Record frames from the configured camera (`[libcamera]` of the pipeline configuration)
+    /// into a recording (camera.json, frames.csv with the frame times, PNGs): for replay,
+    /// calibration or a look at what the camera delivers. Needs `--features libcamera`.
+    CameraRecord {
+        /// Pipeline configuration whose `[libcamera]` section names the camera and its mode.
+        #[arg(long)]
+        config: Option<std::path::PathBuf>,
+        /// Frames to record.
+        #[arg(long, default_value_t = 10)]
+        frames: u64,
+        /// Output folder (must not hold a recording yet).
+        #[arg(long)]
+        out: std::path::PathBuf,
+    },
     /// Work with recordings.
     Recording {
         #[command(subcommand)]
@@ -91,6 +116,11 @@ struct RecordArgs {
     /// Output folder (must not hold a recording yet).
     #[arg(long)]
     out: std::path::PathBuf,
+    /// Also write the frames as `virtual/frames/0.jpg, 1.jpg, ...` and `virtual/virtual.yaml`, a
+    /// libcamera virtual camera with this id that plays them (install the yaml as
+    /// /usr/share/libcamera/pipeline/virtual/virtual.yaml; libcamera >= 0.4).
+    #[arg(long, value_name = "ID")]
+    virtual_camera: Option<String>,
 }
 
 fn record(a: RecordArgs) -> Result<(), String> {
@@ -107,6 +137,11 @@ fn record(a: RecordArgs) -> Result<(), String> {
     )?;
     let mut writer =
         RecordingWriter::create(&a.out, &camera, &sim.deck, [true; 6]).map_err(|e| e.to_string())?;
+    let mut virtual_camera = a
+        .virtual_camera
+        .as_deref()
+        .map(|id| VirtualCameraWriter::create(&a.out.join("virtual"), id))
+        .transpose()?;
     let mut img = GrayImage::new(camera.width as usize, camera.height as usize);
     let bar = indicatif::ProgressBar::new(a.sim.frames as u64).with_style(
         indicatif::ProgressStyle::with_template("{msg} {bar:40} {pos}/{len} frames, {per_sec}, eta {eta}")
@@ -126,6 +161,9 @@ fn record(a: RecordArgs) -> Result<(), String> {
         writer
             .write_frame(k, truth.timestamp_ns, img.view(), &truth.ground_truth())
             .map_err(|e| e.to_string())?;
+        if let Some(v) = &mut virtual_camera {
+            v.write_frame(img.view()).map_err(|e| format!("frame {k}: {e}"))?;
+        }
         bar.inc(1);
     }
     bar.finish_and_clear();
@@ -139,6 +177,73 @@ fn record(a: RecordArgs) -> Result<(), String> {
         started.elapsed().as_secs_f64(),
         1e3 * render_s / n.max(1) as f64
     );
+    if let Some(v) = virtual_camera {
+        let yaml = v.finish(a.sim.rate)?;
+        eprintln!(
+            "virtual camera: {} (with {n} JPEG frames beside it)",
+            yaml.display()
+        );
+    }
+    Ok(())
+}
+
+fn camera_record(
+    config: Option<std::path::PathBuf>,
+    frames: u64,
+    out: &std::path::Path,
+) -> Result<(), String> {
+    let mut c = match &config {
+        Some(p) => launch::PipelineConfig::load(p)?,
+        None => launch::PipelineConfig::default(),
+    };
+    c.source.kind = "libcamera".into();
+    c.libcamera.frames = frames;
+    let mut source = c.capture().open()?;
+    eprintln!("{}", source.describe());
+    let (camera, deck) = (*source.camera(), *source.deck());
+    let mut writer = RecordingWriter::create(out, &camera, &deck, [false; 6]).map_err(|e| e.to_string())?;
+    let mut img = GrayImage::new(camera.width as usize, camera.height as usize);
+    let (mut k, mut bad) = (0, 0);
+    while k < frames {
+        if !source.wait_ready(std::time::Duration::from_millis(100))? {
+            continue;
+        }
+        let width = img.width;
+        match source.capture(k, &mut img.data, width) {
+            Ok(f) => {
+                writer
+                    .write_frame(k, f.source_timestamp_ns, img.view(), &f.truth)
+                    .map_err(|e| e.to_string())?;
+                k += 1;
+            }
+            Err(e) => {
+                bad += 1;
+                eprintln!("frame skipped: {e}");
+            }
+        }
+    }
+    let n = writer.finish().map_err(|e| e.to_string())?;
+    eprintln!("wrote {n} frames to {} ({bad} bad frames skipped)", out.display());
+    Ok(())
+}
+
+fn cameras(json: bool) -> Result<(), String> {
+    let (version, cameras) = deckwatch_capture::camera::list_cameras()?;
+    if json {
+        let doc = serde_json::json!({ "libcamera": version, "cameras": cameras });
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?
+        );
+        return Ok(());
+    }
+    println!("libcamera {version}: {} camera(s)", cameras.len());
+    for c in &cameras {
+        print!("{c}");
+    }
+    if cameras.is_empty() {
+        println!("(none: is the camera connected, enabled and not held by another process?)");
+    }
     Ok(())
 }
 
@@ -266,6 +371,8 @@ fn main() -> ExitCode {
         Command::Recording {
             command: RecordingCommand::Check { dir },
         } => check_recording(&dir),
+        Command::Cameras { json } => cameras(json),
+        Command::CameraRecord { config, frames, out } => camera_record(config, frames, &out),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -11,10 +11,11 @@ pub struct RunArgs {
     /// Frame source: `sim` (default), `replay DIR`, or `libcamera`.
     #[arg(long, num_args = 1..=2, value_names = ["KIND", "DIR"])]
     source: Vec<String>,
-    /// Frames to capture (sim: the run's length; replay: stop after this many).
+    /// Frames to capture (sim: the run's length; replay, libcamera: stop after this many).
     #[arg(long)]
     frames: Option<u64>,
-    /// Frame rate in Hz (replay: 0 = as fast as possible; default: the recorded rate).
+    /// Frame rate in Hz (replay: 0 = as fast as possible, default the recorded rate;
+    /// libcamera: asked of the camera, 0 = its default).
     #[arg(long)]
     rate: Option<f64>,
     /// iceoryx2 domain (isolates concurrent pipelines).
@@ -100,19 +101,18 @@ pub fn run(a: RunArgs) -> Result<(), String> {
             ))
         }
     }
-    let replay = c.source.kind == "replay";
     if let Some(n) = a.frames {
-        if replay {
-            c.replay.frames = n;
-        } else {
-            c.sim.frames = n as usize;
+        match c.source.kind.as_str() {
+            "replay" => c.replay.frames = n,
+            "libcamera" => c.libcamera.frames = n,
+            _ => c.sim.frames = n as usize,
         }
     }
     if let Some(hz) = a.rate {
-        if replay {
-            c.replay.rate_hz = Some(hz);
-        } else {
-            c.sim.rate = hz;
+        match c.source.kind.as_str() {
+            "replay" => c.replay.rate_hz = Some(hz),
+            "libcamera" => c.libcamera.frame_rate = hz,
+            _ => c.sim.rate = hz,
         }
     }
     if let Some(d) = a.domain {

@@ -23,7 +23,19 @@ pub fn rpy_errors_deg(estimate: &Attitude, truth: &Rpy) -> [f64; 3] {
 /// Path of a workspace binary. The first call builds all of the workspace's binaries with the
 /// same cargo, profile and target directory as the running test (integration tests of one package
 /// cannot name another package's binaries directly).
+///
+/// `DECKWATCH_TEST_BIN_DIR` names a folder of binaries built beforehand instead (a build with
+/// other features, as ci/libcamera.sh makes: a plain `cargo build` here would rebuild them).
 pub fn workspace_binary(name: &str) -> std::path::PathBuf {
+    if let Some(dir) = std::env::var_os("DECKWATCH_TEST_BIN_DIR") {
+        let path = std::path::Path::new(&dir).join(name);
+        assert!(
+            path.exists(),
+            "{} (DECKWATCH_TEST_BIN_DIR) is missing",
+            path.display()
+        );
+        return path;
+    }
     static BUILD: std::sync::Once = std::sync::Once::new();
     // .../target/<profile>/deps/<test-binary>
     let exe = std::env::current_exe().expect("test binary path");

@@ -1,0 +1,210 @@
+//! The rerun side of the logging: recording streams, archetypes, the blueprint, `.rrd` files.
+
+use crate::{Item, ItemKind, RerunConfig, APPLICATION_ID, DEFAULT_ADDRESS};
+use crossbeam_channel::Receiver;
+use rerun::{RecordingStream, RecordingStreamBuilder};
+use std::path::Path;
+use std::thread::JoinHandle;
+
+/// Opens the stream, then starts the thread that logs what arrives on `rx` until it closes.
+pub(crate) fn spawn_logging_thread(
+    config: &RerunConfig,
+    stage: &str,
+    rx: Receiver<Item>,
+) -> Result<JoinHandle<()>, String> {
+    let rec = open_stream(config, stage)?.ok_or("rerun.sink: off")?;
+    let downscale = config.image_downscale as f32;
+    std::thread::Builder::new()
+        .name(format!("rerun-{stage}"))
+        .spawn(move || {
+            for item in rx {
+                log_item(&rec, &item, downscale);
+            }
+            // Dropping the stream flushes it (and writes the .rrd footer).
+            let _ = rec.flush_blocking();
+        })
+        .map_err(|e| format!("rerun: cannot start the logging thread: {e}"))
+}
+
+/// The launcher's own stream, which carries the viewer layout; kept open while the pipeline runs.
+pub struct Viewer {
+    stream: RecordingStream,
+}
+
+impl Viewer {
+    /// Flushes and closes the stream (a `save` part is complete afterwards).
+    pub fn close(self) {
+        let _ = self.stream.flush_blocking();
+    }
+}
+
+/// Opens the launcher's stream of the configured sink and sends the blueprint (None: off).
+pub fn open_viewer(config: &RerunConfig, stage: &str) -> Result<Option<Viewer>, String> {
+    let Some(stream) = open_stream(config, stage)? else {
+        return Ok(None);
+    };
+    send_blueprint(&stream)?;
+    Ok(Some(Viewer { stream }))
+}
+
+/// The recording stream of the configured sink (None: off).
+fn open_stream(config: &RerunConfig, stage: &str) -> Result<Option<RecordingStream>, String> {
+    let mut builder = RecordingStreamBuilder::new(APPLICATION_ID);
+    if let Some(id) = &config.recording_id {
+        builder = builder.recording_id(id.clone());
+    }
+    let err = |e: rerun::RecordingStreamError| format!("rerun ({}): {e}", config.sink);
+    let rec = match config.sink.as_str() {
+        "off" => return Ok(None),
+        "spawn" => builder.spawn().map_err(err)?,
+        "connect" => builder
+            .connect_grpc_opts(config.address.clone().unwrap_or_else(|| DEFAULT_ADDRESS.into()))
+            .map_err(err)?,
+        "save" => {
+            let path = config
+                .path
+                .as_ref()
+                .ok_or("rerun.path: required with sink = \"save\"")?;
+            builder.save(RerunConfig::part_path(path, stage)).map_err(err)?
+        }
+        other => return Err(format!("rerun.sink: unknown `{other}`")),
+    };
+    Ok(Some(rec))
+}
+
+fn log_item(rec: &RecordingStream, item: &Item, downscale: f32) {
+    rec.set_time_sequence("frame", item.seq as i64);
+    rec.set_duration_secs("capture_time", item.captured_ns as f64 / 1e9);
+    // Full-resolution pixel -> pixel of the downscaled image (pixel centres at integers).
+    let scale = |p: &[f32; 2]| [(p[0] + 0.5) / downscale - 0.5, (p[1] + 0.5) / downscale - 0.5];
+    let result = match &item.kind {
+        ItemKind::Image {
+            pixels,
+            width,
+            height,
+        } => rec.log(
+            "camera/image",
+            &rerun::Image::from_l8(pixels.clone(), [*width, *height]),
+        ),
+        ItemKind::Points {
+            entity,
+            points,
+            labels,
+        } => {
+            let pts: Vec<[f32; 2]> = points.iter().map(scale).collect();
+            rec.log(
+                *entity,
+                &rerun::Points2D::new(pts)
+                    .with_labels(labels.clone())
+                    .with_radii([2.0]),
+            )
+        }
+        ItemKind::Strips { entity, strips } => {
+            let s: Vec<Vec<[f32; 2]>> = strips.iter().map(|st| st.iter().map(scale).collect()).collect();
+            rec.log(*entity, &rerun::LineStrips2D::new(s))
+        }
+        ItemKind::Scalars(values) => {
+            let mut r = Ok(());
+            for (entity, v) in values {
+                if v.is_finite() {
+                    r = r.and(rec.log(entity.as_str(), &rerun::Scalars::single(*v)));
+                }
+            }
+            r
+        }
+        ItemKind::Text(t) => rec.log("decision/log", &rerun::TextLog::new(t.clone())),
+    };
+    // A failed log call (e.g. a viewer that went away) must not stop the thread.
+    let _ = result;
+}
+
+/// The viewer layout: the image with its overlays beside the angle plots, the decision below.
+pub fn send_blueprint(rec: &RecordingStream) -> Result<(), String> {
+    use rerun::blueprint::{
+        Blueprint, BlueprintActivation, Horizontal, Spatial2DView, TextLogView, TimeSeriesView, Vertical,
+    };
+    let plots = Vertical::new([
+        TimeSeriesView::new("roll (deg)")
+            .with_origin("attitude/roll")
+            .into(),
+        TimeSeriesView::new("pitch (deg)")
+            .with_origin("attitude/pitch")
+            .into(),
+        TimeSeriesView::new("yaw (deg)")
+            .with_origin("attitude/yaw")
+            .into(),
+        TimeSeriesView::new("decision").with_origin("decision").into(),
+    ]);
+    let left = Vertical::new([
+        Spatial2DView::new("camera").with_origin("camera/image").into(),
+        TextLogView::new("decisions").with_origin("decision/log").into(),
+    ])
+    .with_row_shares([3.0, 1.0]);
+    let blueprint = Blueprint::new(Horizontal::new([left.into(), plots.into()]));
+    blueprint
+        .send(rec, BlueprintActivation::default())
+        .map_err(|e| format!("rerun: sending the blueprint: {e}"))
+}
+
+/// Merges the per-process part files of a `save` run into one `.rrd` (one stream header), and
+/// removes the parts. Returns the number of messages written.
+pub fn merge_parts(path: &Path, stages: &[&str]) -> Result<u64, String> {
+    use rerun::external::re_build_info::CrateVersion;
+    use rerun::external::re_log_encoding as enc;
+    use rerun::external::re_log_types::LogMsg;
+    let out = std::fs::File::create(path).map_err(|e| format!("{}: cannot create: {e}", path.display()))?;
+    let mut encoder = enc::Encoder::new_eager(
+        CrateVersion::LOCAL,
+        enc::EncodingOptions::PROTOBUF_COMPRESSED,
+        std::io::BufWriter::new(out),
+    )
+    .map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut n = 0u64;
+    let mut parts = Vec::new();
+    for stage in stages {
+        let part = RerunConfig::part_path(path, stage);
+        if !part.exists() {
+            continue;
+        }
+        let file = std::fs::File::open(&part).map_err(|e| format!("{}: {e}", part.display()))?;
+        let decoder = enc::Decoder::<LogMsg>::decode_eager(std::io::BufReader::new(file))
+            .map_err(|e| format!("{}: {e}", part.display()))?;
+        for msg in decoder {
+            let msg = msg.map_err(|e| format!("{}: {e}", part.display()))?;
+            encoder
+                .append(&msg)
+                .map_err(|e| format!("{}: {e}", path.display()))?;
+            n += 1;
+        }
+        parts.push(part);
+    }
+    encoder.finish().map_err(|e| format!("{}: {e}", path.display()))?;
+    drop(encoder);
+    for p in parts {
+        let _ = std::fs::remove_file(p);
+    }
+    Ok(n)
+}
+
+/// Rows logged per entity of the recording (blueprint stores excluded), read back from an
+/// `.rrd` file: what a test or a user checks a saved run with.
+pub fn rrd_entity_rows(path: &Path) -> Result<std::collections::BTreeMap<String, u64>, String> {
+    use rerun::external::re_log_encoding as enc;
+    use rerun::external::re_log_types::{LogMsg, StoreKind};
+    use rerun::log::Chunk;
+    let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let decoder = enc::Decoder::<LogMsg>::decode_eager(std::io::BufReader::new(file))
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut rows = std::collections::BTreeMap::new();
+    for msg in decoder {
+        let msg = msg.map_err(|e| format!("{}: {e}", path.display()))?;
+        if let LogMsg::ArrowMsg(store, arrow) = &msg {
+            if store.kind() != StoreKind::Recording {
+                continue;
+            }
+            let chunk = Chunk::from_arrow_msg(arrow).map_err(|e| format!("{}: {e}", path.display()))?;
+            *rows.entry(chunk.entity_path().to_string()).or_default() += chunk.num_rows() as u64;
+        }
+    }
+    Ok(rows)
+}

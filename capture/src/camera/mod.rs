@@ -471,7 +471,7 @@ mod tests {
             .unwrap()
             .extract(&px, 12, 4, 1, &mut out, 4)
             .unwrap();
-        assert_eq!(out, [77, 150, 29, 77]); // red, green, blue, gray
+        assert_eq!(out, [77, 149, 29, 77]); // red, green, blue (255 x weight / 256), gray
         let xrgb = [255u8, 0, 0, 0, 9, 9, 9, 255];
         let mut out = [0u8; 2];
         LumaLayout::for_format("XRGB8888")

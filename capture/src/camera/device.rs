@@ -20,7 +20,7 @@ use libcamera::{
     pixel_format::PixelFormat,
     properties,
     request::{Request, RequestStatus, ReuseFlag},
-    stream::{Stream, StreamRole},
+    stream::{Stream, StreamFormatsRef, StreamRole},
 };
 use std::any::Any;
 use std::collections::VecDeque;
@@ -333,6 +333,22 @@ fn memfd_buffer(plane_lens: &[u32], cookie: u64) -> std::io::Result<OwnedFrameBu
     OwnedFrameBuffer::new(planes, Some(cookie))
 }
 
+/// The sizes a stream offers in `format`: its discrete sizes, else its range as `WxH-WxH`.
+fn offered_sizes(formats: &StreamFormatsRef<'_>, format: PixelFormat) -> Vec<String> {
+    let sizes = formats.sizes(format);
+    if sizes.is_empty() {
+        let r = formats.range(format);
+        return vec![format!(
+            "{}x{}-{}x{}",
+            r.min.width, r.min.height, r.max.width, r.max.height
+        )];
+    }
+    sizes
+        .iter()
+        .map(|s| format!("{}x{}", s.width, s.height))
+        .collect()
+}
+
 fn make_requests<T: AsFrameBuffer + Any + 'static>(
     cam: &mut ActiveCamera<'_>,
     stream: &Stream,
@@ -405,20 +421,7 @@ fn run_camera(
         PixelFormat::parse(&format).ok_or_else(|| format!("libcamera does not know the format {format}"))?;
     let sizes_offered = {
         let c = cfgs.get(0).ok_or("libcamera: empty configuration")?;
-        let sizes = c.formats().sizes(pixel_format);
-        if sizes.is_empty() {
-            let r = c.formats().range(pixel_format);
-            format!(
-                "{}x{} to {}x{}",
-                r.min.width, r.min.height, r.max.width, r.max.height
-            )
-        } else {
-            sizes
-                .iter()
-                .map(|s| format!("{}x{}", s.width, s.height))
-                .collect::<Vec<_>>()
-                .join(", ")
-        }
+        offered_sizes(&c.formats(), pixel_format).join(", ")
     };
     {
         let mut s = cfgs.get_mut(0).ok_or("libcamera: empty configuration")?;
@@ -666,20 +669,7 @@ pub fn list_cameras() -> Result<(String, Vec<CameraDescription>), String> {
             if let Some(c) = cfgs.get(0) {
                 let f = c.formats();
                 for pf in f.pixel_formats().into_iter() {
-                    let sizes = f.sizes(pf);
-                    let sizes = if sizes.is_empty() {
-                        let r = f.range(pf);
-                        vec![format!(
-                            "{}x{}-{}x{}",
-                            r.min.width, r.min.height, r.max.width, r.max.height
-                        )]
-                    } else {
-                        sizes
-                            .iter()
-                            .map(|s| format!("{}x{}", s.width, s.height))
-                            .collect()
-                    };
-                    formats.push((pf.to_string(), sizes));
+                    formats.push((pf.to_string(), offered_sizes(&f, pf)));
                 }
             }
         }

@@ -113,7 +113,7 @@ in_chroot() {
 # Without rerun (the `rerun` feature): the camera path does not need it, and it would add
 # ~17 minutes to a clean build. The same packages and features for the binaries and the test.
 FEATURES="--no-default-features --features deckwatch-tests/libcamera,deckwatch/libcamera"
-PACKAGES="-p deckwatch-tests -p deckwatch -p deckwatch-capture -p deckwatch-detect -p deckwatch-estimate -p deckwatch-decide"
+PACKAGES="-p deckwatch-tests -p deckwatch -p deckwatch-runtime -p deckwatch-capture -p deckwatch-detect -p deckwatch-estimate -p deckwatch-decide"
 step "cargo build in the chroot ($FEATURES)"
 in_chroot "timeout 2400 cargo build --offline --locked $PACKAGES $FEATURES --bins --tests"
 

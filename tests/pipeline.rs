@@ -3,7 +3,7 @@
 //! and skipped; a stage killed with SIGKILL is restarted and frames flow again; a clean stop
 //! leaves nothing in shared memory. Each test runs in its own iceoryx2 domain.
 
-use deckwatch_common::bus::domain_prefix;
+use deckwatch_runtime::bus::domain_prefix;
 use deckwatch_tests::workspace_binary;
 use std::collections::HashMap;
 use std::io::{BufRead, BufReader};

@@ -6,8 +6,10 @@ use crate::rng::SplitMix64;
 use deckwatch_common::marker_table::MarkerRow;
 use deckwatch_common::{CameraModel, DeckLayout, GroundTruth, SceneGeometry};
 
-/// A named motion scenario.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// A named motion scenario (`--scenario`, `[sim] scenario`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Scenario {
     /// The paper's Case 1 sweep, camera centred at 5 m.
     Case1,
@@ -16,6 +18,7 @@ pub enum Scenario {
     /// Ship motion with the camera 0.3 m off the deck centre at 4.5-5.5 m.
     Offset,
     /// The camera 30 m away from the deck at 5 m: only the sea in view.
+    #[cfg_attr(feature = "cli", value(name = "nodeck"))]
     NoDeck,
 }
 
@@ -61,35 +64,37 @@ impl Scenario {
 
 /// The command-line choice of a simulation, shared by every tool that simulates (and the
 /// `[sim]` section of the pipeline's configuration).
-#[derive(Debug, Clone, PartialEq, clap::Args, serde::Deserialize, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Deserialize, serde::Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
 #[serde(default, deny_unknown_fields)]
 pub struct SimulationArgs {
     /// Scenario: case1, ship, offset or nodeck.
-    #[arg(long, default_value = "ship")]
-    pub scenario: String,
+    #[cfg_attr(feature = "cli", arg(long, default_value = "ship"))]
+    pub scenario: Scenario,
     /// Number of frames.
-    #[arg(long, default_value_t = 600)]
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 600))]
     pub frames: usize,
     /// Frame rate (Hz).
-    #[arg(long, default_value_t = 10.0)]
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 10.0))]
     pub rate: f64,
     /// Camera preset (paper, rpi-v2); default: the scenario's.
-    #[arg(long)]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub camera: Option<String>,
     /// Seed of the sea's phases, the textures and the noise.
-    #[arg(long, default_value_t = 1)]
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 1))]
     pub seed: u64,
 }
 
 impl Default for SimulationArgs {
-    /// The command line's defaults.
+    /// The command line's defaults (a test checks that they agree).
     fn default() -> Self {
-        #[derive(clap::Parser)]
-        struct Defaults {
-            #[command(flatten)]
-            a: SimulationArgs,
+        Self {
+            scenario: Scenario::Ship,
+            frames: 600,
+            rate: 10.0,
+            camera: None,
+            seed: 1,
         }
-        <Defaults as clap::Parser>::parse_from(["defaults"]).a
     }
 }
 
@@ -104,12 +109,7 @@ pub struct Simulation {
 impl SimulationArgs {
     /// Checks the choice; errors name the option.
     pub fn resolve(&self) -> Result<Simulation, String> {
-        let scenario = Scenario::from_name(&self.scenario).ok_or_else(|| {
-            format!(
-                "--scenario: unknown `{}` (case1, ship, offset, nodeck)",
-                self.scenario
-            )
-        })?;
+        let scenario = self.scenario;
         let camera_name = self
             .camera
             .as_deref()
@@ -233,5 +233,31 @@ mod tests {
         let sigma = (ss / (2 * n) as f64).sqrt();
         assert!((sigma - 0.5).abs() < 0.03, "{sigma}");
         assert_eq!(exact.truth.alt_m, Some(5.0));
+    }
+}
+
+/// The command line's defaults (clap attributes) and the configuration's (`Default`) are
+/// written twice by necessity; this holds them together.
+#[cfg(all(test, feature = "cli"))]
+mod command_line_defaults {
+    use super::SimulationArgs;
+    use crate::sim::ImageArgs;
+
+    #[derive(clap::Parser)]
+    struct Both {
+        #[command(flatten)]
+        sim: SimulationArgs,
+        #[command(flatten)]
+        image: ImageArgs,
+    }
+
+    #[test]
+    fn are_the_configuration_defaults() {
+        let b = <Both as clap::Parser>::parse_from(["defaults"]);
+        assert_eq!(b.sim, SimulationArgs::default());
+        assert_eq!(b.image, ImageArgs::default());
+        let b = <Both as clap::Parser>::parse_from(["x", "--scenario", "nodeck", "--look", "clean"]);
+        assert_eq!(b.sim.scenario, crate::Scenario::NoDeck);
+        assert_eq!(b.image.look, crate::sim::Look::Clean);
     }
 }

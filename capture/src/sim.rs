@@ -125,64 +125,95 @@ impl FrameSimulator {
 
 /// Command-line choice of the image: resolution, look and lens (and the `[image]` section of
 /// the pipeline's configuration).
-#[derive(Debug, Clone, PartialEq, clap::Args, serde::Deserialize, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Deserialize, serde::Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
 #[serde(default, deny_unknown_fields)]
 pub struct ImageArgs {
     /// Image width (the camera preset is scaled to it); default: the preset's.
-    #[arg(long)]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub width: Option<u32>,
     /// Image height; default: the preset's.
-    #[arg(long)]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub height: Option<u32>,
     /// Starting point of the look: `clean` (sharp, noiseless, even light) or `realistic`
     /// (blur, noise, uneven light, vignetting); the options below override it.
-    #[arg(long, default_value = "realistic")]
-    pub look: String,
+    #[cfg_attr(feature = "cli", arg(long, default_value = "realistic"))]
+    pub look: Look,
     /// Optical blur, Gaussian sigma in pixels.
-    #[arg(long)]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub blur_px: Option<f64>,
     /// Exposure time for motion blur, milliseconds (0 = none).
-    #[arg(long, default_value_t = 0.0)]
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 0.0))]
     pub exposure_ms: f64,
     /// Read noise (DN, standard deviation).
-    #[arg(long)]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub read_noise: Option<f64>,
     /// Shot noise (DN^2 of variance per DN of signal).
-    #[arg(long)]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub shot_noise: Option<f64>,
     /// Vignetting strength, 0-1.
-    #[arg(long)]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub vignetting: Option<f64>,
     /// Illumination gradient across the image, 0-1.
-    #[arg(long)]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub gradient: Option<f64>,
     /// Deck and sea texture contrast, 0-1.
-    #[arg(long)]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub texture: Option<f64>,
     /// Marker contrast against the deck, relative to the look's (1 = unchanged; 0.3 = a dull,
     /// wet or shadowed deck).
-    #[arg(long)]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub contrast: Option<f64>,
     /// Hide this marker (index; 0 = centre, 1 = bow) as if something deck-coloured covered it.
-    #[arg(long)]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub occlude: Option<usize>,
     /// Specular glints per frame (saturated spots at random places).
-    #[arg(long)]
+    #[cfg_attr(feature = "cli", arg(long))]
     pub glints: Option<u32>,
     /// Lens distortion k1,k2,p1,p2,k3 (OpenCV order).
-    #[arg(long, value_delimiter = ',', num_args = 5)]
+    #[cfg_attr(feature = "cli", arg(long, value_delimiter = ',', num_args = 5))]
     pub distortion: Option<Vec<f64>>,
 }
 
-impl Default for ImageArgs {
-    /// The command line's defaults.
-    fn default() -> Self {
-        #[derive(clap::Parser)]
-        struct Defaults {
-            #[command(flatten)]
-            a: ImageArgs,
+/// The starting point of a rendered image's look (`--look`, `[image] look`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum Look {
+    /// Sharp, noiseless, even light.
+    Clean,
+    /// Blur, noise, uneven light, vignetting.
+    Realistic,
+}
+
+impl Look {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Clean => "clean",
+            Self::Realistic => "realistic",
         }
-        <Defaults as clap::Parser>::parse_from(["defaults"]).a
+    }
+}
+
+impl Default for ImageArgs {
+    /// The command line's defaults (a test checks that they agree).
+    fn default() -> Self {
+        Self {
+            width: None,
+            height: None,
+            look: Look::Realistic,
+            blur_px: None,
+            exposure_ms: 0.0,
+            read_noise: None,
+            shot_noise: None,
+            vignetting: None,
+            gradient: None,
+            texture: None,
+            contrast: None,
+            occlude: None,
+            glints: None,
+            distortion: None,
+        }
     }
 }
 
@@ -208,10 +239,9 @@ impl ImageArgs {
             camera.distortion = Distortion::from_array(a);
         }
         camera.validate().map_err(|e| format!("camera: {e}"))?;
-        let mut o = match self.look.as_str() {
-            "clean" => RenderOptions::default(),
-            "realistic" => RenderOptions::realistic(),
-            other => return Err(format!("--look: unknown `{other}` (clean, realistic)")),
+        let mut o = match self.look {
+            Look::Clean => RenderOptions::default(),
+            Look::Realistic => RenderOptions::realistic(),
         };
         let set = |field: &mut f64, v: Option<f64>| {
             if let Some(v) = v {
@@ -253,7 +283,7 @@ mod tests {
 
     fn sim_args(scenario: &str) -> SimulationArgs {
         SimulationArgs {
-            scenario: scenario.into(),
+            scenario: crate::Scenario::from_name(scenario).unwrap(),
             frames: 3,
             rate: 10.0,
             camera: None,
@@ -289,7 +319,7 @@ mod tests {
         let mut a = ImageArgs {
             width: Some(640),
             height: Some(480),
-            look: "clean".into(),
+            look: Look::Clean,
             blur_px: Some(1.0),
             exposure_ms: 0.0,
             read_noise: None,
@@ -311,9 +341,6 @@ mod tests {
             o.deck_dn + 0.5 * (RenderOptions::default().marker_dn - o.deck_dn)
         );
         assert_eq!(o.read_noise_dn, 0.0);
-        a.look = "fancy".into();
-        assert!(a.resolve(&sim).unwrap_err().contains("--look"));
-        a.look = "clean".into();
         a.vignetting = Some(3.0);
         assert!(a.resolve(&sim).unwrap_err().contains("`vignetting`"));
     }

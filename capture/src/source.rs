@@ -18,7 +18,7 @@ use std::time::Duration;
 #[serde(default, deny_unknown_fields)]
 pub struct SourceConfig {
     /// `sim`, `replay` or `libcamera`.
-    pub kind: String,
+    pub kind: FrameSource,
     /// Publish the true altitude (simulator, a recording's `alt_m` column) as the altimeter
     /// reading; the paper's printed estimator needs one.
     pub altimeter: bool,
@@ -27,7 +27,7 @@ pub struct SourceConfig {
 impl Default for SourceConfig {
     fn default() -> Self {
         Self {
-            kind: "sim".into(),
+            kind: FrameSource::Simulator,
             altimeter: true,
         }
     }
@@ -77,22 +77,16 @@ pub struct CaptureConfig {
 }
 
 impl CaptureConfig {
-    /// Reads the capture sections of a pipeline configuration (TOML); other sections are left
-    /// to their stages. Errors name the file, line and key.
-    pub fn from_toml(file: &str, text: &str) -> Result<Self, String> {
-        toml::from_str(text).map_err(|e| format!("{file}: {e}"))
-    }
-
     /// Checks the configuration without opening the source (no rendering, no decoding): what
     /// the launcher does before it starts the stages.
     pub fn check(&self) -> Result<(), String> {
-        match self.source.kind.as_str() {
-            "sim" => {
+        match self.source.kind {
+            FrameSource::Simulator => {
                 let sim = self.sim.resolve().map_err(|e| format!("[sim] {e}"))?;
                 self.image.resolve(&sim).map_err(|e| format!("[image] {e}"))?;
                 Ok(())
             }
-            "replay" => {
+            FrameSource::Replay => {
                 let dir = self.replay.recording.as_ref().ok_or(
                     "replay.recording: the recording folder is required for source.kind = \"replay\"",
                 )?;
@@ -105,7 +99,7 @@ impl CaptureConfig {
                 }
                 Ok(())
             }
-            "libcamera" => {
+            FrameSource::Libcamera => {
                 self.libcamera.validate()?;
                 if let Some(size) = self.libcamera.requested_size()? {
                     self.libcamera.camera_model(size.0, size.1)?;
@@ -118,17 +112,15 @@ impl CaptureConfig {
                 }
                 Ok(())
             }
-            _ => self.open().map(|_| ()),
         }
     }
 
     /// Opens the configured source.
     pub fn open(&self) -> Result<CaptureSource, String> {
-        match self.source.kind.as_str() {
-            "sim" => self.open_sim(),
-            "replay" => self.open_replay(),
-            "libcamera" => self.open_camera(),
-            other => Err(format!("source.kind: unknown `{other}` (sim, replay, libcamera)")),
+        match self.source.kind {
+            FrameSource::Simulator => self.open_sim(),
+            FrameSource::Replay => self.open_replay(),
+            FrameSource::Libcamera => self.open_camera(),
         }
     }
 
@@ -234,6 +226,18 @@ impl CaptureConfig {
     }
 }
 
+/// Frame `k` of a replay (looping) on the recording's timeline, in ns after its first frame:
+/// one loop lasts the recorded span plus one mean frame period, so time keeps going forward
+/// across loops.
+fn recorded_offset_ns(rec: &Recording, k: u64) -> u64 {
+    let n = rec.frames.len() as u64;
+    let t0 = rec.frames[0].timestamp_ns;
+    let last = rec.frames[n as usize - 1].timestamp_ns.saturating_sub(t0);
+    let period = if n > 1 { last / (n - 1) } else { 100_000_000 };
+    let (lap, j) = (k / n, (k % n) as usize);
+    lap * (last + period) + rec.frames[j].timestamp_ns.saturating_sub(t0)
+}
+
 /// How replay paces frames.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Pace {
@@ -247,7 +251,8 @@ pub enum Pace {
 pub struct CapturedFrame {
     /// The frame's index at its source (recording index, simulator frame number).
     pub source_index: u64,
-    /// The frame's time at its source (ns).
+    /// The frame's time at its source (ns): simulated time, the recording's timestamps
+    /// (continued across replay loops), the sensor timestamp.
     pub source_timestamp_ns: u64,
     pub truth: GroundTruth,
     /// Whether the source knows the truth (then a missing attitude means "no deck").
@@ -346,15 +351,7 @@ impl CaptureSource {
             Inner::Replay { rec, pace, .. } => match pace {
                 Pace::AsFastAsPossible => None,
                 Pace::Fixed(p) => Some(k * p),
-                Pace::Recorded => {
-                    let n = rec.frames.len() as u64;
-                    let t0 = rec.frames[0].timestamp_ns;
-                    let last = rec.frames[n as usize - 1].timestamp_ns.saturating_sub(t0);
-                    // One loop lasts the recorded span plus one mean frame period.
-                    let period = if n > 1 { last / (n - 1) } else { 100_000_000 };
-                    let (lap, j) = (k / n, (k % n) as usize);
-                    Some(lap * (last + period) + rec.frames[j].timestamp_ns.saturating_sub(t0))
-                }
+                Pace::Recorded => Some(recorded_offset_ns(rec, k)),
             },
             // A camera sets its own pace: frames are taken as they arrive.
             #[cfg(feature = "libcamera")]
@@ -437,7 +434,8 @@ impl CaptureSource {
                 }
                 Ok(CapturedFrame {
                     source_index: f.index,
-                    source_timestamp_ns: f.timestamp_ns,
+                    // Continued across loops (see `recorded_offset_ns`): the decision's timeline.
+                    source_timestamp_ns: rec.frames[0].timestamp_ns + recorded_offset_ns(rec, k),
                     truth: f.truth,
                     truth_known: *truth_known,
                     altitude_m: if altimeter { f.truth.alt_m } else { None },
@@ -468,34 +466,26 @@ mod tests {
     use super::*;
 
     #[test]
-    fn config_errors_name_line_and_key() {
-        let e = CaptureConfig::from_toml("p.toml", "[sim]\nscenari = \"ship\"\n").unwrap_err();
-        assert!(
-            e.contains("p.toml") && e.contains("scenari") && e.contains("line 2"),
-            "{e}"
-        );
-        let e = CaptureConfig::from_toml("p.toml", "[sim]\nrate = \"fast\"\n").unwrap_err();
-        assert!(e.contains("rate"), "{e}");
-        let c = CaptureConfig::from_toml("p.toml", "[decide]\nanything = 1\n").unwrap();
-        assert_eq!(c, CaptureConfig::default());
-        let e = CaptureConfig::from_toml("p.toml", "[source]\nkind = \"usb\"\n")
-            .unwrap()
-            .open()
-            .err()
-            .unwrap();
-        assert!(e.contains("source.kind"), "{e}");
-        let e = CaptureConfig::from_toml("p.toml", "[source]\nkind = \"replay\"\n")
-            .unwrap()
-            .open()
-            .err()
-            .unwrap();
+    fn replay_without_a_recording_names_the_key() {
+        let c = CaptureConfig {
+            source: SourceConfig {
+                kind: FrameSource::Replay,
+                altimeter: true,
+            },
+            ..Default::default()
+        };
+        let e = c.open().err().unwrap();
         assert!(e.contains("replay.recording"), "{e}");
+        assert!(c.check().unwrap_err().contains("replay.recording"));
     }
 
     #[test]
     fn sim_source_paces_and_fills() {
-        let text = "[sim]\nscenario = \"ship\"\nframes = 3\nrate = 20\n[image]\nwidth = 160\nheight = 120\n";
-        let mut src = CaptureConfig::from_toml("t", text).unwrap().open().unwrap();
+        let mut c = CaptureConfig::default();
+        c.sim.frames = 3;
+        c.sim.rate = 20.0;
+        (c.image.width, c.image.height) = (Some(160), Some(120));
+        let mut src = c.open().unwrap();
         assert_eq!(src.len(), Some(3));
         assert_eq!(src.due_ns(2), Some(100_000_000));
         let mut buf = vec![0u8; src.frame_bytes()];

@@ -68,13 +68,9 @@ fn row(rule: &str, o: &RuleOutcome) -> String {
 }
 
 pub fn run(a: DecideEvalArgs) -> Result<(), String> {
-    let config = match &a.config {
-        Some(p) => {
-            let text = std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()))?;
-            deckwatch_decide::stage::config_from_toml(&p.display().to_string(), &text)?
-        }
-        None => DecisionConfig::default(),
-    };
+    let (pipeline, file) = crate::pipeline::load(a.config.as_deref())?;
+    let config: DecisionConfig = pipeline.decide;
+    config.validate().map_err(|e| format!("{file}: decide.{e}"))?;
     if !(a.rate > 0.0 && a.minutes > 0.0) {
         return Err("--rate and --minutes must be positive".into());
     }
@@ -130,7 +126,7 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
                 })
                 .collect();
             let clock = Instant::now();
-            let (smart, naive) = evaluate(&truth, &config, &stream)?;
+            let (smart, naive) = evaluate(&truth, &config, &stream).map_err(|e| e.to_string())?;
             let per_frame_us = clock.elapsed().as_secs_f64() * 1e6 / n as f64;
             if a.json {
                 println!(

@@ -1,13 +1,18 @@
 //! `deckwatch eval RECORDING...`: detection, then every estimator on the same markers, against
 //! the recordings' ground truth: per recording and estimator the RMSE and maximum error of roll,
 //! pitch, yaw (and altitude and offset where the estimator gives them), frames without an
-//! estimate although a deck was in view, attitudes on frames without a deck, and the cost.
+//! estimate although a deck was in view, attitudes on frames without a deck, and the cost. It
+//! runs the pipeline's stage chain (`deckwatch_runtime::chain`) on each recording.
 
+use deckwatch_capture::source::ReplayConfig;
+use deckwatch_common::messages::{EstimatorKind, FrameSource};
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::{ErrorStats, Percentiles};
-use deckwatch_common::Recording;
-use deckwatch_detect::{Detector, DetectorConfig};
-use deckwatch_estimate::{PaperEstimator, PaperVariant, PoseConfig, PoseEstimator};
+use deckwatch_estimate::EstimateConfig;
+use deckwatch_runtime::chain::StageChain;
+use deckwatch_runtime::config::PipelineConfig;
+use deckwatch_runtime::stage::Stage;
+use deckwatch_runtime::stages::EstimateStage;
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -22,7 +27,7 @@ pub struct EvalArgs {
     csv: Option<PathBuf>,
 }
 
-const ESTIMATORS: [&str; 2] = ["full-pose", "paper-atan2"];
+const ESTIMATORS: [EstimatorKind; 2] = [EstimatorKind::FullPose, EstimatorKind::PaperAtan2];
 
 #[derive(Default)]
 struct Tally {
@@ -71,81 +76,87 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
         "cost p50/p99 us"
     );
     for dir in &a.recordings {
-        let rec = Recording::open(dir).map_err(|e| e.to_string())?;
-        let knows_deck = rec.has_attitude_truth();
-        let (camera, deck) = (rec.camera, rec.deck);
-        let mut detector = Detector::new(camera, deck, DetectorConfig::for_camera(&camera, &deck));
-        let paper = PaperEstimator::new(camera, deck, PaperVariant::Atan2);
-        let pose = PoseEstimator::new(camera, deck, PoseConfig::default());
+        // The stage chain on the recording, the first estimator as the chain's own; the others
+        // run as estimate stages of their own on the same markers.
+        let mut config = PipelineConfig::default();
+        config.source.kind = FrameSource::Replay;
+        config.replay = ReplayConfig {
+            recording: Some(dir.clone()),
+            rate_hz: Some(0.0),
+            preload: false,
+            ..ReplayConfig::default()
+        };
+        let stage_config = |estimator| EstimateConfig {
+            estimator,
+            compare: false,
+        };
+        config.estimate = stage_config(ESTIMATORS[0]);
+        let mut chain = StageChain::new(&config).map_err(|e| e.to_string())?;
+        let mut others: Vec<EstimateStage> = ESTIMATORS[1..]
+            .iter()
+            .map(|&k| EstimateStage::new(&stage_config(k), false))
+            .collect();
         let mut tallies: Vec<Tally> = ESTIMATORS.iter().map(|_| Tally::default()).collect();
         let name = dir
             .file_name()
             .map(|s| s.to_string_lossy().to_string())
             .unwrap_or_default();
-        let mut img = deckwatch_common::GrayImage::new(camera.width as usize, camera.height as usize);
-        for f in &rec.frames {
-            if let Err(e) = rec.read_image_into(f, &mut img.data) {
-                eprintln!("deckwatch eval: skipped: {e}");
-                continue;
-            }
-            let set = detector.detect(img.view());
-            let pixels = set.pixels(deck.marker_count());
+        for out in chain.by_ref() {
+            let out = match out {
+                Ok(o) => o,
+                Err(e) => {
+                    eprintln!("deckwatch eval: skipped: {e}");
+                    continue;
+                }
+            };
+            let markers = &out.markers;
+            let f = &markers.context;
             let truth = f.truth.attitude();
-            for (k, est) in ESTIMATORS.iter().enumerate() {
-                let t = &mut tallies[k];
-                t.frames += 1;
+            let mut results = vec![(out.attitude, out.cost[2].as_secs_f64() * 1e6)];
+            for stage in &mut others {
                 let clock = Instant::now();
-                let found = if set.count == 0 {
-                    None
-                } else if *est == "full-pose" {
-                    pose.estimate(&pixels, set.perspective_corrected)
-                        .ok()
-                        .map(|e| (e.attitude.rpy, Some(e.viewpoint), e.rpy_std_deg()))
-                } else {
-                    paper
-                        .estimate(&pixels, f.truth.alt_m)
-                        .ok()
-                        .map(|e| (e.attitude.rpy, None, [f64::NAN; 3]))
-                };
-                let cost = clock.elapsed().as_secs_f64() * 1e6;
-                if set.count > 0 {
+                let a = stage.step(markers, 0);
+                results.push((a, clock.elapsed().as_secs_f64() * 1e6));
+            }
+            for ((est, t), (a, cost)) in ESTIMATORS.iter().zip(&mut tallies).zip(results) {
+                t.frames += 1;
+                if markers.markers.count > 0 {
                     t.cost_us.push(cost);
                 }
                 let mut err = [f64::NAN; 3];
-                match (&found, truth) {
-                    (Some((rpy, vp, _)), Some(tr)) => {
+                let [x, y, z] = a.camera_position_m;
+                match (a.valid, truth) {
+                    (true, Some(tr)) => {
                         t.estimated += 1;
-                        err = rpy_error_deg(rpy, &tr);
+                        err = rpy_error_deg(&a.rpy, &tr);
                         t.angles.add(err);
-                        if let (Some(v), Some(alt), Some(ox), Some(oy)) =
-                            (vp, f.truth.alt_m, f.truth.offset_x_m, f.truth.offset_y_m)
-                        {
-                            let off = (v.offset_x_m - ox).hypot(v.offset_y_m - oy);
-                            t.position.add([v.altitude_m - alt, off, 0.0]);
+                        let tr = &f.truth;
+                        if z.is_finite() && tr.altitude_m.is_finite() && tr.offset_x_m.is_finite() {
+                            let off = (x - tr.offset_x_m).hypot(y - tr.offset_y_m);
+                            t.position.add([z - tr.altitude_m, off, 0.0]);
                         }
                     }
-                    (Some(_), None) => {
+                    (true, None) => {
                         t.estimated += 1;
-                        if knows_deck {
+                        if f.truth.known {
                             t.false_attitudes += 1;
                         }
                     }
-                    (None, Some(_)) => t.missed += 1,
-                    (None, None) => {}
+                    (false, Some(_)) => t.missed += 1,
+                    (false, None) => {}
                 }
                 if let Some(w) = &mut csv {
-                    let (rpy, vp, sd) = match &found {
-                        Some((rpy, vp, sd)) => (rpy.to_degrees(), *vp, *sd),
-                        None => ([f64::NAN; 3], None, [f64::NAN; 3]),
+                    let (rpy, sd) = if a.valid {
+                        (a.rpy.to_degrees(), a.rpy_std_deg)
+                    } else {
+                        ([f64::NAN; 3], [f64::NAN; 3])
                     };
-                    let (alt, ox, oy) = vp.map_or((f64::NAN, f64::NAN, f64::NAN), |v| {
-                        (v.altitude_m, v.offset_x_m, v.offset_y_m)
-                    });
                     writeln!(
                         w,
-                        "{name},{},{est},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{alt:.5},{ox:.5},{oy:.5},{:.6},{:.6},{:.6},{cost:.1}",
-                        f.index,
-                        found.is_some() as u8,
+                        "{name},{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{z:.5},{x:.5},{y:.5},{:.6},{:.6},{:.6},{cost:.1}",
+                        f.source_index,
+                        est.name(),
+                        a.valid as u8,
                         rpy[0],
                         rpy[1],
                         rpy[2],
@@ -160,7 +171,7 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
                 }
             }
         }
-        for (est, t) in ESTIMATORS.iter().zip(&mut tallies) {
+        for (est, t) in ESTIMATORS.iter().map(|k| k.name()).zip(&mut tallies) {
             let (rmse, max) = if t.angles.n > 0 {
                 (fmt3(t.angles.rmse(), 4), fmt3(t.angles.max, 4))
             } else {

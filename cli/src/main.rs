@@ -36,6 +36,7 @@ struct Cli {
 }
 
 mod decide_eval;
+mod decisions_csv;
 mod eval;
 mod inproc;
 mod launch;
@@ -192,11 +193,8 @@ fn camera_record(
     frames: u64,
     out: &std::path::Path,
 ) -> Result<(), String> {
-    let mut c = match &config {
-        Some(p) => launch::PipelineConfig::load(p)?,
-        None => launch::PipelineConfig::default(),
-    };
-    c.source.kind = "libcamera".into();
+    let (mut c, _) = pipeline::load(config.as_deref())?;
+    c.source.kind = deckwatch_common::messages::FrameSource::Libcamera;
     c.libcamera.frames = frames;
     let mut source = c.capture().open()?;
     eprintln!("{}", source.describe());

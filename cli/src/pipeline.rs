@@ -1,7 +1,11 @@
-//! `deckwatch run` and `deckwatch latency`: the command lines of the launcher.
+//! `deckwatch run` and `deckwatch latency`: the command lines of the launcher, and how their
+//! options override the configuration file.
 
-use crate::launch::{launch, print_report, LaunchOptions, PipelineConfig};
-use std::path::PathBuf;
+use crate::launch::{launch, print_report, LaunchOptions, RunReport};
+use deckwatch_common::messages::FrameSource;
+use deckwatch_runtime::config::{PipelineConfig, DEFAULTS};
+use deckwatch_viz::RerunSink;
+use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]
 pub struct RunArgs {
@@ -42,17 +46,20 @@ pub struct RunArgs {
 }
 
 /// Applies `--rerun MODE [ARG]`.
-fn apply_rerun(c: &mut PipelineConfig, args: &[String]) -> Result<(), String> {
+pub fn apply_rerun(c: &mut PipelineConfig, args: &[String]) -> Result<(), String> {
     let r = &mut c.rerun;
-    match args {
+    let words: Vec<&str> = args.iter().map(String::as_str).collect();
+    match words.as_slice() {
         [] => {}
-        [m] if m == "off" || m == "spawn" || m == "connect" => r.sink = m.clone(),
-        [m, addr] if m == "connect" => {
-            r.sink = m.clone();
-            r.address = Some(addr.clone());
+        ["off"] => r.sink = RerunSink::Off,
+        ["spawn"] => r.sink = RerunSink::Spawn,
+        ["connect"] => r.sink = RerunSink::Connect,
+        ["connect", addr] => {
+            r.sink = RerunSink::Connect;
+            r.address = Some(addr.to_string());
         }
-        [m, path] if m == "save" => {
-            r.sink = m.clone();
+        ["save", path] => {
+            r.sink = RerunSink::Save;
             r.path = Some(PathBuf::from(path));
         }
         other => {
@@ -65,14 +72,54 @@ fn apply_rerun(c: &mut PipelineConfig, args: &[String]) -> Result<(), String> {
     Ok(())
 }
 
-fn load(config: &Option<PathBuf>) -> Result<PipelineConfig, String> {
-    match config {
-        Some(p) => PipelineConfig::load(p),
-        None => Ok(PipelineConfig::default()),
+/// Applies `--source KIND [DIR]`.
+pub fn apply_source(c: &mut PipelineConfig, args: &[String]) -> Result<(), String> {
+    let words: Vec<&str> = args.iter().map(String::as_str).collect();
+    match words.as_slice() {
+        [] => {}
+        ["sim"] => c.source.kind = FrameSource::Simulator,
+        ["libcamera"] => c.source.kind = FrameSource::Libcamera,
+        ["replay", dir] => {
+            c.source.kind = FrameSource::Replay;
+            c.replay.recording = Some(PathBuf::from(dir));
+        }
+        ["replay"] if c.replay.recording.is_some() => c.source.kind = FrameSource::Replay,
+        other => {
+            return Err(format!(
+                "--source: expected `sim`, `replay DIR` or `libcamera`, got `{}`",
+                other.join(" ")
+            ))
+        }
+    }
+    Ok(())
+}
+
+/// Applies `--frames` and `--rate` to the configured source.
+pub fn apply_frames_and_rate(c: &mut PipelineConfig, frames: Option<u64>, rate: Option<f64>) {
+    if let Some(n) = frames {
+        match c.source.kind {
+            FrameSource::Replay => c.replay.frames = n,
+            FrameSource::Libcamera => c.libcamera.frames = n,
+            FrameSource::Simulator => c.sim.frames = n as usize,
+        }
+    }
+    if let Some(hz) = rate {
+        match c.source.kind {
+            FrameSource::Replay => c.replay.rate_hz = Some(hz),
+            FrameSource::Libcamera => c.libcamera.frame_rate = hz,
+            FrameSource::Simulator => c.sim.rate = hz,
+        }
     }
 }
 
-fn finish(report: crate::launch::RunReport, json: bool) -> Result<(), String> {
+/// The configuration file (or the defaults) and its name for messages.
+pub fn load(config: Option<&Path>) -> Result<(PipelineConfig, String), String> {
+    let name = config.map_or(DEFAULTS.to_string(), |p| p.display().to_string());
+    let c = PipelineConfig::load_or_default(config).map_err(|e| e.to_string())?;
+    Ok((c, name))
+}
+
+fn finish(report: RunReport, json: bool) -> Result<(), String> {
     if json {
         println!(
             "{}",
@@ -85,43 +132,16 @@ fn finish(report: crate::launch::RunReport, json: bool) -> Result<(), String> {
 }
 
 pub fn run(a: RunArgs) -> Result<(), String> {
-    let mut c = load(&a.config)?;
-    match a.source.as_slice() {
-        [] => {}
-        [k] if k == "sim" || k == "libcamera" => c.source.kind = k.clone(),
-        [k, dir] if k == "replay" => {
-            c.source.kind = k.clone();
-            c.replay.recording = Some(PathBuf::from(dir));
-        }
-        [k] if k == "replay" && c.replay.recording.is_some() => c.source.kind = k.clone(),
-        other => {
-            return Err(format!(
-                "--source: expected `sim`, `replay DIR` or `libcamera`, got `{}`",
-                other.join(" ")
-            ))
-        }
-    }
-    if let Some(n) = a.frames {
-        match c.source.kind.as_str() {
-            "replay" => c.replay.frames = n,
-            "libcamera" => c.libcamera.frames = n,
-            _ => c.sim.frames = n as usize,
-        }
-    }
-    if let Some(hz) = a.rate {
-        match c.source.kind.as_str() {
-            "replay" => c.replay.rate_hz = Some(hz),
-            "libcamera" => c.libcamera.frame_rate = hz,
-            _ => c.sim.rate = hz,
-        }
-    }
+    let (mut c, file) = load(a.config.as_deref())?;
+    apply_source(&mut c, &a.source)?;
+    apply_frames_and_rate(&mut c, a.frames, a.rate);
     if let Some(d) = a.domain {
         c.bus.domain = d;
     }
     apply_rerun(&mut c, &a.rerun)?;
     if a.print_config {
-        c.validate()?;
-        print!("{}", toml::to_string(&c).map_err(|e| e.to_string())?);
+        c.validate(&file).map_err(|e| e.to_string())?;
+        print!("{}", c.to_toml());
         return Ok(());
     }
     let options = LaunchOptions {
@@ -129,7 +149,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
         decisions_csv: a.decisions,
         stage_dir: a.stage_dir,
     };
-    finish(launch(&c, &options)?, a.json)
+    finish(launch(&c, &file, &options)?, a.json)
 }
 
 #[derive(clap::Args)]
@@ -166,8 +186,8 @@ pub struct LatencyArgs {
 }
 
 pub fn latency(a: LatencyArgs) -> Result<(), String> {
-    let mut c = load(&a.config)?;
-    c.source.kind = "replay".into();
+    let (mut c, file) = load(a.config.as_deref())?;
+    c.source.kind = FrameSource::Replay;
     c.replay.recording = Some(a.recording);
     c.replay.rate_hz = a.rate;
     c.replay.preload = !a.no_preload;
@@ -182,5 +202,62 @@ pub fn latency(a: LatencyArgs) -> Result<(), String> {
         decisions_csv: a.decisions,
         stage_dir: a.stage_dir,
     };
-    finish(launch(&c, &options)?, a.json)
+    finish(launch(&c, &file, &options)?, a.json)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn words(s: &str) -> Vec<String> {
+        s.split_whitespace().map(String::from).collect()
+    }
+
+    #[test]
+    fn command_line_overrides_the_file() {
+        let file = "[source]\nkind = \"replay\"\n[replay]\nrecording = \"from-file\"\nrate_hz = 5.0\n\
+                    [sim]\nframes = 7\n[rerun]\nsink = \"save\"\npath = \"a.rrd\"\n";
+        let mut c = PipelineConfig::from_toml("f.toml", file).unwrap();
+        // `--source replay` alone keeps the file's recording; --frames/--rate go to the replay.
+        apply_source(&mut c, &words("replay")).unwrap();
+        apply_frames_and_rate(&mut c, Some(40), Some(0.0));
+        assert_eq!(c.replay.recording.as_deref(), Some(Path::new("from-file")));
+        assert_eq!((c.replay.frames, c.replay.rate_hz), (40, Some(0.0)));
+        assert_eq!(c.sim.frames, 7, "the simulator's section is left alone");
+        // Switching to the simulator: the same options now set its frames and rate.
+        apply_source(&mut c, &words("sim")).unwrap();
+        apply_frames_and_rate(&mut c, Some(12), Some(30.0));
+        assert_eq!(
+            (c.source.kind, c.sim.frames, c.sim.rate),
+            (FrameSource::Simulator, 12, 30.0)
+        );
+        apply_source(&mut c, &words("replay other")).unwrap();
+        assert_eq!(c.replay.recording.as_deref(), Some(Path::new("other")));
+        apply_rerun(&mut c, &words("connect rerun+http://h:1/proxy")).unwrap();
+        assert_eq!(c.rerun.sink, RerunSink::Connect);
+        assert_eq!(c.rerun.address.as_deref(), Some("rerun+http://h:1/proxy"));
+        apply_rerun(&mut c, &[]).unwrap();
+        assert_eq!(
+            c.rerun.sink,
+            RerunSink::Connect,
+            "no option: the file's value stays"
+        );
+        c.validate("f.toml").unwrap_err(); // the recordings do not exist
+    }
+
+    #[test]
+    fn bad_options_are_named() {
+        let mut c = PipelineConfig::default();
+        assert!(apply_source(&mut c, &words("usb"))
+            .unwrap_err()
+            .contains("--source"));
+        // `--source replay` needs a recording from the file or the command line.
+        assert!(apply_source(&mut c, &words("replay")).is_err());
+        assert!(apply_rerun(&mut c, &words("save"))
+            .unwrap_err()
+            .contains("--rerun"));
+        assert!(apply_rerun(&mut c, &words("print x")).is_err());
+        let e = load(Some(Path::new("/nonexistent.toml"))).unwrap_err();
+        assert!(e.contains("/nonexistent.toml"), "{e}");
+    }
 }

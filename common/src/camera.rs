@@ -1,14 +1,15 @@
 //! Pinhole camera with optional Brown-Conrady distortion (OpenCV's model and pixel convention:
 //! u right, v down, pixel centres at integers, (0, 0) = centre of the top-left pixel).
 
+#[cfg(feature = "shm")]
 use iceoryx2::prelude::ZeroCopySend;
 use nalgebra::Vector3;
 
 /// Brown-Conrady coefficients in OpenCV's order `[k1, k2, p1, p2, k3]`, acting on normalised
 /// image coordinates (x/z, y/z).
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("deckwatch.Distortion.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.Distortion.v1"))]
 pub struct Distortion {
     pub k1: f64,
     pub k2: f64,
@@ -95,8 +96,8 @@ impl Distortion {
 /// Intrinsics of a pinhole camera; distortion optional. `#[repr(C)]`: every pipeline message
 /// carries the camera its pixels belong to.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("deckwatch.CameraModel.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.CameraModel.v1"))]
 pub struct CameraModel {
     pub width: u32,
     pub height: u32,

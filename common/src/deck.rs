@@ -3,6 +3,7 @@
 //! toward +y (counter-clockwise seen from above); index 1 is the bow marker. The opposite of ring
 //! marker k is ring marker (k + n_ring / 2) mod n_ring.
 
+#[cfg(feature = "shm")]
 use iceoryx2::prelude::ZeroCopySend;
 use nalgebra::Vector3;
 
@@ -18,8 +19,8 @@ pub const MAX_MARKERS: usize = MAX_RING_MARKERS + 1;
 /// Geometry of the deck's markers, in metres, in the deck frame (z = deck normal).
 /// `#[repr(C)]`: pipeline messages carry the layout their markers refer to.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("deckwatch.DeckLayout.v1")]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.DeckLayout.v1"))]
 pub struct DeckLayout {
     /// Radius of the ring the ring markers' centres lie on (paper: 0.5 m).
     pub ring_radius_m: f64,

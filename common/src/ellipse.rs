@@ -1,13 +1,14 @@
 //! An ellipse's geometric parameters (fitted in the estimate stage, drawn by the viewers).
 
+#[cfg(feature = "shm")]
 use iceoryx2::prelude::ZeroCopySend;
 use std::f64::consts::PI;
 
 /// An ellipse: centre, semi-axes (`semi_major >= semi_minor`) and the major axis's angle from +x
 /// in (-90, 90] degrees (radians here), measured toward +y of the coordinates it was fitted in.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("deckwatch.Ellipse.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.Ellipse.v1"))]
 pub struct Ellipse {
     pub centre: [f64; 2],
     pub semi_major: f64,

@@ -5,7 +5,6 @@
 //! z = up; `P_world = R * P_deck`; `R = Rz(alpha) Rx(beta) Rz(gamma) = Rx(roll) Ry(pitch) Rz(yaw)`;
 //! level camera looking down, image up = bow, image left = port; pixel centres at integers.
 
-pub mod bus;
 pub mod camera;
 pub mod deck;
 pub mod ellipse;

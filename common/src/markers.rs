@@ -1,12 +1,13 @@
 //! Detected markers: what detection hands to estimation, one fixed-size value per frame.
 
 use crate::deck::MAX_MARKERS;
+#[cfg(feature = "shm")]
 use iceoryx2::prelude::ZeroCopySend;
 
 /// One detected marker.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("deckwatch.Marker.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.Marker.v1"))]
 pub struct Marker {
     /// Whether this marker was found; the other fields are meaningless when false.
     pub valid: bool,
@@ -23,8 +24,12 @@ pub struct Marker {
 
 /// Outcome of detecting the deck's markers in a frame.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
-#[type_name("deckwatch.DetectionStatus.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(
+    feature = "shm",
+    derive(ZeroCopySend),
+    type_name("deckwatch.DetectionStatus.v1")
+)]
 pub enum DetectionStatus {
     /// Every marker found.
     Ok = 0,
@@ -39,8 +44,8 @@ pub enum DetectionStatus {
 
 /// Why candidate blobs were not used.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
-#[type_name("deckwatch.RejectCounts.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.RejectCounts.v1"))]
 pub struct RejectCounts {
     /// Too small or too large for a marker at any plausible altitude.
     pub area: u32,
@@ -54,8 +59,8 @@ pub struct RejectCounts {
 
 /// The markers of one frame, by marker index (0 centre, 1 bow, 2.. counter-clockwise).
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("deckwatch.MarkerSet.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.MarkerSet.v1"))]
 pub struct MarkerSet {
     pub status: DetectionStatus,
     /// Number of valid markers.

@@ -15,6 +15,7 @@ use crate::ellipse::Ellipse;
 use crate::markers::MarkerSet;
 use crate::recording::GroundTruth;
 use crate::rotation::{Euler313, Quaternion, Rpy};
+#[cfg(feature = "shm")]
 use iceoryx2::prelude::ZeroCopySend;
 
 /// Nanoseconds of `CLOCK_MONOTONIC`: one clock for every process on the machine (unlike
@@ -31,8 +32,8 @@ pub fn monotonic_ns() -> u64 {
 
 /// When a frame passed each stage: `CLOCK_MONOTONIC` nanoseconds, 0 = not (yet) passed.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
-#[type_name("deckwatch.StageTimes.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.StageTimes.v1"))]
 pub struct StageTimes {
     /// The frame was captured: exposure (camera), start of rendering (simulator), start of
     /// reading (replay).
@@ -103,8 +104,8 @@ impl StageTimes {
 /// Frames lost so far, by where (cumulative counts of the process that counted them; they
 /// restart at 0 when that stage is restarted).
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
-#[type_name("deckwatch.DropCounts.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.DropCounts.v1"))]
 pub struct DropCounts {
     /// Frames the source delivered that capture could not publish (no free shared-memory
     /// sample, or capture fell behind the camera).
@@ -121,6 +122,17 @@ impl DropCounts {
     /// Every frame lost before the stage that reports these counts.
     pub fn total(&self) -> u64 {
         self.capture + self.bad_frames + self.detect + self.estimate + self.decide
+    }
+
+    /// The counts with their names, in pipeline order.
+    pub fn named(&self) -> [(&'static str, u64); 5] {
+        [
+            ("capture", self.capture),
+            ("bad_frames", self.bad_frames),
+            ("detect", self.detect),
+            ("estimate", self.estimate),
+            ("decide", self.decide),
+        ]
     }
 }
 
@@ -176,8 +188,8 @@ impl GapCounter {
 
 /// Identity and timing of one frame, at the start of every message.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
-#[type_name("deckwatch.FrameStamp.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.FrameStamp.v1"))]
 pub struct FrameStamp {
     /// Capture's count of published frames, from 0; consecutive unless frames were dropped.
     pub seq: u64,
@@ -185,12 +197,14 @@ pub struct FrameStamp {
     pub drops: DropCounts,
 }
 
-/// Where frames come from.
+/// Where frames come from (also `[source] kind` of the pipeline configuration).
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
-#[type_name("deckwatch.FrameSource.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.FrameSource.v1"))]
 pub enum FrameSource {
     #[default]
+    #[serde(rename = "sim")]
     Simulator = 0,
     Replay = 1,
     Libcamera = 2,
@@ -208,8 +222,8 @@ impl FrameSource {
 
 /// Layout of a frame's pixels.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
-#[type_name("deckwatch.PixelFormat.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.PixelFormat.v1"))]
 pub enum PixelFormat {
     /// 8-bit luminance, one byte a pixel, rows `stride` bytes apart.
     #[default]
@@ -219,8 +233,8 @@ pub enum PixelFormat {
 /// Ground truth as plain data (NaN = unknown). All attitude angles NaN with `deck_in_view`
 /// true means "not known"; `deck_in_view` false means the frame shows no deck.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("deckwatch.Truth.v1")]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.Truth.v1"))]
 pub struct Truth {
     /// Whether the source knows the truth at all (simulator, recordings with truth columns).
     pub known: bool,
@@ -279,8 +293,8 @@ impl Truth {
 
 /// What a frame's pixels mean, carried from capture to decide with every message.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("deckwatch.FrameContext.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.FrameContext.v1"))]
 pub struct FrameContext {
     pub source: FrameSource,
     /// Index of the frame at its source: recording frame index, camera sequence, simulator
@@ -297,8 +311,8 @@ pub struct FrameContext {
 
 /// The user header of a frame sample; the payload is the `[u8]` pixel buffer itself.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("deckwatch.FrameHeader.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.FrameHeader.v1"))]
 pub struct FrameHeader {
     pub stamp: FrameStamp,
     pub context: FrameContext,
@@ -321,18 +335,27 @@ impl FrameHeader {
 
 /// Detect's output for one frame.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("deckwatch.MarkerMessage.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(
+    feature = "shm",
+    derive(ZeroCopySend),
+    type_name("deckwatch.MarkerMessage.v1")
+)]
 pub struct MarkerMessage {
     pub stamp: FrameStamp,
     pub context: FrameContext,
     pub markers: MarkerSet,
 }
 
-/// Which estimator produced an attitude.
+/// Which estimator produced an attitude (also `[estimate] estimator`).
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
-#[type_name("deckwatch.EstimatorKind.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+#[cfg_attr(
+    feature = "shm",
+    derive(ZeroCopySend),
+    type_name("deckwatch.EstimatorKind.v1")
+)]
 pub enum EstimatorKind {
     /// The paper's method (ellipse of the ring), `atan2` variant.
     #[default]
@@ -346,6 +369,14 @@ pub enum EstimatorKind {
 }
 
 impl EstimatorKind {
+    /// Every estimator.
+    pub const ALL: [EstimatorKind; 4] = [
+        Self::FullPose,
+        Self::PaperAtan2,
+        Self::PaperPrinted,
+        Self::PaperFittedMajorAxis,
+    ];
+
     pub fn name(&self) -> &'static str {
         match self {
             Self::PaperAtan2 => "paper-atan2",
@@ -358,8 +389,12 @@ impl EstimatorKind {
 
 /// Why an attitude is not valid.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
-#[type_name("deckwatch.AttitudeFailure.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(
+    feature = "shm",
+    derive(ZeroCopySend),
+    type_name("deckwatch.AttitudeFailure.v1")
+)]
 pub enum AttitudeFailure {
     /// The attitude is valid.
     #[default]
@@ -378,8 +413,12 @@ pub enum AttitudeFailure {
 
 /// Estimate's output for one frame.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("deckwatch.AttitudeMessage.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(
+    feature = "shm",
+    derive(ZeroCopySend),
+    type_name("deckwatch.AttitudeMessage.v1")
+)]
 pub struct AttitudeMessage {
     pub stamp: FrameStamp,
     pub context: FrameContext,
@@ -411,8 +450,12 @@ pub struct AttitudeMessage {
 
 /// A second estimator's attitude for the same frame.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("deckwatch.AlternativeAttitude.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(
+    feature = "shm",
+    derive(ZeroCopySend),
+    type_name("deckwatch.AlternativeAttitude.v1")
+)]
 pub struct AlternativeAttitude {
     /// Whether a second estimator ran.
     pub present: bool,
@@ -423,8 +466,12 @@ pub struct AlternativeAttitude {
 
 /// The decision state (see the decide crate for its meaning and transitions).
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
-#[type_name("deckwatch.DecisionState.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(
+    feature = "shm",
+    derive(ZeroCopySend),
+    type_name("deckwatch.DecisionState.v1")
+)]
 pub enum DecisionState {
     /// No valid attitude: do not land.
     #[default]
@@ -438,6 +485,9 @@ pub enum DecisionState {
 }
 
 impl DecisionState {
+    /// Every state, in the order of their values.
+    pub const ALL: [DecisionState; 4] = [Self::NoDeck, Self::Hold, Self::ClearToLand, Self::Abort];
+
     pub fn name(&self) -> &'static str {
         match self {
             Self::NoDeck => "NO-DECK",
@@ -450,8 +500,12 @@ impl DecisionState {
 
 /// Why the decision is what it is.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
-#[type_name("deckwatch.DecisionReason.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(
+    feature = "shm",
+    derive(ZeroCopySend),
+    type_name("deckwatch.DecisionReason.v1")
+)]
 pub enum DecisionReason {
     /// Within capacity (ClearToLand).
     #[default]
@@ -492,8 +546,12 @@ impl DecisionReason {
 
 /// Decide's output for one frame.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("deckwatch.LandingDecision.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(
+    feature = "shm",
+    derive(ZeroCopySend),
+    type_name("deckwatch.LandingDecision.v1")
+)]
 pub struct LandingDecision {
     pub stamp: FrameStamp,
     pub context: FrameContext,

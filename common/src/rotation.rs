@@ -9,6 +9,7 @@
 //!
 //! All angles are radians unless a name ends in `_deg`.
 
+#[cfg(feature = "shm")]
 use iceoryx2::prelude::ZeroCopySend;
 use nalgebra::Matrix3;
 use std::f64::consts::{FRAC_PI_2, PI};
@@ -49,8 +50,8 @@ pub fn wrap_pi(a: f64) -> f64 {
 /// Positive roll raises the port side, positive pitch lowers the bow, positive yaw turns the bow
 /// to port.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("deckwatch.Rpy.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.Rpy.v1"))]
 pub struct Rpy {
     pub roll: f64,
     pub pitch: f64,
@@ -113,8 +114,8 @@ impl Rpy {
 /// `(alpha + 180, -beta, gamma + 180)` are the same rotation; the canonical form picks the one
 /// with alpha in (-90, 90].
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
-#[type_name("deckwatch.Euler313.v1")]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.Euler313.v1"))]
 pub struct Euler313 {
     pub alpha: f64,
     pub beta: f64,
@@ -214,8 +215,8 @@ impl Euler313 {
 
 /// A Hamilton unit quaternion `w + x i + y j + z k` of a rotation matrix R.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
-#[type_name("deckwatch.Quaternion.v1")]
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.Quaternion.v1"))]
 pub struct Quaternion {
     pub w: f64,
     pub x: f64,

@@ -45,7 +45,7 @@ pub struct DecisionConfig {
     pub refit_interval_s: f64,
     /// `ar` (autoregressive: follows an irregular sea) or `sinusoids` (dominant sinusoids of
     /// the window: exact for a regular one).
-    pub predictor: String,
+    pub predictor: Predictor,
     /// Order of the autoregressive predictor (on a 5 Hz grid).
     pub ar_order: usize,
     /// Sinusoids per angle.
@@ -90,7 +90,7 @@ impl Default for DecisionConfig {
             window_s: 40.0,
             min_history_s: 20.0,
             refit_interval_s: 1.0,
-            predictor: "sinusoids".into(),
+            predictor: Predictor::Sinusoids,
             ar_order: 12,
             components: 4,
             fit_memory_s: 10.0,
@@ -108,9 +108,41 @@ impl Default for DecisionConfig {
     }
 }
 
+/// The deck-motion predictor (`[decide] predictor`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Predictor {
+    /// Autoregressive: follows an irregular sea.
+    Ar,
+    /// Dominant sinusoids of the window: exact for a regular sea.
+    Sinusoids,
+}
+
+/// A `[decide]` value out of range: the key and what is wrong.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{key}: {problem}")]
+pub struct DecisionConfigError {
+    pub key: &'static str,
+    pub problem: String,
+}
+
+fn invalid(key: &'static str, problem: impl Into<String>) -> DecisionConfigError {
+    DecisionConfigError {
+        key,
+        problem: problem.into(),
+    }
+}
+
 impl DecisionConfig {
+    /// The naive baseline the state machine is measured against: the deck's current roll and
+    /// pitch are within the capacity. It looks at one instant only; it is not a clearance.
+    /// Non-finite angles are never within.
+    pub fn naive_within(&self, roll_deg: f64, pitch_deg: f64) -> bool {
+        roll_deg.abs() <= self.max_abs_roll_deg && pitch_deg.abs() <= self.max_abs_pitch_deg
+    }
+
     /// Checks every field; the error names it.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), DecisionConfigError> {
         let positive = [
             ("max_abs_roll_deg", self.max_abs_roll_deg),
             ("max_abs_pitch_deg", self.max_abs_pitch_deg),
@@ -134,7 +166,7 @@ impl DecisionConfig {
         ];
         for (k, v) in positive {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!("{k}: must be positive, got {v}"));
+                return Err(invalid(k, format!("must be positive, got {v}")));
             }
         }
         for (k, v) in [
@@ -144,26 +176,32 @@ impl DecisionConfig {
             ("abort_hold_s", self.abort_hold_s),
         ] {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(format!("{k}: must be >= 0, got {v}"));
+                return Err(invalid(k, format!("must be >= 0, got {v}")));
             }
         }
         if self.max_abs_roll_deg >= 90.0 || self.max_abs_pitch_deg >= 90.0 {
-            return Err("max_abs_roll_deg/max_abs_pitch_deg: must be below 90".into());
-        }
-        if self.predictor != "ar" && self.predictor != "sinusoids" {
-            return Err(format!("predictor: unknown `{}` (ar, sinusoids)", self.predictor));
+            return Err(invalid(
+                "max_abs_roll_deg",
+                "roll and pitch limits must be below 90",
+            ));
         }
         if !(2..=40).contains(&self.ar_order) {
-            return Err(format!("ar_order: must be 2..=40, got {}", self.ar_order));
+            return Err(invalid(
+                "ar_order",
+                format!("must be 2..=40, got {}", self.ar_order),
+            ));
         }
         if !(1..=8).contains(&self.components) {
-            return Err(format!("components: must be 1..=8, got {}", self.components));
+            return Err(invalid(
+                "components",
+                format!("must be 1..=8, got {}", self.components),
+            ));
         }
         if self.min_history_s > self.window_s {
-            return Err("min_history_s: must not exceed window_s".into());
+            return Err(invalid("min_history_s", "must not exceed window_s"));
         }
         if self.holdout_s * 2.0 > self.min_history_s {
-            return Err("holdout_s: must be at most half of min_history_s".into());
+            return Err(invalid("holdout_s", "must be at most half of min_history_s"));
         }
         Ok(())
     }
@@ -253,7 +291,7 @@ pub struct LandingDecider {
 const STEP_S: f64 = 0.05;
 
 impl LandingDecider {
-    pub fn new(config: DecisionConfig) -> Result<Self, String> {
+    pub fn new(config: DecisionConfig) -> Result<Self, DecisionConfigError> {
         config.validate()?;
         Ok(Self {
             config,
@@ -285,8 +323,28 @@ impl LandingDecider {
     /// Decides on the attitude of a frame captured at `t` (roll and pitch in degrees; None: no
     /// valid attitude), at time `now`.
     pub fn update(&mut self, t: f64, attitude: Option<[f64; 2]>, now: f64) -> Decision {
-        self.last_input = Some(now);
-        let verdict = self.check(t, attitude, now);
+        self.decide(t, attitude, now - t, now)
+    }
+
+    /// Decides on the attitude of a frame captured at `t` that was `age_s` old when it arrived,
+    /// on the frames' own timeline: the decision is made as of the capture time. Freshness is
+    /// judged by `age_s` (one monotonic clock), everything else by `t` alone, so the same
+    /// frames give the same decisions however long the pipeline took, in one process or in
+    /// four (the stage uses this; `update` is for callers that model the delay themselves).
+    pub fn update_at_capture(&mut self, t: f64, attitude: Option<[f64; 2]>, age_s: f64) -> Decision {
+        self.decide(t, attitude, age_s, t)
+    }
+
+    fn decide(&mut self, t: f64, attitude: Option<[f64; 2]>, age_s: f64, now: f64) -> Decision {
+        // A time that is not a number cannot move the clock: a committed landing must still
+        // see itself committed (and abort), not forget it.
+        let now = if now.is_finite() {
+            self.last_input = Some(now);
+            now
+        } else {
+            self.last_input.unwrap_or(f64::NEG_INFINITY)
+        };
+        let verdict = self.check(t, attitude, age_s);
         self.transition(verdict, now)
     }
 
@@ -301,12 +359,12 @@ impl LandingDecider {
         Some(self.transition(Err(DecisionReason::StaleData), now))
     }
 
-    fn check(&mut self, t: f64, attitude: Option<[f64; 2]>, now: f64) -> Result<(), DecisionReason> {
+    fn check(&mut self, t: f64, attitude: Option<[f64; 2]>, age_s: f64) -> Result<(), DecisionReason> {
         let c = self.config.clone();
         let Some([roll, pitch]) = attitude.filter(|a| a.iter().all(|v| v.is_finite())) else {
             return Err(DecisionReason::InvalidAttitude);
         };
-        if !(t.is_finite() && now - t <= c.max_age_ms / 1e3) {
+        if !(t.is_finite() && age_s <= c.max_age_ms / 1e3) {
             return Err(DecisionReason::StaleData);
         }
         if let Some(&(tp, rp, pp)) = self.history.back() {
@@ -426,7 +484,7 @@ impl LandingDecider {
         roll.reverse();
         pitch.reverse();
         let end = *t.last()?;
-        let (r, p) = if c.predictor == "sinusoids" {
+        let (r, p) = if c.predictor == Predictor::Sinusoids {
             let warm = match self.past.back() {
                 Some((Track::Sinusoids(r0), Track::Sinusoids(p0)))
                     if end - self.last_grid < REGRID_INTERVAL_S =>
@@ -681,6 +739,25 @@ mod tests {
     }
 
     #[test]
+    fn a_time_that_is_not_a_number_aborts_a_committed_landing() {
+        let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
+        let mut t = 0.0;
+        // On the frames' own timeline, fresh on arrival, until the first clearance.
+        let committed = loop {
+            let r = d.update_at_capture(t, Some(sea(t, 0.8)), 0.01);
+            if r.new_commit {
+                break t;
+            }
+            t += 0.1;
+            assert!(t < 120.0, "a moderate sea has calm windows");
+        };
+        let r = d.update_at_capture(f64::NAN, Some(sea(committed, 0.8)), 0.01);
+        assert_eq!((r.state, r.reason), (DecisionState::Abort, DecisionReason::StaleData));
+        // Nor does it stop the watchdog: silence after it is still noticed.
+        assert!(d.timeout(committed + 1.0).is_some());
+    }
+
+    #[test]
     fn fail_safes_never_clear_and_say_why() {
         let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
         run(&mut d, 0.0, 30.0, |t| Some(sea(t, 0.3)));
@@ -734,6 +811,6 @@ mod tests {
             touchdown_s: -1.0,
             ..Default::default()
         };
-        assert!(c.validate().unwrap_err().starts_with("touchdown_s"));
+        assert_eq!(c.validate().unwrap_err().key, "touchdown_s");
     }
 }

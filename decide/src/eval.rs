@@ -127,7 +127,7 @@ pub fn evaluate(
     truth: &dyn Fn(f64) -> [f64; 2],
     config: &DecisionConfig,
     stream: &[Measured],
-) -> Result<(RuleOutcome, RuleOutcome), String> {
+) -> Result<(RuleOutcome, RuleOutcome), crate::DecisionConfigError> {
     let (Some(first), Some(last)) = (stream.first(), stream.last()) else {
         return Ok(Default::default());
     };
@@ -159,10 +159,7 @@ pub fn evaluate(
         // The naive rule commits whenever the current angles are within the limits and no
         // touchdown of its own is under way.
         if let Some([r, p]) = m.attitude {
-            if m.now >= naive_until
-                && r.abs() <= config.max_abs_roll_deg
-                && p.abs() <= config.max_abs_pitch_deg
-            {
+            if m.now >= naive_until && config.naive_within(r, p) {
                 naive_commits.push(m.now);
                 naive_until = m.now + config.touchdown_s;
             }

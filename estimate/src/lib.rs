@@ -1,14 +1,15 @@
-//! Deck attitude estimators: pure algorithms, no IPC and no logging; the stage binary
-//! (`src/main.rs`) wires [`stage`] to iceoryx2.
+//! Deck attitude estimators: pure algorithms, no IPC and no logging; the runtime's estimate
+//! stage wires them to the pipeline.
 //!
 //! - [`paper`]: the paper's ellipse method with the corrections of NOTES.md.
 //! - [`ellipse`]: the eq. (3) conic fit both use.
 
+pub mod config;
 pub mod ellipse;
 pub mod paper;
 pub mod pose;
-pub mod stage;
 
+pub use config::EstimateConfig;
 pub use ellipse::{Ellipse, EllipseFit, EllipseFitError};
 pub use paper::{NotEstimable, PaperEstimate, PaperEstimator, PaperVariant};
 pub use pose::{PoseConfig, PoseError, PoseEstimate, PoseEstimator};

@@ -4,11 +4,10 @@
 //! Every process logs into the same recording (same application and recording id, given by the
 //! launcher), so the viewer shows one timeline of all stages.
 //!
-//! Entities: `camera/image` (the frame, downscaled), `camera/image/markers` (detected markers,
-//! labelled), `camera/image/ellipse` (the paper's fitted ring ellipse), `camera/image/deck_model`
-//! (the deck reprojected with the full pose), `attitude/{roll,pitch,yaw}/{estimate,
-//! alternative,truth}` (scalars), `decision/state`, `decision/calm_window/{start_s,length_s}`
-//! and `decision/log`. Timelines: `frame` (sequence number) and `capture_time`.
+//! The entities, their labels and colours, and the conversion of messages into log items are in
+//! [`entities`]. Timelines: `frame` (sequence number) and `capture_time`.
+
+pub mod entities;
 
 use crossbeam_channel::{bounded, Sender, TrySendError};
 use serde::{Deserialize, Serialize};
@@ -38,12 +37,36 @@ pub const APPLICATION_ID: &str = "deckwatch";
 /// The viewer's default gRPC address.
 pub const DEFAULT_ADDRESS: &str = "rerun+http://127.0.0.1:9876/proxy";
 
+/// Where the log goes (`[rerun] sink`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RerunSink {
+    Off,
+    /// Start a viewer.
+    Spawn,
+    /// A viewer at `address`.
+    Connect,
+    /// Into the `.rrd` file at `path`.
+    Save,
+}
+
+impl RerunSink {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Off => "off",
+            Self::Spawn => "spawn",
+            Self::Connect => "connect",
+            Self::Save => "save",
+        }
+    }
+}
+
 /// `[rerun]` of the pipeline configuration.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct RerunConfig {
     /// `off`, `spawn` (start a viewer), `connect` (a viewer at `address`) or `save` (to `path`).
-    pub sink: String,
+    pub sink: RerunSink,
     pub address: Option<String>,
     /// The `.rrd` file (`save`). Each process writes `<path>.<stage>.part`; the launcher merges
     /// them into `path` when it stops.
@@ -61,7 +84,7 @@ pub struct RerunConfig {
 impl Default for RerunConfig {
     fn default() -> Self {
         Self {
-            sink: "off".into(),
+            sink: RerunSink::Off,
             address: None,
             path: None,
             image_every: 1,
@@ -73,24 +96,9 @@ impl Default for RerunConfig {
 }
 
 impl RerunConfig {
-    /// The `[rerun]` section of a pipeline configuration (TOML); errors name file, line and key.
-    pub fn from_toml(file: &str, text: &str) -> Result<Self, String> {
-        #[derive(Deserialize)]
-        struct Doc {
-            #[serde(default)]
-            rerun: RerunConfig,
-        }
-        let doc: Doc = toml::from_str(text).map_err(|e| format!("{file}: {e}"))?;
-        doc.rerun.validate().map_err(|e| format!("{file}: rerun.{e}"))?;
-        Ok(doc.rerun)
-    }
-
     pub fn validate(&self) -> Result<(), String> {
-        match self.sink.as_str() {
-            "off" | "spawn" | "connect" => {}
-            "save" if self.path.is_some() => {}
-            "save" => return Err("path: required with sink = \"save\"".into()),
-            other => return Err(format!("sink: unknown `{other}` (off, spawn, connect, save)")),
+        if self.sink == RerunSink::Save && self.path.is_none() {
+            return Err("path: required with sink = \"save\"".into());
         }
         if !(1..=1000).contains(&self.image_every) {
             return Err(format!("image_every: must be 1..=1000, got {}", self.image_every));
@@ -136,15 +144,17 @@ pub enum ItemKind {
         entity: &'static str,
         points: Vec<[f32; 2]>,
         labels: Vec<String>,
+        colour: [u8; 4],
     },
     /// Closed line strips in full-resolution pixels.
     Strips {
         entity: &'static str,
         strips: Vec<Vec<[f32; 2]>>,
+        colour: [u8; 4],
     },
     /// Scalars by entity path.
     Scalars(Vec<(String, f64)>),
-    /// A line of text on `decision/log`.
+    /// A line of text on [`entities::DECISION_LOG`].
     Text(String),
 }
 
@@ -161,7 +171,7 @@ impl Logger {
     /// Starts the logging thread for `stage` (None when the sink is `off`).
     pub fn start(config: &RerunConfig, stage: &str) -> Result<Option<Self>, String> {
         config.validate()?;
-        if config.sink == "off" {
+        if config.sink == RerunSink::Off {
             return Ok(None);
         }
         let (tx, rx) = bounded::<Item>(config.queue);

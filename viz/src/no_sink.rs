@@ -1,7 +1,7 @@
 //! A build without the `rerun` feature: the logging API without the rerun SDK. `off` works;
 //! any other sink is refused, saying how to get it.
 
-use crate::{Item, RerunConfig};
+use crate::{Item, RerunConfig, RerunSink};
 use crossbeam_channel::Receiver;
 use std::path::Path;
 use std::thread::JoinHandle;
@@ -18,7 +18,7 @@ pub(crate) fn spawn_logging_thread(
     _stage: &str,
     _rx: Receiver<Item>,
 ) -> Result<JoinHandle<()>, String> {
-    Err(not_built(&config.sink))
+    Err(not_built(config.sink.name()))
 }
 
 /// Stands for the launcher's rerun stream; never made in this build.
@@ -31,9 +31,9 @@ impl Viewer {
 }
 
 pub fn open_viewer(config: &RerunConfig, _stage: &str) -> Result<Option<Viewer>, String> {
-    match config.sink.as_str() {
-        "off" => Ok(None),
-        other => Err(not_built(other)),
+    match config.sink {
+        RerunSink::Off => Ok(None),
+        other => Err(not_built(other.name())),
     }
 }
 

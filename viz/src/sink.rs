@@ -1,6 +1,6 @@
 //! The rerun side of the logging: recording streams, archetypes, the blueprint, `.rrd` files.
 
-use crate::{Item, ItemKind, RerunConfig, APPLICATION_ID, DEFAULT_ADDRESS};
+use crate::{entities, Item, ItemKind, RerunConfig, RerunSink, APPLICATION_ID, DEFAULT_ADDRESS};
 use crossbeam_channel::Receiver;
 use rerun::{RecordingStream, RecordingStreamBuilder};
 use std::path::Path;
@@ -53,21 +53,20 @@ fn open_stream(config: &RerunConfig, stage: &str) -> Result<Option<RecordingStre
     if let Some(id) = &config.recording_id {
         builder = builder.recording_id(id.clone());
     }
-    let err = |e: rerun::RecordingStreamError| format!("rerun ({}): {e}", config.sink);
-    let rec = match config.sink.as_str() {
-        "off" => return Ok(None),
-        "spawn" => builder.spawn().map_err(err)?,
-        "connect" => builder
+    let err = |e: rerun::RecordingStreamError| format!("rerun ({}): {e}", config.sink.name());
+    let rec = match config.sink {
+        RerunSink::Off => return Ok(None),
+        RerunSink::Spawn => builder.spawn().map_err(err)?,
+        RerunSink::Connect => builder
             .connect_grpc_opts(config.address.clone().unwrap_or_else(|| DEFAULT_ADDRESS.into()))
             .map_err(err)?,
-        "save" => {
+        RerunSink::Save => {
             let path = config
                 .path
                 .as_ref()
                 .ok_or("rerun.path: required with sink = \"save\"")?;
             builder.save(RerunConfig::part_path(path, stage)).map_err(err)?
         }
-        other => return Err(format!("rerun.sink: unknown `{other}`")),
     };
     Ok(Some(rec))
 }
@@ -83,25 +82,34 @@ fn log_item(rec: &RecordingStream, item: &Item, downscale: f32) {
             width,
             height,
         } => rec.log(
-            "camera/image",
+            entities::IMAGE,
             &rerun::Image::from_l8(pixels.clone(), [*width, *height]),
         ),
         ItemKind::Points {
             entity,
             points,
             labels,
+            colour,
         } => {
             let pts: Vec<[f32; 2]> = points.iter().map(scale).collect();
             rec.log(
                 *entity,
                 &rerun::Points2D::new(pts)
                     .with_labels(labels.clone())
+                    .with_colors([rerun::Color::from_unmultiplied_rgba(
+                        colour[0], colour[1], colour[2], colour[3],
+                    )])
                     .with_radii([2.0]),
             )
         }
-        ItemKind::Strips { entity, strips } => {
+        ItemKind::Strips {
+            entity,
+            strips,
+            colour,
+        } => {
             let s: Vec<Vec<[f32; 2]>> = strips.iter().map(|st| st.iter().map(scale).collect()).collect();
-            rec.log(*entity, &rerun::LineStrips2D::new(s))
+            let c = rerun::Color::from_unmultiplied_rgba(colour[0], colour[1], colour[2], colour[3]);
+            rec.log(*entity, &rerun::LineStrips2D::new(s).with_colors([c]))
         }
         ItemKind::Scalars(values) => {
             let mut r = Ok(());
@@ -112,7 +120,7 @@ fn log_item(rec: &RecordingStream, item: &Item, downscale: f32) {
             }
             r
         }
-        ItemKind::Text(t) => rec.log("decision/log", &rerun::TextLog::new(t.clone())),
+        ItemKind::Text(t) => rec.log(entities::DECISION_LOG, &rerun::TextLog::new(t.clone())),
     };
     // A failed log call (e.g. a viewer that went away) must not stop the thread.
     let _ = result;
@@ -125,19 +133,23 @@ pub fn send_blueprint(rec: &RecordingStream) -> Result<(), String> {
     };
     let plots = Vertical::new([
         TimeSeriesView::new("roll (deg)")
-            .with_origin("attitude/roll")
+            .with_origin(entities::attitude_axis_path(entities::AXES[0]))
             .into(),
         TimeSeriesView::new("pitch (deg)")
-            .with_origin("attitude/pitch")
+            .with_origin(entities::attitude_axis_path(entities::AXES[1]))
             .into(),
         TimeSeriesView::new("yaw (deg)")
-            .with_origin("attitude/yaw")
+            .with_origin(entities::attitude_axis_path(entities::AXES[2]))
             .into(),
-        TimeSeriesView::new("decision").with_origin("decision").into(),
+        TimeSeriesView::new("decision")
+            .with_origin(entities::DECISION)
+            .into(),
     ]);
     let left = Vertical::new([
-        Spatial2DView::new("camera").with_origin("camera/image").into(),
-        TextLogView::new("decisions").with_origin("decision/log").into(),
+        Spatial2DView::new("camera").with_origin(entities::IMAGE).into(),
+        TextLogView::new("decisions")
+            .with_origin(entities::DECISION_LOG)
+            .into(),
     ])
     .with_row_shares([3.0, 1.0]);
     let blueprint = Blueprint::new(Horizontal::new([left.into(), plots.into()]));

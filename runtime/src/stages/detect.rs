@@ -1,11 +1,14 @@
-//! The detect stage's per-frame step, without transport: from a frame (header and pixels, read
-//! in place) to the [`MarkerMessage`] that goes to estimate, with the stage's timing and drop
-//! counts. A frame that does not match its header is answered with `BadFrame`, never a panic.
+//! The detect stage: from a frame (header and pixels, read in place) to the [`MarkerMessage`]
+//! that goes to estimate, with the stage's timing and drop counts. A frame that does not match
+//! its header is answered with `BadFrame`, never a panic.
 
-use crate::{Detector, DetectorConfig};
+use crate::config::{ConfigError, PipelineConfig};
+use crate::stage::{Frame, Frames, Stage};
 use deckwatch_common::markers::{DetectionStatus, MarkerSet};
 use deckwatch_common::messages::{monotonic_ns, FrameHeader, GapCounter, MarkerMessage, PixelFormat};
 use deckwatch_common::GrayView;
+use deckwatch_detect::{Detector, DetectorConfig};
+use deckwatch_viz::Item;
 
 /// State of the detect stage across frames.
 #[derive(Default)]
@@ -17,6 +20,38 @@ pub struct DetectStage {
     /// Frames that did not match their header (answered with `BadFrame`).
     pub bad_frames: u64,
     pub processed: u64,
+    warning: Option<String>,
+}
+
+impl Stage for DetectStage {
+    const NAME: &'static str = "detect";
+    type Input = Frames;
+    type Output = MarkerMessage;
+
+    fn from_config(_config: &PipelineConfig, joined_late: bool) -> Result<Self, ConfigError> {
+        Ok(Self::new(joined_late))
+    }
+
+    fn step(&mut self, frame: Frame<'_>, received_ns: u64) -> MarkerMessage {
+        let (message, problem) = self.process(frame.header, frame.pixels, received_ns);
+        self.warning = problem.map(|p| format!("bad {p}"));
+        message
+    }
+
+    fn take_warning(&mut self) -> Option<String> {
+        self.warning.take()
+    }
+
+    fn viewer_items(&mut self, m: &MarkerMessage) -> Vec<Item> {
+        deckwatch_viz::entities::marker_items(m)
+    }
+
+    fn summary(&self) -> String {
+        format!(
+            "{} frames processed, {} dropped, {} bad",
+            self.processed, self.dropped, self.bad_frames
+        )
+    }
 }
 
 impl DetectStage {

@@ -1,80 +1,19 @@
-//! The estimate stage's per-frame step, without transport: from a [`MarkerMessage`] to the
-//! [`AttitudeMessage`] that goes to decide, and the stage's `[estimate]` configuration. The
-//! configured estimator's result is the message's attitude; with `compare`, the other family's
-//! result rides along (`AttitudeMessage::alternative`).
+//! The estimate stage: from a [`MarkerMessage`] to the [`AttitudeMessage`] that goes to decide.
+//! The configured estimator's result is the message's attitude; with `compare`, the other
+//! family's result rides along (`AttitudeMessage::alternative`).
 
-use crate::{NotEstimable, PaperEstimator, PaperVariant, PoseConfig, PoseError, PoseEstimator};
+use crate::config::{ConfigError, PipelineConfig};
+use crate::stage::Stage;
 use deckwatch_common::markers::DetectionStatus;
 use deckwatch_common::messages::{
     monotonic_ns, AlternativeAttitude, AttitudeFailure, AttitudeMessage, EstimatorKind, GapCounter,
     MarkerMessage,
 };
-use serde::{Deserialize, Serialize};
-
-/// `[estimate]` of the pipeline configuration.
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct EstimateConfig {
-    /// `full-pose` (default: it measures better, BENCHMARKS.md), `paper-atan2`,
-    /// `paper-printed` or `paper-fitted-major-axis`.
-    pub estimator: String,
-    /// Also run the other family (paper `atan2` beside the full pose, or the full pose beside
-    /// a paper variant) and publish its result for comparison.
-    pub compare: bool,
-}
-
-impl Default for EstimateConfig {
-    fn default() -> Self {
-        Self {
-            estimator: EstimatorKind::FullPose.name().into(),
-            compare: true,
-        }
-    }
-}
-
-const ESTIMATORS: [EstimatorKind; 4] = [
-    EstimatorKind::FullPose,
-    EstimatorKind::PaperAtan2,
-    EstimatorKind::PaperPrinted,
-    EstimatorKind::PaperFittedMajorAxis,
-];
-
-impl EstimateConfig {
-    /// The `[estimate]` section of a pipeline configuration (TOML); errors name file, line, key.
-    pub fn from_toml(file: &str, text: &str) -> Result<Self, String> {
-        #[derive(Deserialize)]
-        struct Doc {
-            #[serde(default)]
-            estimate: EstimateConfig,
-        }
-        let doc: Doc = toml::from_str(text).map_err(|e| format!("{file}: {e}"))?;
-        doc.estimate.kind()?;
-        Ok(doc.estimate)
-    }
-
-    pub fn kind(&self) -> Result<EstimatorKind, String> {
-        ESTIMATORS
-            .into_iter()
-            .find(|k| k.name() == self.estimator)
-            .ok_or_else(|| {
-                let names: Vec<&str> = ESTIMATORS.iter().map(|k| k.name()).collect();
-                format!(
-                    "estimate.estimator: unknown `{}` ({})",
-                    self.estimator,
-                    names.join(", ")
-                )
-            })
-    }
-}
-
-fn paper_variant(kind: EstimatorKind) -> Option<PaperVariant> {
-    match kind {
-        EstimatorKind::PaperAtan2 => Some(PaperVariant::Atan2),
-        EstimatorKind::PaperPrinted => Some(PaperVariant::Printed),
-        EstimatorKind::PaperFittedMajorAxis => Some(PaperVariant::FittedMajorAxis),
-        EstimatorKind::FullPose => None,
-    }
-}
+use deckwatch_estimate::config::paper_variant;
+use deckwatch_estimate::{
+    EstimateConfig, NotEstimable, PaperEstimator, PaperVariant, PoseConfig, PoseError, PoseEstimator,
+};
+use deckwatch_viz::Item;
 
 fn paper_failure(e: &NotEstimable) -> AttitudeFailure {
     match e {
@@ -146,22 +85,16 @@ pub struct EstimateStage {
 
 impl EstimateStage {
     /// `joined_late`: the pipeline was already running (see [`GapCounter::new`]).
-    pub fn new(config: &EstimateConfig, joined_late: bool) -> Result<Self, String> {
-        let primary = config.kind()?;
-        let secondary = config.compare.then_some(if primary == EstimatorKind::FullPose {
-            EstimatorKind::PaperAtan2
-        } else {
-            EstimatorKind::FullPose
-        });
-        Ok(Self {
-            primary,
-            secondary,
+    pub fn new(config: &EstimateConfig, joined_late: bool) -> Self {
+        Self {
+            primary: config.estimator,
+            secondary: config.secondary(),
             estimators: None,
             gaps: GapCounter::new(joined_late),
             dropped: 0,
             processed: 0,
             estimated: 0,
-        })
+        }
     }
 
     /// The attitude of one frame's markers, received at `received_ns`.
@@ -279,20 +212,37 @@ impl EstimateStage {
     }
 }
 
+impl Stage for EstimateStage {
+    const NAME: &'static str = "estimate";
+    type Input = MarkerMessage;
+    type Output = AttitudeMessage;
+
+    fn from_config(config: &PipelineConfig, joined_late: bool) -> Result<Self, ConfigError> {
+        Ok(Self::new(&config.estimate, joined_late))
+    }
+
+    fn step(&mut self, m: &MarkerMessage, received_ns: u64) -> AttitudeMessage {
+        self.process(m, received_ns)
+    }
+
+    fn viewer_items(&mut self, a: &AttitudeMessage) -> Vec<Item> {
+        deckwatch_viz::entities::attitude_items(a)
+    }
+
+    fn summary(&self) -> String {
+        format!(
+            "{} marker sets, {} attitudes, {} dropped",
+            self.processed, self.estimated, self.dropped
+        )
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use deckwatch_common::markers::{Marker, MarkerSet};
     use deckwatch_common::rotation::rpy_error_deg;
     use deckwatch_common::{CameraModel, DeckLayout, Rpy, SceneGeometry, Viewpoint};
-
-    #[test]
-    fn config_names_the_key() {
-        let e = EstimateConfig::from_toml("x.toml", "[estimate]\nestimator = \"magic\"\n").unwrap_err();
-        assert!(e.contains("estimate.estimator") && e.contains("magic"), "{e}");
-        let e = EstimateConfig::from_toml("x.toml", "[estimate]\nestimatr = 1\n").unwrap_err();
-        assert!(e.contains("x.toml") && e.contains("estimatr"), "{e}");
-    }
 
     #[test]
     fn both_estimators_on_exact_markers_and_no_deck_gives_none() {
@@ -325,7 +275,7 @@ mod tests {
                 ..Default::default()
             };
         }
-        let mut s = EstimateStage::new(&EstimateConfig::default(), false).unwrap();
+        let mut s = EstimateStage::new(&EstimateConfig::default(), false);
         let a = s.process(&m, 7);
         assert!(a.valid && a.estimator == EstimatorKind::FullPose);
         assert!(rpy_error_deg(&a.rpy, &truth).iter().all(|e| *e < 1e-8));

@@ -9,11 +9,11 @@
 //! time just before sending. The frame contents are written before the clock starts (capture
 //! renders into the sample; that cost is the capture stage's, reported by `deckwatch latency`).
 //!
-//! `cargo bench -p deckwatch --bench hop` (optionally `-- --samples N --rate HZ`).
+//! `cargo bench -p deckwatch-runtime --bench hop` (optionally `-- --samples N --rate HZ`).
 
-use deckwatch_common::bus::{event_loop, quiet_logging, Bus, BusError, BusSettings, Flow, Wake};
 use deckwatch_common::messages::{monotonic_ns, FrameHeader};
 use deckwatch_common::stats::Percentiles;
+use deckwatch_runtime::bus::{event_loop, quiet_logging, Bus, BusConfig, BusError, BusSettings, Flow, Wake};
 use std::io::{Read, Write};
 use std::os::unix::net::{UnixListener, UnixStream};
 use std::process::{Command, Stdio};
@@ -31,6 +31,15 @@ fn arg(name: &str, default: u64) -> u64 {
         .unwrap_or(default)
 }
 
+/// The pipeline's default bus settings on `domain` for frames of up to `max_frame_bytes`.
+fn settings(domain: &str, max_frame_bytes: usize) -> BusSettings {
+    BusConfig {
+        domain: domain.to_string(),
+        ..Default::default()
+    }
+    .settings(max_frame_bytes)
+}
+
 fn header(width: u32, height: u32, seq: u64) -> FrameHeader {
     let mut h = FrameHeader {
         width,
@@ -45,7 +54,7 @@ fn header(width: u32, height: u32, seq: u64) -> FrameHeader {
 /// Receiver of the iceoryx2 cases: prints one latency (ns) per line, then exits.
 fn child_iceoryx2(domain: &str, samples: u64) {
     quiet_logging();
-    let bus = Bus::join(&BusSettings::new(domain, 1), "hop-rx").unwrap();
+    let bus = Bus::join(&settings(domain, 1), "hop-rx").unwrap();
     let frames = bus.frame_subscriber().unwrap();
     let mut latencies = Vec::new();
     let mut checksum = 0u64;
@@ -119,11 +128,11 @@ fn collect(child: std::process::Child) -> Vec<f64> {
 fn run_iceoryx2(label: &str, width: u32, height: u32, samples: u64, period: Duration) -> (String, Vec<f64>) {
     let domain = format!("hop{}", std::process::id());
     let bytes = (width * height) as usize;
-    let bus = Bus::join(&BusSettings::new(&domain, bytes), "hop-tx").unwrap();
+    let bus = Bus::join(&settings(&domain, bytes), "hop-tx").unwrap();
     let publisher = bus.frame_publisher().unwrap();
     let child = spawn_child("iceoryx2", &domain, samples, bytes);
     while bus
-        .subscriber_count(deckwatch_common::bus::services::FRAMES)
+        .subscriber_count(deckwatch_runtime::bus::services::FRAMES)
         .unwrap()
         < 1
     {

@@ -14,10 +14,11 @@
 //! A *domain* isolates pipelines on one machine (tests run several at once): it prefixes every
 //! iceoryx2 file in `/dev/shm` and under `/tmp/iceoryx2`.
 
-use crate::messages::{AttitudeMessage, FrameHeader, LandingDecision, MarkerMessage};
+use deckwatch_common::messages::{
+    monotonic_ns, AttitudeMessage, FrameHeader, LandingDecision, MarkerMessage,
+};
 use iceoryx2::config::Config;
 use iceoryx2::node::{NodeState, NodeView};
-use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
@@ -29,6 +30,9 @@ use iceoryx2::sample::Sample;
 use iceoryx2::waitset::WaitSetRunResult;
 use std::fmt::Debug;
 use std::time::Duration;
+
+/// What a stage sleeps on: notified when its input has something new.
+pub type Listener = iceoryx2::port::listener::Listener<ipc::Service>;
 
 /// Service names, one place.
 pub mod services {
@@ -64,17 +68,6 @@ impl Default for BusConfig {
 }
 
 impl BusConfig {
-    /// The `[bus]` section of a pipeline configuration (TOML); errors name file, line and key.
-    pub fn from_toml(file: &str, text: &str) -> Result<Self, String> {
-        #[derive(serde::Deserialize)]
-        struct Doc {
-            #[serde(default)]
-            bus: BusConfig,
-        }
-        let doc: Doc = toml::from_str(text).map_err(|e| format!("{file}: {e}"))?;
-        Ok(doc.bus)
-    }
-
     /// The settings for frames of up to `max_frame_bytes`.
     pub fn settings(&self, max_frame_bytes: usize) -> BusSettings {
         BusSettings {
@@ -86,58 +79,24 @@ impl BusConfig {
     }
 }
 
-/// The command line every stage binary takes: the pipeline configuration and the domain.
-#[derive(Debug, Clone, clap::Args)]
-pub struct StageArgs {
-    /// Pipeline configuration (TOML); each stage reads its own sections. Default: built-in
-    /// defaults.
-    #[arg(long)]
-    pub config: Option<std::path::PathBuf>,
-    /// iceoryx2 domain (overrides `bus.domain`).
-    #[arg(long)]
-    pub domain: Option<String>,
-    /// This stage joins a running pipeline (the launcher restarted it): frames before the
-    /// first one it sees are not its drops.
-    #[arg(long)]
-    pub restarted: bool,
-}
-
-impl StageArgs {
-    /// The configuration file's name (for messages) and text ("" without one).
-    pub fn read_config(&self) -> Result<(String, String), String> {
-        match &self.config {
-            None => Ok(("(defaults)".into(), String::new())),
-            Some(p) => std::fs::read_to_string(p)
-                .map(|t| (p.display().to_string(), t))
-                .map_err(|e| format!("{}: cannot read: {e}", p.display())),
-        }
-    }
-
-    /// The bus configuration with the `--domain` override applied.
-    pub fn bus_config(&self, file: &str, text: &str) -> Result<BusConfig, String> {
-        let mut c = BusConfig::from_toml(file, text)?;
-        if let Some(d) = &self.domain {
-            c.domain = d.clone();
-        }
-        validate_domain(&c.domain).map_err(|e| format!("bus.{e}"))?;
-        Ok(c)
-    }
-}
-
 /// A transport failure, with what was being done.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct BusError(pub String);
-
-impl std::fmt::Display for BusError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum BusError {
+    /// An iceoryx2 call failed.
+    #[error("iceoryx2: {what}: {detail}")]
+    Iceoryx2 { what: String, detail: String },
+    /// Settings that no pipeline can run with (the key and the problem).
+    #[error("bus.{0}")]
+    Settings(String),
+    #[error("unknown service `{0}`")]
+    UnknownService(String),
 }
-
-impl std::error::Error for BusError {}
 
 fn context<E: Debug>(what: impl std::fmt::Display) -> impl FnOnce(E) -> BusError {
-    move |e| BusError(format!("iceoryx2: {what}: {e:?}"))
+    move |e| BusError::Iceoryx2 {
+        what: what.to_string(),
+        detail: format!("{e:?}"),
+    }
 }
 
 /// Sizes of the shared-memory services (all processes of a domain must agree).
@@ -155,15 +114,6 @@ pub struct BusSettings {
 }
 
 impl BusSettings {
-    pub fn new(domain: &str, max_frame_bytes: usize) -> Self {
-        Self {
-            domain: domain.to_string(),
-            max_frame_bytes,
-            frame_subscribers: 2,
-            frame_queue: 2,
-        }
-    }
-
     pub fn validate(&self) -> Result<(), String> {
         validate_domain(&self.domain)?;
         if self.max_frame_bytes == 0 {
@@ -225,7 +175,7 @@ const MESSAGE_QUEUE: usize = 8;
 const MESSAGE_SUBSCRIBERS: usize = 8;
 
 fn domain_config(domain: &str) -> Result<Config, BusError> {
-    validate_domain(domain).map_err(BusError)?;
+    validate_domain(domain).map_err(BusError::Settings)?;
     let mut config = Config::default();
     config.global.prefix =
         FileName::new(domain_prefix(domain).as_bytes()).map_err(context("domain prefix"))?;
@@ -271,7 +221,7 @@ type EventService = iceoryx2::service::port_factory::event::PortFactory<ipc::Ser
 impl Bus {
     /// Joins the domain as a node called `name`; removes what dead nodes of the domain left.
     pub fn join(settings: &BusSettings, name: &str) -> Result<Self, BusError> {
-        settings.validate().map_err(BusError)?;
+        settings.validate().map_err(BusError::Settings)?;
         let config = domain_config(&settings.domain)?;
         let node_name = NodeName::new(name).map_err(context(format!("node name `{name}`")))?;
         let node = NodeBuilder::new()
@@ -473,7 +423,7 @@ impl Bus {
                 .message_service::<LandingDecision>()?
                 .dynamic_config()
                 .number_of_subscribers(),
-            other => return Err(BusError(format!("unknown service `{other}`"))),
+            other => return Err(BusError::UnknownService(other.to_string())),
         })
     }
 
@@ -550,7 +500,7 @@ impl FramePublisher {
         let bytes: &mut [u8] =
             unsafe { std::slice::from_raw_parts_mut(payload.as_mut_ptr() as *mut u8, payload.len()) };
         fill(&mut header, bytes).map_err(PublishError::Fill)?;
-        header.stamp.times.published_ns = crate::messages::monotonic_ns();
+        header.stamp.times.published_ns = monotonic_ns();
         *sample.user_header_mut() = header;
         // SAFETY: every byte was written by `fill` (see above).
         let sample = unsafe { sample.assume_init() };
@@ -580,12 +530,12 @@ impl FrameSample {
 /// A consumer of frames.
 pub struct FrameSubscriber {
     subscriber: Subscriber<ipc::Service, [u8], FrameHeader>,
-    listener: Listener<ipc::Service>,
+    listener: Listener,
     _service: PubSub<[u8], FrameHeader>,
 }
 
 impl FrameSubscriber {
-    pub fn listener(&self) -> &Listener<ipc::Service> {
+    pub fn listener(&self) -> &Listener {
         &self.listener
     }
 
@@ -628,12 +578,12 @@ impl<M: Message> MessagePublisher<M> {
 /// A subscriber of one message kind.
 pub struct MessageSubscriber<M: Message> {
     subscriber: Subscriber<ipc::Service, M, ()>,
-    listener: Listener<ipc::Service>,
+    listener: Listener,
     service: PubSub<M, ()>,
 }
 
 impl<M: Message> MessageSubscriber<M> {
-    pub fn listener(&self) -> &Listener<ipc::Service> {
+    pub fn listener(&self) -> &Listener {
         &self.listener
     }
 
@@ -680,7 +630,7 @@ pub enum Flow {
 /// Sleeps until a listener is notified or the tick is due, calls `handler`, repeats; returns on
 /// SIGINT/SIGTERM, when the handler says stop, or with the handler's first error.
 pub fn event_loop<E>(
-    inputs: &[&Listener<ipc::Service>],
+    inputs: &[&Listener],
     tick: Option<Duration>,
     mut handler: impl FnMut(Wake) -> Result<Flow, E>,
 ) -> Result<LoopEnd, E>
@@ -689,20 +639,20 @@ where
 {
     let waitset = WaitSetBuilder::new()
         .create::<ipc::Service>()
-        .map_err(|e| E::from(BusError(format!("iceoryx2: creating a waitset: {e:?}"))))?;
+        .map_err(|e| E::from(context("creating a waitset")(e)))?;
     let mut guards = Vec::with_capacity(inputs.len());
     for l in inputs {
         guards.push(
             waitset
                 .attach_notification(*l)
-                .map_err(|e| E::from(BusError(format!("iceoryx2: attaching a listener: {e:?}"))))?,
+                .map_err(|e| E::from(context("attaching a listener")(e)))?,
         );
     }
     let tick_guard = match tick {
         Some(t) => Some(
             waitset
                 .attach_interval(t)
-                .map_err(|e| E::from(BusError(format!("iceoryx2: attaching a tick: {e:?}"))))?,
+                .map_err(|e| E::from(context("attaching a tick")(e)))?,
         ),
         None => None,
     };
@@ -744,6 +694,117 @@ where
             debug_assert!(stopped);
             Ok(LoopEnd::Stopped)
         }
-        Err(e) => Err(E::from(BusError(format!("iceoryx2: waiting: {e:?}")))),
+        Err(e) => Err(E::from(context("waiting")(e))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use deckwatch_common::messages::DecisionState;
+
+    #[test]
+    fn domains_and_settings_are_checked() {
+        assert!(validate_domain("deckwatch").is_ok());
+        assert!(validate_domain("a_b-9").is_ok());
+        for bad in ["", "Upper", "sp ace", "x/y", &"a".repeat(33)] {
+            assert!(validate_domain(bad).is_err(), "{bad}");
+        }
+        let s = BusConfig::default().settings(100);
+        assert!(s.validate().is_ok());
+        assert_eq!(s.prefix(), "iox2_dw_deckwatch_");
+        // 2 subscribers x (queue 2 + 2 borrowed) + 1 loan = 9 frames.
+        assert_eq!(s.frame_memory_bytes(), 900);
+        for bad in [
+            BusSettings {
+                max_frame_bytes: 0,
+                ..s.clone()
+            },
+            BusSettings {
+                frame_subscribers: 9,
+                ..s.clone()
+            },
+            BusSettings {
+                frame_queue: 0,
+                ..s.clone()
+            },
+        ] {
+            assert!(bad.validate().is_err(), "{bad:?}");
+        }
+        let e = Bus::join(
+            &BusSettings {
+                domain: "Bad".into(),
+                ..s
+            },
+            "x",
+        )
+        .err()
+        .unwrap();
+        assert!(matches!(e, BusError::Settings(_)), "{e}");
+    }
+
+    /// One process, real shared memory: a message and a frame go through, the frame in place.
+    #[test]
+    fn messages_and_frames_round_trip() {
+        quiet_logging();
+        let domain = format!("unit-bus-{}", std::process::id());
+        let settings = BusConfig {
+            domain: domain.clone(),
+            ..Default::default()
+        }
+        .settings(64);
+        {
+            let bus = Bus::join(&settings, "unit").unwrap();
+            let sub = bus.subscriber::<LandingDecision>().unwrap();
+            let publisher = bus.publisher::<LandingDecision>().unwrap();
+            assert_eq!(bus.subscriber_count(services::DECISION).unwrap(), 1);
+            assert!(bus.subscriber_count("nope").is_err());
+            let d = LandingDecision {
+                state: DecisionState::Hold,
+                ..Default::default()
+            };
+            assert_eq!(publisher.send(&d).unwrap(), 1);
+            assert_eq!(sub.receive().unwrap().unwrap().state, DecisionState::Hold);
+            assert!(sub.receive().unwrap().is_none());
+            assert_eq!(sub.publisher_count(), 1);
+
+            let frames = bus.frame_subscriber().unwrap();
+            let fp = bus.frame_publisher().unwrap();
+            let header = FrameHeader {
+                width: 8,
+                height: 4,
+                stride: 8,
+                ..Default::default()
+            };
+            for seq in 0..2u64 {
+                let mut h = header;
+                h.stamp.seq = seq;
+                fp.publish(h, |_, px| {
+                    px.fill(seq as u8 + 1);
+                    Ok::<(), String>(())
+                })
+                .unwrap();
+            }
+            // Latest-frame semantics: the older one is passed over.
+            let (frame, passed) = frames.receive_latest().unwrap().unwrap();
+            assert_eq!((frame.header().stamp.seq, passed), (1, 1));
+            assert!(frame.header().stamp.times.published_ns > 0);
+            assert!(frame.pixels()[..32].iter().all(|&b| b == 2));
+            drop(frame);
+            let too_big = FrameHeader {
+                width: 100,
+                height: 100,
+                stride: 100,
+                ..Default::default()
+            };
+            let e = fp.publish(too_big, |_, _| Ok::<(), String>(())).err().unwrap();
+            assert!(matches!(e, PublishError::TooLarge { .. }), "{e}");
+            let e = fp.publish(header, |_, _| Err("bad file")).err().unwrap();
+            assert!(matches!(e, PublishError::Fill("bad file")));
+            assert_eq!(Bus::live_nodes(&domain).unwrap(), vec!["unit".to_string()]);
+            assert!(!Bus::remove_idle_domain(&domain).unwrap());
+        }
+        assert!(Bus::live_nodes(&domain).unwrap().is_empty());
+        assert!(Bus::remove_idle_domain(&domain).unwrap());
     }
 }

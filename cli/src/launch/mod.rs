@@ -1,0 +1,117 @@
+//! The launcher (`deckwatch run`, `deckwatch latency`): starts the stage processes, supervises
+//! them, follows the decisions they produce, and stops everything cleanly on Ctrl-C/SIGTERM or
+//! when the source is exhausted. By concern:
+//! - [`process`]: starting, signalling and stopping a stage binary;
+//! - [`supervise`]: start order, the restart rule, the main loop;
+//! - [`observe`]: metrics of the decision stream, the status line, the decisions CSV;
+//! - [`report`]: what a run did, printed at the end.
+
+pub mod observe;
+pub mod process;
+pub mod report;
+pub mod supervise;
+
+use deckwatch_runtime::bus::{quiet_logging, Bus};
+use deckwatch_runtime::config::PipelineConfig;
+use deckwatch_runtime::stage::STAGES;
+use deckwatch_viz::RerunSink;
+use process::{stage_binary, stop_all, StageProcess};
+pub use report::{print_report, RunReport};
+use std::time::Duration;
+pub use supervise::LaunchOptions;
+use supervise::{supervise, Supervised};
+
+fn say(msg: impl std::fmt::Display) {
+    eprintln!("deckwatch: {msg}");
+}
+
+/// Runs the pipeline until the source is exhausted or a signal arrives. `file` names the
+/// configuration in errors.
+pub fn launch(config: &PipelineConfig, file: &str, options: &LaunchOptions) -> Result<RunReport, String> {
+    config.validate(file).map_err(|e| e.to_string())?;
+    let domain = config.bus.domain.clone();
+    quiet_logging();
+    Bus::cleanup_dead_nodes(&domain).map_err(|e| e.to_string())?;
+    let alive = Bus::live_nodes(&domain).map_err(|e| e.to_string())?;
+    if !alive.is_empty() {
+        return Err(format!(
+            "domain `{domain}` is in use by running nodes ({}); stop that pipeline or choose another --domain",
+            alive.join(", ")
+        ));
+    }
+    let mut stages = STAGES
+        .iter()
+        .map(|s| {
+            stage_binary(options.stage_dir.as_deref(), s.name)
+                .map(|binary| Supervised::new(StageProcess::new(s.name, binary)))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    // rerun: every process logs into one recording. With `spawn` the launcher starts the viewer
+    // and the stages connect to it; with `save` each process writes a part, merged at the end.
+    let mut config = config.clone();
+    let viewer = start_viewer(&mut config)?;
+    let config = &config;
+    // The stages read the same configuration, as the launcher resolved it.
+    let run_dir = std::env::temp_dir().join(format!("deckwatch-{domain}-{}", std::process::id()));
+    std::fs::create_dir_all(&run_dir).map_err(|e| format!("{}: {e}", run_dir.display()))?;
+    let config_path = run_dir.join("pipeline.toml");
+    std::fs::write(&config_path, config.to_toml()).map_err(|e| format!("{}: {e}", config_path.display()))?;
+
+    let result = supervise(config, options, &mut stages, &config_path);
+    let mut processes: Vec<StageProcess> = stages.into_iter().map(|s| s.process).collect();
+    let stop_timeout = Duration::from_millis(config.supervisor.stop_timeout_ms);
+    for name in stop_all(&mut processes, stop_timeout) {
+        say(format_args!("{name} did not stop in time; killed it"));
+    }
+    let _ = std::fs::remove_dir_all(&run_dir);
+    match Bus::cleanup_dead_nodes(&domain) {
+        Ok(r) if r.removed > 0 => say(format_args!("removed the resources of {} dead nodes", r.removed)),
+        Ok(_) => {}
+        Err(e) => say(e),
+    }
+    if let Err(e) = Bus::remove_idle_domain(&domain) {
+        say(e);
+    }
+    if let Some(v) = viewer {
+        v.close(); // flushes the launcher's part (the blueprint)
+    }
+    if config.rerun.sink == RerunSink::Save {
+        if let Some(path) = &config.rerun.path {
+            let mut parts = vec![LAUNCHER];
+            parts.extend(STAGES.iter().rev().map(|s| s.name));
+            match deckwatch_viz::merge_parts(path, &parts) {
+                Ok(n) => say(format_args!("rerun recording: {} ({n} messages)", path.display())),
+                Err(e) => say(format_args!(
+                    "rerun: could not merge the parts into {}: {e}",
+                    path.display()
+                )),
+            }
+        }
+    }
+    result
+}
+
+/// The launcher's name as a rerun part and iceoryx2 node.
+const LAUNCHER: &str = "launcher";
+
+/// Opens the launcher's own rerun stream (which carries the blueprint) and points the stages at
+/// the same recording.
+fn start_viewer(config: &mut PipelineConfig) -> Result<Option<deckwatch_viz::Viewer>, String> {
+    let r = &mut config.rerun;
+    if r.sink == RerunSink::Off {
+        return Ok(None);
+    }
+    if r.recording_id.is_none() {
+        let now = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .unwrap_or_default();
+        r.recording_id = Some(format!("deckwatch-{}-{}", now.as_secs(), std::process::id()));
+    }
+    let viewer = deckwatch_viz::open_viewer(r, LAUNCHER)?;
+    if r.sink == RerunSink::Spawn {
+        // The viewer is up: the stages connect to it rather than spawning their own.
+        r.sink = RerunSink::Connect;
+        r.address = Some(deckwatch_viz::DEFAULT_ADDRESS.into());
+    }
+    Ok(viewer)
+}

@@ -1,0 +1,306 @@
+//! Supervision: the order stages start in, and what happens when one stops.
+//!
+//! [`RestartPolicy`] is the rule (pure, tested alone): a crashed stage is restarted after a
+//! backoff that doubles with each crash in a row (a stage that ran for `healthy_after_ms`
+//! starts afresh), up to `max_restarts` per stage; then the run is given up. [`supervise`]
+//! applies it to the processes while the observer follows the decisions.
+
+use super::observe::Observer;
+use super::process::{describe, Poll, StageProcess};
+use super::report::RunReport;
+use super::say;
+use deckwatch_common::messages::LandingDecision;
+use deckwatch_runtime::bus::{event_loop, Bus, BusError, Flow, LoopEnd, Wake};
+use deckwatch_runtime::config::{PipelineConfig, SupervisorConfig};
+use deckwatch_runtime::stage::STAGES;
+use deckwatch_runtime::stages::capture;
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// What to do about a stage that stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CrashVerdict {
+    /// Start it again after this long.
+    RestartAfter(Duration),
+    /// It has used its restarts: stop the run.
+    GiveUp,
+}
+
+/// One stage's crash history.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct CrashHistory {
+    pub restarts: u32,
+    failures_in_a_row: u32,
+}
+
+/// The restart rule of `[supervisor]`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RestartPolicy {
+    pub backoff: Duration,
+    pub max_backoff: Duration,
+    pub max_restarts: u32,
+    pub healthy_after: Duration,
+}
+
+impl RestartPolicy {
+    pub fn new(c: &SupervisorConfig) -> Self {
+        Self {
+            backoff: Duration::from_millis(c.restart_backoff_ms),
+            max_backoff: Duration::from_millis(c.max_backoff_ms),
+            max_restarts: c.max_restarts,
+            healthy_after: Duration::from_millis(c.healthy_after_ms),
+        }
+    }
+
+    /// A stage stopped after running for `ran_for`: restart it (when), or give up.
+    pub fn on_crash(&self, history: &mut CrashHistory, ran_for: Duration) -> CrashVerdict {
+        if ran_for >= self.healthy_after {
+            history.failures_in_a_row = 0;
+        }
+        history.failures_in_a_row = history.failures_in_a_row.saturating_add(1);
+        if history.restarts >= self.max_restarts {
+            return CrashVerdict::GiveUp;
+        }
+        history.restarts += 1;
+        let shift = (history.failures_in_a_row - 1).min(16);
+        let backoff = self.backoff.checked_mul(1 << shift).unwrap_or(Duration::MAX);
+        CrashVerdict::RestartAfter(backoff.min(self.max_backoff))
+    }
+}
+
+/// How the launcher reports while it runs.
+#[derive(Debug, Clone, Default)]
+pub struct LaunchOptions {
+    /// Print the live status line.
+    pub status: bool,
+    /// Write every decision as a CSV row to this file.
+    pub decisions_csv: Option<PathBuf>,
+    /// Where the stage binaries are (default: beside this executable).
+    pub stage_dir: Option<PathBuf>,
+}
+
+/// A stage process with its restart state.
+pub struct Supervised {
+    pub process: StageProcess,
+    pub history: CrashHistory,
+    restart_at: Option<Instant>,
+}
+
+impl Supervised {
+    pub fn new(process: StageProcess) -> Self {
+        Self {
+            process,
+            history: CrashHistory::default(),
+            restart_at: None,
+        }
+    }
+
+    fn spawn(&mut self, config: &Path, domain: &str) -> Result<(), String> {
+        self.process.restarts = self.history.restarts;
+        let pid = self.process.spawn(config, domain)?;
+        say(format_args!("started {} (pid {pid})", self.process.name));
+        self.restart_at = None;
+        Ok(())
+    }
+}
+
+/// Starts the stages downstream first, each once the one before listens; then follows the
+/// decisions, restarts crashed stages and prints the status line until the source is done (and
+/// the pipeline drained), a signal arrives or a stage gives up.
+pub fn supervise(
+    config: &PipelineConfig,
+    options: &LaunchOptions,
+    stages: &mut [Supervised],
+    config_path: &Path,
+) -> Result<RunReport, String> {
+    let sup = &config.supervisor;
+    let policy = RestartPolicy::new(sup);
+    let domain = &config.bus.domain;
+    let bus = Bus::join(&config.bus.settings(1), super::LAUNCHER).map_err(|e| e.to_string())?;
+    let decisions = bus.subscriber::<LandingDecision>().map_err(|e| e.to_string())?;
+    let mut observer = Observer::new(options.decisions_csv.as_deref())?;
+    let start = Instant::now();
+
+    for (s, info) in stages.iter_mut().zip(STAGES) {
+        s.spawn(config_path, domain)?;
+        let Some(service) = info.ready_service else {
+            continue;
+        };
+        let deadline = Instant::now() + Duration::from_millis(sup.ready_timeout_ms);
+        while bus.subscriber_count(service).map_err(|e| e.to_string())? == 0 {
+            if let Poll::Exited(status) = s.process.poll() {
+                return Err(format!("{} exited at start ({})", info.name, describe(status)));
+            }
+            if Instant::now() > deadline {
+                return Err(format!(
+                    "{} did not connect within {} ms",
+                    info.name, sup.ready_timeout_ms
+                ));
+            }
+            if !bus.sleep(Duration::from_millis(5)) {
+                return Err("interrupted while starting".into());
+            }
+        }
+    }
+
+    let tty = std::io::stdout().is_terminal();
+    let status_period = Duration::from_millis(sup.status_interval_ms);
+    let mut next_status = Instant::now() + status_period;
+    let mut source_done: Option<Instant> = None;
+    let mut failure: Option<String> = None;
+    let end = event_loop(&[decisions.listener()], Some(Duration::from_millis(50)), |wake| {
+        if wake == Wake::Input(0) {
+            while let Some(d) = decisions.receive()? {
+                if let Err(e) = observer.observe(&d) {
+                    failure = Some(e);
+                    return Ok(Flow::Stop);
+                }
+            }
+            return Ok(Flow::Continue);
+        }
+        let now = Instant::now();
+        for s in stages.iter_mut() {
+            if let Poll::Exited(status) = s.process.poll() {
+                if s.process.name == capture::NAME && status.success() {
+                    say("capture finished its source");
+                    source_done = Some(now);
+                    continue;
+                }
+                match policy.on_crash(&mut s.history, s.process.started.elapsed()) {
+                    CrashVerdict::GiveUp => {
+                        failure = Some(format!(
+                            "{} stopped ({}) and has used its {} restarts",
+                            s.process.name,
+                            describe(status),
+                            policy.max_restarts
+                        ));
+                        return Ok(Flow::Stop);
+                    }
+                    CrashVerdict::RestartAfter(backoff) => {
+                        say(format_args!(
+                            "{} stopped ({}); restarting in {} ms (restart {} of {})",
+                            s.process.name,
+                            describe(status),
+                            backoff.as_millis(),
+                            s.history.restarts,
+                            policy.max_restarts
+                        ));
+                        s.restart_at = Some(now + backoff);
+                    }
+                }
+            }
+            if s.restart_at.is_some_and(|t| now >= t) {
+                if let Err(e) = s.spawn(config_path, domain) {
+                    failure = Some(e);
+                    return Ok(Flow::Stop);
+                }
+            }
+        }
+        if now >= next_status {
+            next_status = now + status_period;
+            let line = observer.status_line(start.elapsed().as_secs_f64(), status_period.as_secs_f64());
+            if options.status {
+                if tty {
+                    print!("\r\x1b[2K{line}");
+                    let _ = std::io::stdout().flush();
+                } else {
+                    println!("{line}");
+                }
+            }
+        }
+        if let Some(done) = source_done {
+            let quiet_since = done.max(observer.last_at);
+            if now.duration_since(quiet_since) >= Duration::from_millis(sup.drain_ms) {
+                return Ok(Flow::Stop);
+            }
+        }
+        Ok::<Flow, BusError>(Flow::Continue)
+    })
+    .map_err(|e| e.to_string())?;
+    if options.status && tty {
+        println!();
+    }
+    if let Some(e) = failure {
+        return Err(e);
+    }
+    let restarts = stages
+        .iter()
+        .map(|s| (s.process.name.to_string(), s.history.restarts))
+        .collect();
+    Ok(observer.report(
+        start.elapsed().as_secs_f64(),
+        restarts,
+        matches!(end, LoopEnd::Signal),
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn policy(max_restarts: u32) -> RestartPolicy {
+        RestartPolicy::new(&SupervisorConfig {
+            restart_backoff_ms: 250,
+            max_backoff_ms: 1500,
+            max_restarts,
+            healthy_after_ms: 10_000,
+            ..Default::default()
+        })
+    }
+
+    fn ms(v: u64) -> Duration {
+        Duration::from_millis(v)
+    }
+
+    #[test]
+    fn backoff_doubles_caps_and_resets_after_a_healthy_run() {
+        let p = policy(10);
+        let mut h = CrashHistory::default();
+        let quick = ms(100);
+        let backoffs: Vec<CrashVerdict> = (0..5).map(|_| p.on_crash(&mut h, quick)).collect();
+        assert_eq!(
+            backoffs,
+            [250, 500, 1000, 1500, 1500].map(|v| CrashVerdict::RestartAfter(ms(v)))
+        );
+        assert_eq!(h.restarts, 5);
+        // It ran long enough to count as healthy: the backoff starts afresh.
+        assert_eq!(
+            p.on_crash(&mut h, ms(10_000)),
+            CrashVerdict::RestartAfter(ms(250))
+        );
+        assert_eq!(p.on_crash(&mut h, quick), CrashVerdict::RestartAfter(ms(500)));
+    }
+
+    #[test]
+    fn the_restart_budget_ends_the_run() {
+        let p = policy(2);
+        let mut h = CrashHistory::default();
+        assert!(matches!(p.on_crash(&mut h, ms(1)), CrashVerdict::RestartAfter(_)));
+        assert!(matches!(p.on_crash(&mut h, ms(1)), CrashVerdict::RestartAfter(_)));
+        assert_eq!(p.on_crash(&mut h, ms(1)), CrashVerdict::GiveUp);
+        assert_eq!(h.restarts, 2);
+        // max_restarts = 0: never restart.
+        assert_eq!(
+            policy(0).on_crash(&mut CrashHistory::default(), ms(1)),
+            CrashVerdict::GiveUp
+        );
+    }
+
+    #[test]
+    fn backoff_never_overflows() {
+        let p = RestartPolicy {
+            backoff: Duration::from_secs(u32::MAX as u64),
+            max_backoff: Duration::from_secs(1),
+            max_restarts: u32::MAX,
+            healthy_after: Duration::MAX,
+        };
+        let mut h = CrashHistory::default();
+        for _ in 0..40 {
+            assert_eq!(
+                p.on_crash(&mut h, ms(1)),
+                CrashVerdict::RestartAfter(Duration::from_secs(1))
+            );
+        }
+    }
+}

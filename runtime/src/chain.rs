@@ -1,0 +1,137 @@
+//! The pipeline in one process: the same stages as the processes of `deckwatch run`, called in
+//! a row on each frame (capture -> detect -> estimate -> decide) with no transport in between.
+//! `deckwatch inproc` and `deckwatch eval` run it; for the same frames it gives the same
+//! attitudes and decisions as the processes (a test in `tests/` holds it to that, bit for bit).
+
+use crate::config::PipelineConfig;
+use crate::stage::{Frame, RunError, Stage};
+use crate::stages::capture::{complete_header, new_header};
+use crate::stages::{DecideStage, DetectStage, EstimateStage};
+use deckwatch_capture::source::CaptureSource;
+use deckwatch_common::messages::{AttitudeMessage, DropCounts, LandingDecision, MarkerMessage};
+use std::time::{Duration, Instant};
+
+/// What every stage made of one frame, and how long each took.
+#[derive(Debug, Clone)]
+pub struct ChainOutput {
+    pub markers: MarkerMessage,
+    pub attitude: AttitudeMessage,
+    pub decision: LandingDecision,
+    /// Capture (render, decode or copy), detect, estimate, decide.
+    pub cost: [Duration; 4],
+}
+
+/// The stages of a pipeline configuration, chained in one process.
+pub struct StageChain {
+    source: CaptureSource,
+    pixels: Vec<u8>,
+    pub detect: DetectStage,
+    pub estimate: EstimateStage,
+    pub decide: DecideStage,
+    /// The source's next frame, and the next sequence number (bad frames get none).
+    next_frame: u64,
+    next_seq: u64,
+    drops: DropCounts,
+}
+
+impl StageChain {
+    /// Opens the configured source and builds the stages. The source runs as fast as the
+    /// stages go: the chain paces nothing.
+    pub fn new(config: &PipelineConfig) -> Result<Self, RunError> {
+        let source = config.capture().open().map_err(RunError::Source)?;
+        Ok(Self {
+            pixels: vec![0; source.frame_bytes()],
+            source,
+            detect: DetectStage::from_config(config, false)?,
+            estimate: EstimateStage::from_config(config, false)?,
+            decide: DecideStage::from_config(config, false)?,
+            next_frame: 0,
+            next_seq: 0,
+            drops: DropCounts::default(),
+        })
+    }
+
+    pub fn source(&self) -> &CaptureSource {
+        &self.source
+    }
+
+    /// Frames the source could not deliver (counted and skipped).
+    pub fn drops(&self) -> DropCounts {
+        self.drops
+    }
+}
+
+/// Frame by frame: the next frame through every stage; None when the source is exhausted. A
+/// frame the source cannot read is counted (`drops().bad_frames`) and reported as the error;
+/// the chain goes on with the next one.
+impl Iterator for StageChain {
+    type Item = Result<ChainOutput, String>;
+
+    fn next(&mut self) -> Option<Result<ChainOutput, String>> {
+        if self.source.len().is_some_and(|n| self.next_frame >= n) {
+            return None;
+        }
+        let k = self.next_frame;
+        self.next_frame += 1;
+        let t0 = Instant::now();
+        let mut header = new_header(&self.source, self.next_seq, self.drops);
+        let width = header.width as usize;
+        match self.source.capture(k, &mut self.pixels, width) {
+            Ok(f) => complete_header(&mut header, &f),
+            Err(e) => {
+                self.drops.bad_frames += 1;
+                return Some(Err(format!("frame {k}: {e}")));
+            }
+        }
+        self.drops = header.stamp.drops;
+        self.next_seq += 1;
+        header.stamp.times.published_ns = deckwatch_common::messages::monotonic_ns();
+        let t1 = Instant::now();
+        let frame = Frame {
+            header: &header,
+            pixels: &self.pixels,
+        };
+        let markers = self.detect.step(frame, header.stamp.times.published_ns);
+        let t2 = Instant::now();
+        let attitude = self
+            .estimate
+            .step(&markers, markers.stamp.times.detect_finished_ns);
+        let t3 = Instant::now();
+        let decision = self
+            .decide
+            .step(&attitude, attitude.stamp.times.estimate_finished_ns);
+        let t4 = Instant::now();
+        Some(Ok(ChainOutput {
+            markers,
+            attitude,
+            decision,
+            cost: [t1 - t0, t2 - t1, t3 - t2, t4 - t3],
+        }))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use deckwatch_common::messages::DecisionState;
+
+    #[test]
+    fn simulated_frames_go_through_every_stage() {
+        let mut c = PipelineConfig::default();
+        c.sim.frames = 5;
+        (c.image.width, c.image.height) = (Some(640), Some(480));
+        let mut chain = StageChain::new(&c).unwrap();
+        let mut n = 0;
+        for out in chain.by_ref() {
+            let out = out.unwrap();
+            assert_eq!(out.decision.stamp.seq, n);
+            assert!(out.attitude.valid, "frame {n}: {:?}", out.attitude.failure);
+            assert_eq!(out.decision.state, DecisionState::Hold);
+            let t = out.decision.stamp.times;
+            assert!(t.captured_ns <= t.published_ns && t.published_ns <= t.decide_finished_ns);
+            n += 1;
+        }
+        assert_eq!(n, 5);
+        assert_eq!(chain.drops().total(), 0);
+    }
+}

@@ -1,0 +1,240 @@
+//! The pipeline configuration: one typed schema for every stage and the launcher, parsed and
+//! validated here only. Each section is defined by the crate whose part it configures
+//! (`[sim]`/`[image]`/`[replay]`/`[libcamera]`/`[source]` by capture, `[estimate]` by estimate,
+//! `[decide]` by decide, `[rerun]` by viz, `[bus]` by the transport); this module puts them
+//! together, and every process (launcher and stages) reads the same file through it. Unknown
+//! keys are errors; errors name the file, the line and the key.
+
+use crate::bus::{BusConfig, BusError};
+use deckwatch_capture::camera::CameraConfig;
+use deckwatch_capture::scenario::SimulationArgs;
+use deckwatch_capture::sim::ImageArgs;
+use deckwatch_capture::source::{CaptureConfig, ReplayConfig, SourceConfig};
+use deckwatch_decide::DecisionConfig;
+use deckwatch_estimate::EstimateConfig;
+use deckwatch_viz::RerunConfig;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// `[supervisor]`: how the launcher runs the stages.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SupervisorConfig {
+    /// First restart delay of a crashed stage; doubles with each further crash in a row.
+    pub restart_backoff_ms: u64,
+    pub max_backoff_ms: u64,
+    /// Restarts allowed per stage before the run is given up (0: never restart).
+    pub max_restarts: u32,
+    /// A stage that ran this long before crashing starts its backoff afresh.
+    pub healthy_after_ms: u64,
+    /// How long a stage may take to connect at start.
+    pub ready_timeout_ms: u64,
+    /// How long a stage may take to exit after SIGTERM before it is killed.
+    pub stop_timeout_ms: u64,
+    /// After the source is exhausted: stop once no decision came for this long.
+    pub drain_ms: u64,
+    /// Live status line period.
+    pub status_interval_ms: u64,
+}
+
+impl Default for SupervisorConfig {
+    fn default() -> Self {
+        Self {
+            restart_backoff_ms: 250,
+            max_backoff_ms: 8000,
+            max_restarts: 10,
+            healthy_after_ms: 10_000,
+            ready_timeout_ms: 10_000,
+            stop_timeout_ms: 3000,
+            drain_ms: 500,
+            status_interval_ms: 1000,
+        }
+    }
+}
+
+/// The whole pipeline configuration (TOML).
+#[derive(Debug, Clone, PartialEq, Default, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PipelineConfig {
+    pub bus: BusConfig,
+    pub source: SourceConfig,
+    pub sim: SimulationArgs,
+    pub image: ImageArgs,
+    pub replay: ReplayConfig,
+    pub libcamera: CameraConfig,
+    pub estimate: EstimateConfig,
+    pub decide: DecisionConfig,
+    pub supervisor: SupervisorConfig,
+    pub rerun: RerunConfig,
+}
+
+/// What is wrong with a configuration, and where.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("{file}: cannot read: {source}")]
+    Read { file: String, source: std::io::Error },
+    /// TOML syntax, an unknown key or a value of the wrong type (the message has the line).
+    #[error("{file}: {message}")]
+    Parse { file: String, message: String },
+    /// A value out of range: `section.key: problem`.
+    #[error("{file}: {key}: {problem}")]
+    Invalid {
+        file: String,
+        key: String,
+        problem: String,
+    },
+    #[error(transparent)]
+    Bus(#[from] BusError),
+}
+
+/// The name configuration errors give a configuration that came from no file.
+pub const DEFAULTS: &str = "(defaults)";
+
+impl PipelineConfig {
+    /// Parses `text` (from `file`, for messages). Values are checked by [`Self::validate`].
+    pub fn from_toml(file: &str, text: &str) -> Result<Self, ConfigError> {
+        toml::from_str(text).map_err(|e| ConfigError::Parse {
+            file: file.to_string(),
+            message: e.to_string(),
+        })
+    }
+
+    /// Reads and parses a file.
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            file: file.clone(),
+            source,
+        })?;
+        Self::from_toml(&file, &text)
+    }
+
+    /// The file's configuration, or the defaults without one.
+    pub fn load_or_default(path: Option<&Path>) -> Result<Self, ConfigError> {
+        path.map_or_else(|| Ok(Self::default()), Self::load)
+    }
+
+    /// Serialises the configuration (`--print-config`, and the file the launcher hands the
+    /// stages).
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).expect("every configuration value has a TOML form")
+    }
+
+    /// Checks every section the way its stage will (without opening the source). `file` names
+    /// the configuration in the error.
+    pub fn validate(&self, file: &str) -> Result<(), ConfigError> {
+        let invalid = |key: String, problem: String| ConfigError::Invalid {
+            file: file.to_string(),
+            key,
+            problem,
+        };
+        self.bus
+            .settings(1)
+            .validate()
+            .map_err(|e| invalid("bus".into(), e))?;
+        self.capture().check().map_err(|e| ConfigError::Parse {
+            file: file.to_string(),
+            message: e,
+        })?;
+        self.decide
+            .validate()
+            .map_err(|e| invalid(format!("decide.{}", e.key), e.problem))?;
+        self.rerun.validate().map_err(|e| invalid("rerun".into(), e))?;
+        let s = &self.supervisor;
+        for (k, v) in [
+            ("ready_timeout_ms", s.ready_timeout_ms),
+            ("stop_timeout_ms", s.stop_timeout_ms),
+            ("status_interval_ms", s.status_interval_ms),
+            ("restart_backoff_ms", s.restart_backoff_ms),
+        ] {
+            if v == 0 {
+                return Err(invalid(format!("supervisor.{k}"), "must be positive".into()));
+            }
+        }
+        Ok(())
+    }
+
+    /// The capture stage's sections.
+    pub fn capture(&self) -> CaptureConfig {
+        CaptureConfig {
+            source: self.source.clone(),
+            sim: self.sim.clone(),
+            image: self.image.clone(),
+            replay: self.replay.clone(),
+            libcamera: self.libcamera.clone(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use deckwatch_common::messages::{EstimatorKind, FrameSource};
+
+    #[test]
+    fn errors_name_file_line_and_key() {
+        let e = PipelineConfig::from_toml("p.toml", "[sim]\nscenari = \"ship\"\n").unwrap_err();
+        let m = e.to_string();
+        assert!(
+            m.contains("p.toml") && m.contains("scenari") && m.contains("line 2"),
+            "{m}"
+        );
+        let m = PipelineConfig::from_toml("p.toml", "[sim]\nrate = \"fast\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(m.contains("rate"), "{m}");
+        // Choices are typed: an unknown one is a parse error naming the key's value.
+        for (text, word) in [
+            ("[source]\nkind = \"usb\"\n", "usb"),
+            ("[estimate]\nestimator = \"magic\"\n", "magic"),
+            ("[decide]\npredictor = \"crystal-ball\"\n", "crystal-ball"),
+            ("[rerun]\nsink = \"printer\"\n", "printer"),
+            ("[sim]\nscenario = \"moon\"\n", "moon"),
+            ("[image]\nlook = \"fancy\"\n", "fancy"),
+            ("[nonsense]\nx = 1\n", "nonsense"),
+        ] {
+            let m = PipelineConfig::from_toml("p.toml", text).unwrap_err().to_string();
+            assert!(m.contains("p.toml") && m.contains(word), "{m}");
+        }
+        let c = PipelineConfig::from_toml("p.toml", "[decide]\nmax_age_ms = -1\n").unwrap();
+        let m = c.validate("p.toml").unwrap_err().to_string();
+        assert!(m.contains("p.toml") && m.contains("decide.max_age_ms"), "{m}");
+        let c = PipelineConfig::from_toml("p.toml", "[supervisor]\nready_timeout_ms = 0\n").unwrap();
+        let m = c.validate("p.toml").unwrap_err().to_string();
+        assert!(m.contains("supervisor.ready_timeout_ms"), "{m}");
+        let c = PipelineConfig::from_toml("p.toml", "[source]\nkind = \"replay\"\n").unwrap();
+        let m = c.validate("p.toml").unwrap_err().to_string();
+        assert!(m.contains("replay.recording"), "{m}");
+        let c = PipelineConfig::from_toml("p.toml", "[bus]\ndomain = \"Not Ok\"\n").unwrap();
+        let m = c.validate("p.toml").unwrap_err().to_string();
+        assert!(m.contains("bus") && m.contains("Not Ok"), "{m}");
+        let m = PipelineConfig::load(Path::new("/nonexistent/x.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            m.contains("/nonexistent/x.toml") && m.contains("cannot read"),
+            "{m}"
+        );
+    }
+
+    #[test]
+    fn typed_choices_read_their_names_and_round_trip() {
+        let text = "[source]\nkind = \"replay\"\n[replay]\nrecording = \"r\"\n\
+                    [estimate]\nestimator = \"paper-fitted-major-axis\"\n\
+                    [decide]\npredictor = \"ar\"\n[rerun]\nsink = \"save\"\npath = \"x.rrd\"\n\
+                    [sim]\nscenario = \"nodeck\"\n";
+        let c = PipelineConfig::from_toml("t", text).unwrap();
+        assert_eq!(c.source.kind, FrameSource::Replay);
+        assert_eq!(c.estimate.estimator, EstimatorKind::PaperFittedMajorAxis);
+        assert_eq!(c.decide.predictor, deckwatch_decide::Predictor::Ar);
+        assert_eq!(c.rerun.sink, deckwatch_viz::RerunSink::Save);
+        assert_eq!(c.sim.scenario, deckwatch_capture::Scenario::NoDeck);
+        let again = PipelineConfig::from_toml("again", &c.to_toml()).unwrap();
+        assert_eq!(again, c);
+        assert_eq!(
+            PipelineConfig::from_toml("t", "").unwrap(),
+            PipelineConfig::default()
+        );
+        PipelineConfig::default().validate(DEFAULTS).unwrap();
+    }
+}

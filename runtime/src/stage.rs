@@ -1,0 +1,319 @@
+//! The stage abstraction and its one runner.
+//!
+//! A stage is a per-message step from one input to one output ([`Stage::step`]) with an
+//! optional periodic [`Stage::tick`]; it knows nothing of processes or shared memory. The same
+//! value runs in a process of its own ([`main`]: setup, the event loop, logging, drop counting,
+//! exit codes) and in the in-process chain ([`crate::chain`]), so both compute the same thing.
+//!
+//! Adding a stage: implement [`Stage`] (in `stages/`), add a binary of a few lines
+//! (`src/bin/deckwatch-<name>.rs` calling [`main`]), and list it in [`STAGES`].
+
+use crate::bus::{
+    event_loop, quiet_logging, services, Bus, BusError, Flow, FrameSubscriber, Listener, Message,
+    MessageSubscriber, Wake,
+};
+use crate::config::{ConfigError, PipelineConfig, DEFAULTS};
+use deckwatch_common::messages::{monotonic_ns, FrameHeader};
+use deckwatch_viz::{Item, Logger};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+
+/// A frame as a stage sees it: header and pixels, wherever they are (shared memory, or a buffer
+/// of the in-process chain).
+#[derive(Debug, Clone, Copy)]
+pub struct Frame<'a> {
+    pub header: &'a FrameHeader,
+    pub pixels: &'a [u8],
+}
+
+/// One step of the pipeline.
+pub trait Stage: Sized {
+    /// The stage's name: its node, its binary (`deckwatch-<NAME>`), its log lines.
+    const NAME: &'static str;
+    /// What it consumes: [`Frames`] or a [`Message`] type.
+    type Input: Input;
+    type Output: Message;
+
+    /// The stage as the configuration says; `joined_late`: it joins a running pipeline (a
+    /// restart), so frames before the first it sees are not its drops.
+    fn from_config(config: &PipelineConfig, joined_late: bool) -> Result<Self, ConfigError>;
+
+    /// The output for one input received at `received_ns` (`CLOCK_MONOTONIC`).
+    fn step(&mut self, input: <Self::Input as Input>::View<'_>, received_ns: u64) -> Self::Output;
+
+    /// How often [`Stage::tick`] wants to run (None: never).
+    fn tick_period(&self) -> Option<Duration> {
+        None
+    }
+
+    /// Called every [`Stage::tick_period`]: an output to publish although no input came.
+    fn tick(&mut self, _now_ns: u64) -> Option<Self::Output> {
+        None
+    }
+
+    /// What was wrong with the last input, if anything (said once, on stderr).
+    fn take_warning(&mut self) -> Option<String> {
+        None
+    }
+
+    /// The viewer's items for an output.
+    fn viewer_items(&mut self, output: &Self::Output) -> Vec<Item>;
+
+    /// A line on what the stage did (printed when it stops).
+    fn summary(&self) -> String;
+}
+
+/// What a stage consumes: frames, or a message type.
+pub trait Input {
+    /// How one input is lent to [`Stage::step`].
+    type View<'a>;
+    /// The transport's receiving end.
+    type Port: InputPort<Self>;
+    /// The service whose subscriber count says the stage is listening.
+    const SERVICE: &'static str;
+    fn subscribe(bus: &Bus) -> Result<Self::Port, BusError>;
+}
+
+/// The receiving end of an [`Input`].
+pub trait InputPort<I: Input + ?Sized> {
+    fn listener(&self) -> &Listener;
+    /// Hands every input due now to `step`, and each result to `emit` once the input is
+    /// released (a frame goes back to shared memory before anything is published).
+    fn drain<O>(
+        &self,
+        step: impl for<'a> FnMut(I::View<'a>) -> O,
+        emit: impl FnMut(O) -> Result<(), BusError>,
+    ) -> Result<(), BusError>;
+}
+
+/// The input of a stage that consumes camera frames (detect).
+pub struct Frames;
+
+impl Input for Frames {
+    type View<'a> = Frame<'a>;
+    type Port = FrameSubscriber;
+    const SERVICE: &'static str = services::FRAMES;
+    fn subscribe(bus: &Bus) -> Result<FrameSubscriber, BusError> {
+        bus.frame_subscriber()
+    }
+}
+
+impl InputPort<Frames> for FrameSubscriber {
+    fn listener(&self) -> &Listener {
+        FrameSubscriber::listener(self)
+    }
+
+    /// Latest-frame semantics: only the newest queued frame; the ones passed over show up as
+    /// sequence gaps, which the stage counts.
+    fn drain<O>(
+        &self,
+        mut step: impl for<'a> FnMut(Frame<'a>) -> O,
+        mut emit: impl FnMut(O) -> Result<(), BusError>,
+    ) -> Result<(), BusError> {
+        while let Some((sample, _passed_over)) = self.receive_latest()? {
+            let out = step(Frame {
+                header: sample.header(),
+                pixels: sample.pixels(),
+            });
+            drop(sample);
+            emit(out)?;
+        }
+        Ok(())
+    }
+}
+
+impl<M: Message> Input for M {
+    type View<'a> = &'a M;
+    type Port = MessageSubscriber<M>;
+    const SERVICE: &'static str = <M as Message>::SERVICE;
+    fn subscribe(bus: &Bus) -> Result<MessageSubscriber<M>, BusError> {
+        bus.subscriber::<M>()
+    }
+}
+
+impl<M: Message> InputPort<M> for MessageSubscriber<M> {
+    fn listener(&self) -> &Listener {
+        MessageSubscriber::listener(self)
+    }
+
+    /// Every queued message, in order.
+    fn drain<O>(
+        &self,
+        mut step: impl for<'a> FnMut(&'a M) -> O,
+        mut emit: impl FnMut(O) -> Result<(), BusError>,
+    ) -> Result<(), BusError> {
+        while let Some(m) = self.receive()? {
+            emit(step(&m))?;
+        }
+        Ok(())
+    }
+}
+
+/// A stage the launcher runs: its name and the service it listens on once it is up (None: the
+/// source, which listens on nothing).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StageInfo {
+    pub name: &'static str,
+    pub ready_service: Option<&'static str>,
+}
+
+/// The stages in start order: each one's input service has a subscriber before the stage
+/// upstream of it starts, so no frame is published into the void.
+pub const STAGES: [StageInfo; 4] = [
+    StageInfo {
+        name: crate::stages::DecideStage::NAME,
+        ready_service: Some(<<crate::stages::DecideStage as Stage>::Input as Input>::SERVICE),
+    },
+    StageInfo {
+        name: crate::stages::EstimateStage::NAME,
+        ready_service: Some(<<crate::stages::EstimateStage as Stage>::Input as Input>::SERVICE),
+    },
+    StageInfo {
+        name: crate::stages::DetectStage::NAME,
+        ready_service: Some(<<crate::stages::DetectStage as Stage>::Input as Input>::SERVICE),
+    },
+    StageInfo {
+        name: crate::stages::capture::NAME,
+        ready_service: None,
+    },
+];
+
+/// The command line of every stage binary: the pipeline configuration and the domain.
+#[derive(Debug, Clone, clap::Parser)]
+#[command(
+    version,
+    about = "A deckwatch stage process (the launcher, `deckwatch run`, starts it)"
+)]
+pub struct StageArgs {
+    /// Pipeline configuration (TOML); each stage reads its own sections. Default: built-in
+    /// defaults.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// iceoryx2 domain (overrides `bus.domain`).
+    #[arg(long)]
+    pub domain: Option<String>,
+    /// This stage joins a running pipeline (the launcher restarted it): frames before the
+    /// first one it sees are not its drops.
+    #[arg(long)]
+    pub restarted: bool,
+}
+
+impl StageArgs {
+    /// The configuration with the `--domain` override applied (not yet validated).
+    pub fn config(&self) -> Result<PipelineConfig, ConfigError> {
+        let mut c = PipelineConfig::load_or_default(self.config.as_deref())?;
+        if let Some(d) = &self.domain {
+            c.bus.domain = d.clone();
+        }
+        Ok(c)
+    }
+
+    /// The configuration's name in messages.
+    pub fn config_name(&self) -> String {
+        self.config
+            .as_ref()
+            .map_or(DEFAULTS.to_string(), |p| p.display().to_string())
+    }
+}
+
+/// Why a stage process stopped with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    #[error(transparent)]
+    Bus(#[from] BusError),
+    #[error("rerun: {0}")]
+    Viewer(String),
+    #[error("{0}")]
+    Source(String),
+}
+
+/// Runs the stage binary: parse the command line, run, report; the exit code says how it went.
+pub fn main<S: Stage>() -> ExitCode {
+    let args = <StageArgs as clap::Parser>::parse();
+    exit_code(S::NAME, run::<S>(&args))
+}
+
+/// The exit code of a stage process, with its closing line on stderr.
+pub fn exit_code(name: &str, result: Result<String, RunError>) -> ExitCode {
+    match result {
+        Ok(summary) => {
+            eprintln!("deckwatch-{name}: {summary}");
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("deckwatch-{name}: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// The configuration of a stage process, checked (a stage may be started by hand, not only by
+/// the launcher, which checks it too).
+pub(crate) fn checked_config(args: &StageArgs) -> Result<PipelineConfig, RunError> {
+    let config = args.config()?;
+    config.validate(&args.config_name())?;
+    Ok(config)
+}
+
+/// What every stage process sets up: its logger and its node.
+pub(crate) fn setup(
+    name: &str,
+    config: &PipelineConfig,
+    max_frame_bytes: usize,
+) -> Result<(Option<Logger>, Bus), RunError> {
+    let logger = Logger::start(&config.rerun, name).map_err(RunError::Viewer)?;
+    quiet_logging();
+    let bus = Bus::join(&config.bus.settings(max_frame_bytes), name)?;
+    Ok((logger, bus))
+}
+
+/// The stage's life in its process: until SIGINT/SIGTERM, wake on input (or the tick), step,
+/// publish, log.
+pub fn run<S: Stage>(args: &StageArgs) -> Result<String, RunError> {
+    let config = checked_config(args)?;
+    // The subscriber side does not size frames; 1 is a placeholder the publisher never sees.
+    let (logger, bus) = setup(S::NAME, &config, 1)?;
+    let mut stage = S::from_config(&config, args.restarted)?;
+    let input = S::Input::subscribe(&bus)?;
+    let output = bus.publisher::<S::Output>()?;
+    let log = |items: Vec<Item>| {
+        if let Some(l) = &logger {
+            items.into_iter().for_each(|i| l.log(i));
+        }
+    };
+    let period = stage.tick_period();
+    event_loop(&[input.listener()], period, |wake| {
+        if wake == Wake::Tick {
+            if let Some(o) = stage.tick(monotonic_ns()) {
+                output.send(&o)?;
+                log(stage.viewer_items(&o));
+            }
+        }
+        input.drain(
+            |view| {
+                let o = stage.step(view, monotonic_ns());
+                let warning = stage.take_warning();
+                let items = if logger.is_some() {
+                    stage.viewer_items(&o)
+                } else {
+                    Vec::new()
+                };
+                (o, warning, items)
+            },
+            |(o, warning, items)| {
+                if let Some(w) = warning {
+                    eprintln!("deckwatch-{}: {w}", S::NAME);
+                }
+                output.send(&o)?;
+                log(items);
+                Ok(())
+            },
+        )?;
+        Ok::<Flow, BusError>(Flow::Continue)
+    })?;
+    let dropped_items = logger.as_ref().map_or(0, |l| l.dropped());
+    Ok(format!("{}; {dropped_items} log items dropped", stage.summary()))
+}

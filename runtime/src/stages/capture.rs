@@ -1,0 +1,165 @@
+//! The capture stage, the pipeline's source. Takes frames from the configured source
+//! (simulator, replay or a libcamera camera), writes each straight into a loaned iceoryx2 sample
+//! and publishes it, paced at the source's rate (a camera paces itself). If it falls behind, the
+//! frames whose time has passed are skipped and counted, as a camera would drop them; a camera's
+//! own sequence gaps count the same way. Exits when the source is exhausted or on SIGINT/SIGTERM.
+//!
+//! Capture is not a [`crate::stage::Stage`]: it has no input and writes into memory it loans
+//! from the transport. What it puts in a frame's header is defined once here ([`new_header`],
+//! [`complete_header`]) and used by the in-process chain too.
+
+use crate::bus::PublishError;
+use crate::stage::{checked_config, exit_code, setup, RunError, StageArgs};
+use deckwatch_capture::source::{CaptureSource, CapturedFrame};
+use deckwatch_common::messages::{
+    monotonic_ns, DropCounts, FrameContext, FrameHeader, FrameStamp, PixelFormat, StageTimes, Truth,
+};
+use std::process::ExitCode;
+use std::time::Duration;
+
+/// The stage's name (node, binary `deckwatch-capture`, log lines).
+pub const NAME: &str = "capture";
+
+/// How long capture keeps its frames available after the source is exhausted.
+const LINGER_MS: u64 = 1000;
+
+/// The header of frame `seq` of `source`, before its pixels are captured.
+pub fn new_header(source: &CaptureSource, seq: u64, drops: DropCounts) -> FrameHeader {
+    let camera = *source.camera();
+    FrameHeader {
+        stamp: FrameStamp {
+            seq,
+            times: StageTimes {
+                captured_ns: monotonic_ns(),
+                ..Default::default()
+            },
+            drops,
+        },
+        context: FrameContext {
+            source: source.kind(),
+            camera,
+            deck: *source.deck(),
+            ..Default::default()
+        },
+        width: camera.width,
+        height: camera.height,
+        stride: camera.width,
+        pixel_format: PixelFormat::Gray8,
+    }
+}
+
+/// What the source told of the frame it captured, into its header.
+pub fn complete_header(h: &mut FrameHeader, f: &CapturedFrame) {
+    if let Some(t) = f.captured_ns {
+        h.stamp.times.captured_ns = t;
+    }
+    h.stamp.drops.capture += f.dropped_before;
+    h.context.source_index = f.source_index;
+    h.context.source_timestamp_ns = f.source_timestamp_ns;
+    h.context.altitude_m = f.altitude_m.unwrap_or(f64::NAN);
+    h.context.truth = Truth::from_ground_truth(&f.truth, f.truth_known);
+}
+
+/// Runs the capture binary.
+pub fn main() -> ExitCode {
+    let args = <StageArgs as clap::Parser>::parse();
+    exit_code(NAME, run(&args))
+}
+
+/// Capture's life in its process.
+pub fn run(args: &StageArgs) -> Result<String, RunError> {
+    let config = checked_config(args)?;
+    let mut source = config.capture().open().map_err(RunError::Source)?;
+    eprintln!("deckwatch-capture: {}", source.describe());
+    let (logger, bus) = setup(NAME, &config, source.frame_bytes())?;
+    let publisher = bus.frame_publisher()?;
+    let (width, height) = (source.camera().width as usize, source.camera().height as usize);
+
+    let start = monotonic_ns();
+    let mut drops = DropCounts::default();
+    let (mut seq, mut k) = (0u64, 0u64);
+    loop {
+        if source.len().is_some_and(|n| k >= n) {
+            break;
+        }
+        // A camera: wait for its next frame, in slices so that a stop request is seen.
+        if !source
+            .wait_ready(Duration::from_millis(100))
+            .map_err(RunError::Source)?
+        {
+            if !bus.sleep(Duration::ZERO) {
+                break;
+            }
+            continue;
+        }
+        // Pace: sleep (signal-aware) until frame k is due; skip frames whose time has passed.
+        if let Some(due) = source.due_ns(k) {
+            let now = monotonic_ns() - start;
+            if now < due {
+                if !bus.sleep(Duration::from_nanos(due - now)) {
+                    break;
+                }
+            } else {
+                while source.due_ns(k + 1).is_some_and(|next| next <= now)
+                    && source.len().is_none_or(|n| k + 1 < n)
+                {
+                    k += 1;
+                    drops.capture += 1;
+                }
+            }
+        } else if !bus.sleep(Duration::ZERO) {
+            break;
+        }
+        let header = new_header(&source, seq, drops);
+        let frame = k;
+        let mut logged = None;
+        let mut lost_before = 0;
+        let result = publisher.publish(header, |h, pixels| {
+            let f = source.capture(frame, pixels, width)?;
+            complete_header(h, &f);
+            lost_before = f.dropped_before;
+            // For the viewer: the truth, and a downscaled copy of the image taken before the
+            // frame is sent.
+            if let Some(l) = &logger {
+                let t = h.stamp.times.captured_ns;
+                let image = l
+                    .wants_image(seq)
+                    .then(|| l.image(seq, t, pixels, width, height, width));
+                logged = Some((t, image, h.context.truth));
+            }
+            Ok::<(), String>(())
+        });
+        match result {
+            Ok(_) => {
+                drops.capture += lost_before;
+                if let (Some(l), Some((t, image, truth))) = (&logger, logged) {
+                    image.into_iter().for_each(|i| l.log(i));
+                    for item in deckwatch_viz::entities::truth_items(seq, t, &truth) {
+                        l.log(item);
+                    }
+                }
+                seq += 1
+            }
+            Err(PublishError::NoSample(e)) => {
+                drops.capture += 1;
+                eprintln!("deckwatch-capture: frame {frame} dropped: {e}");
+            }
+            Err(PublishError::Fill(e)) => {
+                drops.bad_frames += 1;
+                eprintln!("deckwatch-capture: frame {frame} skipped: {e}");
+            }
+            Err(e) => return Err(RunError::Source(e.to_string())),
+        }
+        k += 1;
+    }
+    // Frames still queued vanish with the publisher: give the consumers time to take them.
+    if source.len().is_some_and(|n| k >= n) {
+        bus.sleep(Duration::from_millis(LINGER_MS));
+    }
+    Ok(format!(
+        "{seq} frames published, {} dropped, {} bad; {} log items dropped",
+        drops.capture,
+        drops.bad_frames,
+        logger.as_ref().map_or(0, |l| l.dropped())
+    ))
+}

@@ -1,0 +1,231 @@
+//! The decide stage: the [`LandingDecider`] applied to the attitude stream, and its watchdog for
+//! an attitude stream that stops.
+//!
+//! Time: the decider runs on the frames' own timeline (`FrameContext::source_timestamp_ns`:
+//! simulated time, a recording's timestamps, the sensor's), and judges freshness by the age of
+//! each attitude on arrival (capture -> receipt on `CLOCK_MONOTONIC`). So the same frames give
+//! the same decisions in one process or in four, however long the hops took, as long as every
+//! attitude is fresh; a stale one is never decided on.
+
+use crate::config::{ConfigError, PipelineConfig};
+use crate::stage::Stage;
+use deckwatch_common::messages::{
+    monotonic_ns, AttitudeMessage, DecisionReason, DecisionState, GapCounter, LandingDecision,
+};
+use deckwatch_decide::{DecisionConfig, LandingDecider};
+use deckwatch_viz::Item;
+use std::time::Duration;
+
+/// State of the decide stage across messages.
+pub struct DecideStage {
+    decider: LandingDecider,
+    gaps: GapCounter,
+    last: Option<LandingDecision>,
+    /// The newest input: its time on the frames' timeline (s) and when it arrived (ns).
+    last_input: Option<(f64, u64)>,
+    last_logged: Option<(DecisionState, DecisionReason)>,
+    pub dropped: u64,
+    pub processed: u64,
+    pub watchdog_decisions: u64,
+}
+
+fn seconds(ns: u64) -> f64 {
+    ns as f64 / 1e9
+}
+
+/// A frame's time on its source's timeline (s): every source stamps it (the simulator and
+/// replay from their own clock, a camera with the sensor time); 0 is a valid time (the first
+/// simulated frame).
+fn frame_time_s(a: &AttitudeMessage) -> f64 {
+    seconds(a.context.source_timestamp_ns)
+}
+
+impl DecideStage {
+    /// `joined_late`: the pipeline was already running (see [`GapCounter::new`]).
+    pub fn new(
+        config: DecisionConfig,
+        joined_late: bool,
+    ) -> Result<Self, deckwatch_decide::DecisionConfigError> {
+        Ok(Self {
+            decider: LandingDecider::new(config)?,
+            gaps: GapCounter::new(joined_late),
+            last: None,
+            last_input: None,
+            last_logged: None,
+            dropped: 0,
+            processed: 0,
+            watchdog_decisions: 0,
+        })
+    }
+
+    /// The decision on one attitude received at `received_ns`.
+    pub fn process(&mut self, a: &AttitudeMessage, received_ns: u64) -> LandingDecision {
+        self.dropped += self.gaps.observe(a.stamp.seq, a.stamp.drops.total());
+        self.processed += 1;
+        let attitude = a.valid.then(|| {
+            let [r, p, _] = a.rpy.to_degrees();
+            [r, p]
+        });
+        let captured = a.stamp.times.captured_ns;
+        // A message without a capture time cannot be judged fresh.
+        let age_s = if captured == 0 {
+            f64::INFINITY
+        } else {
+            received_ns as f64 / 1e9 - seconds(captured)
+        };
+        let t = frame_time_s(a);
+        let d = self.decider.update_at_capture(t, attitude, age_s);
+        self.last_input = Some((t, received_ns));
+        let (start, length) = d.calm_window.unwrap_or((f64::NAN, f64::NAN));
+        let mut out = LandingDecision {
+            stamp: a.stamp,
+            context: a.context,
+            attitude: *a,
+            state: d.state,
+            reason: d.reason,
+            calm_window_start_s: start,
+            calm_window_length_s: length,
+            watchdog: false,
+        };
+        out.stamp.drops.decide = self.dropped;
+        out.stamp.times.decide_received_ns = received_ns;
+        out.stamp.times.decide_finished_ns = monotonic_ns();
+        self.last = Some(out);
+        out
+    }
+
+    /// When no attitude came for too long: the stale decision to publish (once).
+    pub fn watchdog(&mut self, now_ns: u64) -> Option<LandingDecision> {
+        let (t, received_ns) = self.last_input?;
+        // Now, on the frames' timeline: the newest frame's time plus what has passed since.
+        let now = t + now_ns.saturating_sub(received_ns) as f64 / 1e9;
+        let d = self.decider.timeout(now)?;
+        let mut out = self.last?;
+        out.state = d.state;
+        out.reason = d.reason;
+        out.calm_window_start_s = f64::NAN;
+        out.calm_window_length_s = f64::NAN;
+        out.watchdog = true;
+        out.stamp.times.decide_received_ns = now_ns;
+        out.stamp.times.decide_finished_ns = monotonic_ns();
+        self.watchdog_decisions += 1;
+        Some(out)
+    }
+}
+
+impl Stage for DecideStage {
+    const NAME: &'static str = "decide";
+    type Input = AttitudeMessage;
+    type Output = LandingDecision;
+
+    fn from_config(config: &PipelineConfig, joined_late: bool) -> Result<Self, ConfigError> {
+        Self::new(config.decide.clone(), joined_late).map_err(|e| ConfigError::Invalid {
+            file: "the pipeline configuration".into(),
+            key: format!("decide.{}", e.key),
+            problem: e.problem,
+        })
+    }
+
+    fn step(&mut self, a: &AttitudeMessage, received_ns: u64) -> LandingDecision {
+        self.process(a, received_ns)
+    }
+
+    /// Half the freshness limit: a silence is noticed within 1.5 times the limit.
+    fn tick_period(&self) -> Option<Duration> {
+        Some(Duration::from_secs_f64(self.decider.config().max_age_ms / 2e3))
+    }
+
+    fn tick(&mut self, now_ns: u64) -> Option<LandingDecision> {
+        self.watchdog(now_ns)
+    }
+
+    /// The plot gets every decision; the text log only the changes.
+    fn viewer_items(&mut self, d: &LandingDecision) -> Vec<Item> {
+        let changed = self.last_logged != Some((d.state, d.reason));
+        self.last_logged = Some((d.state, d.reason));
+        deckwatch_viz::entities::decision_items(d, changed)
+    }
+
+    fn summary(&self) -> String {
+        format!(
+            "{} attitudes, {} dropped, {} watchdog decisions",
+            self.processed, self.dropped, self.watchdog_decisions
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use deckwatch_common::Rpy;
+
+    #[test]
+    fn invalid_stale_and_silence_never_clear() {
+        let mut s = DecideStage::new(DecisionConfig::default(), false).unwrap();
+        let mut a = AttitudeMessage {
+            valid: true,
+            rpy: Rpy::from_degrees(1.0, 1.0, 0.0),
+            ..Default::default()
+        };
+        a.stamp.times.captured_ns = 1_000_000_000;
+        let d = s.process(&a, 1_010_000_000);
+        assert_eq!((d.state, d.reason), (DecisionState::Hold, DecisionReason::Warmup));
+        // 900 ms old on arrival: stale.
+        a.stamp.seq = 1;
+        a.stamp.times.captured_ns = 1_100_000_000;
+        let d = s.process(&a, 2_000_000_000);
+        assert_eq!(
+            (d.state, d.reason),
+            (DecisionState::NoDeck, DecisionReason::StaleData)
+        );
+        a.valid = false;
+        a.stamp.seq = 2;
+        assert_eq!(s.process(&a, 1_210_000_000).state, DecisionState::NoDeck);
+        // No capture time: never fresh.
+        a.valid = true;
+        a.stamp.seq = 3;
+        a.stamp.times.captured_ns = 0;
+        assert_eq!(s.process(&a, 1_220_000_000).reason, DecisionReason::StaleData);
+        // Silence: the watchdog speaks once.
+        assert!(s.watchdog(1_300_000_000).is_none());
+        let w = s.watchdog(2_300_000_000).unwrap();
+        assert!(w.watchdog && w.reason == DecisionReason::StaleData);
+        assert!(s.watchdog(2_400_000_000).is_none());
+        let e = PipelineConfig::from_toml("d.toml", "[decide]\nmax_age_ms = -1\n").unwrap();
+        let e = DecideStage::from_config(&e, false).err().unwrap().to_string();
+        assert!(e.contains("decide.max_age_ms"), "{e}");
+    }
+
+    /// The decision depends on the frames' timeline, not on when they arrived.
+    #[test]
+    fn same_frames_same_decisions_whatever_the_delay() {
+        let run = |delay_ns: u64| {
+            let mut s = DecideStage::new(DecisionConfig::default(), false).unwrap();
+            (0..400u64)
+                .map(|k| {
+                    let t = k as f64 * 0.1;
+                    let mut a = AttitudeMessage {
+                        valid: true,
+                        rpy: Rpy::from_degrees(2.0 * (0.7 * t).sin(), 1.5 * (0.5 * t + 1.0).sin(), 0.0),
+                        ..Default::default()
+                    };
+                    a.stamp.seq = k;
+                    a.context.source_timestamp_ns = k * 100_000_000;
+                    // Capture on the monotonic clock somewhere else entirely.
+                    a.stamp.times.captured_ns = 5_000_000_000 + k * 100_000_000 + (k % 7) * 1_000_000;
+                    let received = a.stamp.times.captured_ns + delay_ns + (k % 3) * 2_000_000;
+                    let d = s.process(&a, received);
+                    (
+                        d.state,
+                        d.reason,
+                        d.calm_window_start_s.to_bits(),
+                        d.calm_window_length_s.to_bits(),
+                    )
+                })
+                .collect::<Vec<_>>()
+        };
+        let (a, b) = (run(1_000_000), run(40_000_000));
+        assert_eq!(a, b);
+        assert!(a.iter().any(|d| d.1 != DecisionReason::Warmup));
+    }
+}

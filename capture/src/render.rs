@@ -199,8 +199,8 @@ impl Renderer {
         options: RenderOptions,
         seed: u64,
     ) -> Result<Self, String> {
-        camera.validate()?;
-        deck.validate()?;
+        camera.validate().map_err(|e| e.to_string())?;
+        deck.validate().map_err(|e| e.to_string())?;
         options.validate()?;
         let deck_tex = value_noise(TEX, seed, &[(8, 0.5), (32, 0.3), (128, 0.15), (512, 0.05)]);
         let sea_tex = value_noise(TEX, seed ^ 0x5ea, &[(4, 0.45), (16, 0.35), (64, 0.2)]);

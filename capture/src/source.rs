@@ -8,10 +8,36 @@ use crate::scenario::SimulationArgs;
 use crate::sim::ImageArgs;
 use crate::{FrameSimulator, Renderer};
 use deckwatch_common::messages::FrameSource;
-use deckwatch_common::{CameraModel, DeckLayout, GrayViewMut, GroundTruth, Recording};
+use deckwatch_common::{CameraModel, DeckLayout, GrayViewMut, GroundTruth, Recording, RecordingError};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 use std::time::Duration;
+
+/// Why a source cannot be opened, or a frame not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum SourceError {
+    /// A configuration value: `section.key` and what is wrong with it.
+    #[error("{key}: {problem}")]
+    Config { key: &'static str, problem: String },
+    #[error(transparent)]
+    Recording(#[from] RecordingError),
+    /// The simulator's options (`[sim]`, `[image]`) do not make a simulation.
+    #[error("{0}")]
+    Simulator(String),
+    /// The camera failed (libcamera), or this build has no camera support.
+    #[error("{0}")]
+    Camera(String),
+    /// One frame could not be read (it is counted and skipped; the source goes on).
+    #[error("{0}")]
+    BadFrame(String),
+}
+
+fn config_error(key: &'static str, problem: impl Into<String>) -> SourceError {
+    SourceError::Config {
+        key,
+        problem: problem.into(),
+    }
+}
 
 /// `[source]`: which source, and what it tells beside the pixels.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
@@ -79,44 +105,65 @@ pub struct CaptureConfig {
 impl CaptureConfig {
     /// Checks the configuration without opening the source (no rendering, no decoding): what
     /// the launcher does before it starts the stages.
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), SourceError> {
         match self.source.kind {
             FrameSource::Simulator => {
-                let sim = self.sim.resolve().map_err(|e| format!("[sim] {e}"))?;
-                self.image.resolve(&sim).map_err(|e| format!("[image] {e}"))?;
+                self.resolve_sim()?;
                 Ok(())
             }
             FrameSource::Replay => {
-                let dir = self.replay.recording.as_ref().ok_or(
-                    "replay.recording: the recording folder is required for source.kind = \"replay\"",
-                )?;
-                Recording::open(dir).map_err(|e| e.to_string())?;
-                if matches!(self.replay.rate_hz, Some(hz) if !(hz.is_finite() && hz >= 0.0)) {
-                    return Err(format!(
-                        "replay.rate_hz: must be >= 0, got {:?}",
-                        self.replay.rate_hz
-                    ));
-                }
+                Recording::open(self.recording()?)?;
+                self.replay_pace()?;
                 Ok(())
             }
             FrameSource::Libcamera => {
-                self.libcamera.validate()?;
-                if let Some(size) = self.libcamera.requested_size()? {
-                    self.libcamera.camera_model(size.0, size.1)?;
+                let camera = |e: String| SourceError::Camera(e);
+                self.libcamera.validate().map_err(camera)?;
+                if let Some(size) = self.libcamera.requested_size().map_err(camera)? {
+                    self.libcamera.camera_model(size.0, size.1).map_err(camera)?;
                 }
                 if !crate::camera::LIBCAMERA_BUILT_IN {
-                    return Err(format!(
-                        "source.kind = \"libcamera\": {}",
-                        crate::camera::NOT_BUILT
-                    ));
+                    return Err(not_built());
                 }
                 Ok(())
             }
         }
     }
 
+    /// The simulation and its image as configured.
+    fn resolve_sim(
+        &self,
+    ) -> Result<(crate::scenario::Simulation, CameraModel, crate::RenderOptions), SourceError> {
+        let sim = self
+            .sim
+            .resolve()
+            .map_err(|e| SourceError::Simulator(format!("[sim] {e}")))?;
+        let (camera, options) = self
+            .image
+            .resolve(&sim)
+            .map_err(|e| SourceError::Simulator(format!("[image] {e}")))?;
+        Ok((sim, camera, options))
+    }
+
+    /// The recording to replay.
+    fn recording(&self) -> Result<&std::path::Path, SourceError> {
+        self.replay.recording.as_deref().ok_or(config_error(
+            "replay.recording",
+            "the recording folder is required for source.kind = \"replay\"",
+        ))
+    }
+
+    fn replay_pace(&self) -> Result<Pace, SourceError> {
+        Ok(match self.replay.rate_hz {
+            None => Pace::Recorded,
+            Some(0.0) => Pace::AsFastAsPossible,
+            Some(hz) if hz.is_finite() && hz > 0.0 => Pace::Fixed((1e9 / hz).round() as u64),
+            Some(hz) => return Err(config_error("replay.rate_hz", format!("must be >= 0, got {hz}"))),
+        })
+    }
+
     /// Opens the configured source.
-    pub fn open(&self) -> Result<CaptureSource, String> {
+    pub fn open(&self) -> Result<CaptureSource, SourceError> {
         match self.source.kind {
             FrameSource::Simulator => self.open_sim(),
             FrameSource::Replay => self.open_replay(),
@@ -124,10 +171,10 @@ impl CaptureConfig {
         }
     }
 
-    fn open_sim(&self) -> Result<CaptureSource, String> {
-        let sim = self.sim.resolve().map_err(|e| format!("[sim] {e}"))?;
-        let (camera, options) = self.image.resolve(&sim).map_err(|e| format!("[image] {e}"))?;
-        let renderer = Renderer::new(camera, sim.deck, options, self.sim.seed)?;
+    fn open_sim(&self) -> Result<CaptureSource, SourceError> {
+        let (sim, camera, options) = self.resolve_sim()?;
+        let renderer = Renderer::new(camera, sim.deck, options, self.sim.seed)
+            .map_err(|e| SourceError::Simulator(format!("[image] {e}")))?;
         let frames = FrameSimulator::new(
             sim.scenario.profile(self.sim.seed),
             renderer,
@@ -136,7 +183,7 @@ impl CaptureConfig {
             8,
             self.sim.seed,
         )
-        .map_err(|e| format!("[sim] {e}"))?;
+        .map_err(|e| SourceError::Simulator(format!("[sim] {e}")))?;
         Ok(CaptureSource {
             camera,
             deck: sim.deck,
@@ -150,18 +197,18 @@ impl CaptureConfig {
     }
 
     #[cfg(not(feature = "libcamera"))]
-    fn open_camera(&self) -> Result<CaptureSource, String> {
-        self.libcamera.validate()?;
-        Err(format!(
-            "source.kind = \"libcamera\": {}",
-            crate::camera::NOT_BUILT
-        ))
+    fn open_camera(&self) -> Result<CaptureSource, SourceError> {
+        self.libcamera.validate().map_err(SourceError::Camera)?;
+        Err(not_built())
     }
 
     #[cfg(feature = "libcamera")]
-    fn open_camera(&self) -> Result<CaptureSource, String> {
-        let camera = crate::camera::LibcameraSource::open(&self.libcamera)?;
-        let (model, deck) = self.libcamera.camera_model(camera.width(), camera.height())?;
+    fn open_camera(&self) -> Result<CaptureSource, SourceError> {
+        let camera = crate::camera::LibcameraSource::open(&self.libcamera).map_err(SourceError::Camera)?;
+        let (model, deck) = self
+            .libcamera
+            .camera_model(camera.width(), camera.height())
+            .map_err(SourceError::Camera)?;
         Ok(CaptureSource {
             camera: model,
             deck,
@@ -173,31 +220,29 @@ impl CaptureConfig {
         })
     }
 
-    fn open_replay(&self) -> Result<CaptureSource, String> {
+    fn open_replay(&self) -> Result<CaptureSource, SourceError> {
         let r = &self.replay;
-        let dir = r
-            .recording
-            .as_ref()
-            .ok_or("replay.recording: the recording folder is required for source.kind = \"replay\"")?;
-        let rec = Recording::open(dir).map_err(|e| e.to_string())?;
+        let dir = self.recording()?;
+        let rec = Recording::open(dir)?;
         if rec.frames.is_empty() {
-            return Err(format!("{}: the recording has no frames", dir.display()));
+            return Err(config_error(
+                "replay.recording",
+                format!("{}: the recording has no frames", dir.display()),
+            ));
         }
-        let pace = match r.rate_hz {
-            None => Pace::Recorded,
-            Some(0.0) => Pace::AsFastAsPossible,
-            Some(hz) if hz.is_finite() && hz > 0.0 => Pace::Fixed((1e9 / hz).round() as u64),
-            Some(hz) => return Err(format!("replay.rate_hz: must be >= 0, got {hz}")),
-        };
+        let pace = self.replay_pace()?;
         let frame_bytes = rec.camera.width as u64 * rec.camera.height as u64;
         let preloaded = if r.preload {
             let mib = (frame_bytes * rec.frames.len() as u64).div_ceil(1 << 20);
             if mib > r.preload_limit_mib {
-                return Err(format!(
-                    "replay.preload: {} frames need {mib} MiB, more than replay.preload_limit_mib = {}; \
+                return Err(config_error(
+                    "replay.preload",
+                    format!(
+                        "{} frames need {mib} MiB, more than replay.preload_limit_mib = {}; \
                      raise the limit or set preload = false",
-                    rec.frames.len(),
-                    r.preload_limit_mib
+                        rec.frames.len(),
+                        r.preload_limit_mib
+                    ),
                 ));
             }
             // A frame that cannot be read stays None: it is counted and skipped when due.
@@ -236,6 +281,14 @@ fn recorded_offset_ns(rec: &Recording, k: u64) -> u64 {
     let period = if n > 1 { last / (n - 1) } else { 100_000_000 };
     let (lap, j) = (k / n, (k % n) as usize);
     lap * (last + period) + rec.frames[j].timestamp_ns.saturating_sub(t0)
+}
+
+/// The error of a build without the `libcamera` feature asked for a camera.
+fn not_built() -> SourceError {
+    SourceError::Camera(format!(
+        "source.kind = \"libcamera\": {}",
+        crate::camera::NOT_BUILT
+    ))
 }
 
 /// How replay paces frames.
@@ -362,10 +415,10 @@ impl CaptureSource {
     /// Waits up to `wait` until the next frame can be captured: at once for the simulator and
     /// replay; for a camera, until it delivers one (Ok(false): not yet, ask again). An error
     /// means the source failed (a camera that stopped delivering).
-    pub fn wait_ready(&mut self, wait: Duration) -> Result<bool, String> {
+    pub fn wait_ready(&mut self, wait: Duration) -> Result<bool, SourceError> {
         match &mut self.inner {
             #[cfg(feature = "libcamera")]
-            Inner::Camera { camera, .. } => camera.wait(wait),
+            Inner::Camera { camera, .. } => camera.wait(wait).map_err(SourceError::Camera),
             _ => {
                 let _ = wait;
                 Ok(true)
@@ -392,7 +445,11 @@ impl CaptureSource {
 
     /// Writes frame `k` into `out` (`stride` bytes a row, at least `frame_bytes()` in all) and
     /// returns what is known of it. An error means the frame is bad (counted and skipped).
-    pub fn capture(&mut self, k: u64, out: &mut [u8], stride: usize) -> Result<CapturedFrame, String> {
+    pub fn capture(&mut self, k: u64, out: &mut [u8], stride: usize) -> Result<CapturedFrame, SourceError> {
+        self.capture_frame(k, out, stride).map_err(SourceError::BadFrame)
+    }
+
+    fn capture_frame(&mut self, k: u64, out: &mut [u8], stride: usize) -> Result<CapturedFrame, String> {
         let (w, h) = (self.camera.width as usize, self.camera.height as usize);
         let altimeter = self.altimeter;
         match &mut self.inner {
@@ -475,8 +532,17 @@ mod tests {
             ..Default::default()
         };
         let e = c.open().err().unwrap();
-        assert!(e.contains("replay.recording"), "{e}");
-        assert!(c.check().unwrap_err().contains("replay.recording"));
+        assert!(
+            matches!(
+                e,
+                SourceError::Config {
+                    key: "replay.recording",
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        assert!(c.check().unwrap_err().to_string().contains("replay.recording"));
     }
 
     #[test]

@@ -196,14 +196,17 @@ fn camera_record(
     let (mut c, _) = pipeline::load(config.as_deref())?;
     c.source.kind = deckwatch_common::messages::FrameSource::Libcamera;
     c.libcamera.frames = frames;
-    let mut source = c.capture().open()?;
+    let mut source = c.capture().open().map_err(|e| e.to_string())?;
     eprintln!("{}", source.describe());
     let (camera, deck) = (*source.camera(), *source.deck());
     let mut writer = RecordingWriter::create(out, &camera, &deck, [false; 6]).map_err(|e| e.to_string())?;
     let mut img = GrayImage::new(camera.width as usize, camera.height as usize);
     let (mut k, mut bad) = (0, 0);
     while k < frames {
-        if !source.wait_ready(std::time::Duration::from_millis(100))? {
+        if !source
+            .wait_ready(std::time::Duration::from_millis(100))
+            .map_err(|e| e.to_string())?
+        {
             continue;
         }
         let width = img.width;

@@ -169,26 +169,35 @@ impl CameraModel {
     }
 
     /// Checks every field; the error names the field.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), crate::InvalidField> {
         if self.width == 0 {
-            return Err("field `width`: must be > 0".into());
+            return Err(crate::InvalidField::new("width", "must be > 0"));
         }
         if self.height == 0 {
-            return Err("field `height`: must be > 0".into());
+            return Err(crate::InvalidField::new("height", "must be > 0"));
         }
         for (name, v) in [("fx", self.fx), ("fy", self.fy)] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!("field `{name}`: must be a positive number, got {v}"));
+                return Err(crate::InvalidField::new(
+                    name,
+                    format!("must be a positive number, got {v}"),
+                ));
             }
         }
         for (name, v) in [("cx", self.cx), ("cy", self.cy)] {
             if !v.is_finite() {
-                return Err(format!("field `{name}`: must be a finite number, got {v}"));
+                return Err(crate::InvalidField::new(
+                    name,
+                    format!("must be a finite number, got {v}"),
+                ));
             }
         }
         for (i, k) in self.distortion.to_array().iter().enumerate() {
             if !k.is_finite() {
-                return Err(format!("field `distortion[{i}]`: must be finite, got {k}"));
+                return Err(crate::InvalidField::new(
+                    format!("distortion[{i}]"),
+                    format!("must be finite, got {k}"),
+                ));
             }
         }
         Ok(())
@@ -274,10 +283,10 @@ mod tests {
     fn validate_names_the_field() {
         let mut c = CameraModel::rpi_v2();
         c.fy = -1.0;
-        assert!(c.validate().unwrap_err().contains("`fy`"));
+        assert!(c.validate().unwrap_err().to_string().contains("`fy`"));
         c = CameraModel::rpi_v2();
         c.distortion.p2 = f64::NAN;
-        assert!(c.validate().unwrap_err().contains("`distortion[3]`"));
+        assert!(c.validate().unwrap_err().to_string().contains("`distortion[3]`"));
     }
 
     #[test]

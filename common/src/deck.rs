@@ -51,34 +51,43 @@ impl DeckLayout {
     }
 
     /// Checks the layout; the error names the field.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), crate::InvalidField> {
         for (name, v) in [
             ("ring_radius_m", self.ring_radius_m),
             ("marker_radius_m", self.marker_radius_m),
             ("bow_marker_radius_m", self.bow_marker_radius_m),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!("field `{name}`: must be a positive number, got {v}"));
+                return Err(crate::InvalidField::new(
+                    name,
+                    format!("must be a positive number, got {v}"),
+                ));
             }
         }
         if self.n_ring < 4 || self.n_ring > MAX_RING_MARKERS || !self.n_ring.is_multiple_of(2) {
-            return Err(format!(
-                "field `n_ring`: must be even and within 4..={MAX_RING_MARKERS}, got {}",
-                self.n_ring
+            return Err(crate::InvalidField::new(
+                "n_ring",
+                format!(
+                    "must be even and within 4..={MAX_RING_MARKERS}, got {}",
+                    self.n_ring
+                ),
             ));
         }
         // Discs must not touch: neighbours on the ring, and the centre disc with the ring.
         let chord = 2.0 * self.ring_radius_m * (std::f64::consts::PI / self.n_ring as f64).sin();
         if chord <= self.marker_radius_m + self.bow_marker_radius_m {
-            return Err(format!(
-                "field `n_ring`: {} markers on a {} m ring overlap (neighbour spacing {chord:.4} m)",
-                self.n_ring, self.ring_radius_m
+            return Err(crate::InvalidField::new(
+                "n_ring",
+                format!(
+                    "{} markers on a {} m ring overlap (neighbour spacing {chord:.4} m)",
+                    self.n_ring, self.ring_radius_m
+                ),
             ));
         }
         if self.ring_radius_m <= self.marker_radius_m + self.bow_marker_radius_m {
-            return Err(format!(
-                "field `ring_radius_m`: {} m is too small for the marker discs",
-                self.ring_radius_m
+            return Err(crate::InvalidField::new(
+                "ring_radius_m",
+                format!("{} m is too small for the marker discs", self.ring_radius_m),
             ));
         }
         Ok(())
@@ -171,7 +180,7 @@ mod tests {
         let bad = |f: fn(&mut DeckLayout), field: &str| {
             let mut d = DeckLayout::paper();
             f(&mut d);
-            let e = d.validate().unwrap_err();
+            let e = d.validate().unwrap_err().to_string();
             assert!(e.contains(field), "{e}");
         };
         bad(|d| d.n_ring = 7, "`n_ring`");

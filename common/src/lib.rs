@@ -8,6 +8,7 @@
 pub mod camera;
 pub mod deck;
 pub mod ellipse;
+pub mod error;
 pub mod homography;
 pub mod image;
 pub mod marker_table;
@@ -20,6 +21,7 @@ pub mod stats;
 
 pub use camera::{CameraModel, Distortion};
 pub use deck::DeckLayout;
+pub use error::InvalidField;
 pub use image::{GrayImage, GrayView, GrayViewMut};
 pub use markers::{DetectionStatus, Marker, MarkerSet};
 pub use recording::{GroundTruth, Recording, RecordingError, RecordingWriter};

@@ -169,7 +169,9 @@ fn parse_camera_json(path: &Path, text: &str) -> Result<(CameraModel, DeckLayout
         cy: json.cy,
         distortion: Distortion::from_array(json.distortion.as_slice().try_into().expect("length checked")),
     };
-    camera.validate().map_err(|m| RecordingError::new(path, m))?;
+    camera
+        .validate()
+        .map_err(|m| RecordingError::new(path, m.to_string()))?;
     let d = &json.deck;
     let deck = DeckLayout {
         ring_radius_m: d.ring_radius_m,
@@ -571,8 +573,11 @@ impl RecordingWriter {
         truth_columns: [bool; 6],
     ) -> Result<Self, RecordingError> {
         let dir = dir.as_ref().to_path_buf();
-        camera.validate().map_err(|m| RecordingError::new(&dir, m))?;
-        deck.validate().map_err(|m| RecordingError::new(&dir, m))?;
+        camera
+            .validate()
+            .map_err(|m| RecordingError::new(&dir, m.to_string()))?;
+        deck.validate()
+            .map_err(|m| RecordingError::new(&dir, m.to_string()))?;
         if dir.join(FRAMES_FILE).exists() {
             return Err(RecordingError::new(
                 &dir,

@@ -752,7 +752,10 @@ mod tests {
             assert!(t < 120.0, "a moderate sea has calm windows");
         };
         let r = d.update_at_capture(f64::NAN, Some(sea(committed, 0.8)), 0.01);
-        assert_eq!((r.state, r.reason), (DecisionState::Abort, DecisionReason::StaleData));
+        assert_eq!(
+            (r.state, r.reason),
+            (DecisionState::Abort, DecisionReason::StaleData)
+        );
         // Nor does it stop the watchdog: silence after it is still noticed.
         assert!(d.timeout(committed + 1.0).is_some());
     }

@@ -7,7 +7,7 @@ use crate::config::PipelineConfig;
 use crate::stage::{Frame, RunError, Stage};
 use crate::stages::capture::{complete_header, new_header};
 use crate::stages::{DecideStage, DetectStage, EstimateStage};
-use deckwatch_capture::source::CaptureSource;
+use deckwatch_capture::source::{CaptureSource, SourceError};
 use deckwatch_common::messages::{AttitudeMessage, DropCounts, LandingDecision, MarkerMessage};
 use std::time::{Duration, Instant};
 
@@ -38,7 +38,7 @@ impl StageChain {
     /// Opens the configured source and builds the stages. The source runs as fast as the
     /// stages go: the chain paces nothing.
     pub fn new(config: &PipelineConfig) -> Result<Self, RunError> {
-        let source = config.capture().open().map_err(RunError::Source)?;
+        let source = config.capture().open()?;
         Ok(Self {
             pixels: vec![0; source.frame_bytes()],
             source,
@@ -65,9 +65,9 @@ impl StageChain {
 /// frame the source cannot read is counted (`drops().bad_frames`) and reported as the error;
 /// the chain goes on with the next one.
 impl Iterator for StageChain {
-    type Item = Result<ChainOutput, String>;
+    type Item = Result<ChainOutput, SourceError>;
 
-    fn next(&mut self) -> Option<Result<ChainOutput, String>> {
+    fn next(&mut self) -> Option<Self::Item> {
         if self.source.len().is_some_and(|n| self.next_frame >= n) {
             return None;
         }
@@ -80,7 +80,7 @@ impl Iterator for StageChain {
             Ok(f) => complete_header(&mut header, &f),
             Err(e) => {
                 self.drops.bad_frames += 1;
-                return Some(Err(format!("frame {k}: {e}")));
+                return Some(Err(e));
             }
         }
         self.drops = header.stamp.drops;

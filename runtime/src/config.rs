@@ -9,7 +9,7 @@ use crate::bus::{BusConfig, BusError};
 use deckwatch_capture::camera::CameraConfig;
 use deckwatch_capture::scenario::SimulationArgs;
 use deckwatch_capture::sim::ImageArgs;
-use deckwatch_capture::source::{CaptureConfig, ReplayConfig, SourceConfig};
+use deckwatch_capture::source::{CaptureConfig, ReplayConfig, SourceConfig, SourceError};
 use deckwatch_decide::DecisionConfig;
 use deckwatch_estimate::EstimateConfig;
 use deckwatch_viz::RerunConfig;
@@ -83,6 +83,9 @@ pub enum ConfigError {
         key: String,
         problem: String,
     },
+    /// The source's sections (`[source]`, `[sim]`, `[image]`, `[replay]`, `[libcamera]`).
+    #[error("{file}: {source}")]
+    Source { file: String, source: SourceError },
     #[error(transparent)]
     Bus(#[from] BusError),
 }
@@ -132,9 +135,9 @@ impl PipelineConfig {
             .settings(1)
             .validate()
             .map_err(|e| invalid("bus".into(), e))?;
-        self.capture().check().map_err(|e| ConfigError::Parse {
+        self.capture().check().map_err(|source| ConfigError::Source {
             file: file.to_string(),
-            message: e,
+            source,
         })?;
         self.decide
             .validate()

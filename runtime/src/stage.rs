@@ -226,8 +226,11 @@ pub enum RunError {
     Bus(#[from] BusError),
     #[error("rerun: {0}")]
     Viewer(String),
+    #[error(transparent)]
+    Source(#[from] deckwatch_capture::source::SourceError),
+    /// Publishing a frame failed for another reason than a full queue or a bad frame.
     #[error("{0}")]
-    Source(String),
+    Publish(String),
 }
 
 /// Runs the stage binary: parse the command line, run, report; the exit code says how it went.

@@ -10,7 +10,7 @@
 
 use crate::bus::PublishError;
 use crate::stage::{checked_config, exit_code, setup, RunError, StageArgs};
-use deckwatch_capture::source::{CaptureSource, CapturedFrame};
+use deckwatch_capture::source::{CaptureSource, CapturedFrame, SourceError};
 use deckwatch_common::messages::{
     monotonic_ns, DropCounts, FrameContext, FrameHeader, FrameStamp, PixelFormat, StageTimes, Truth,
 };
@@ -69,7 +69,7 @@ pub fn main() -> ExitCode {
 /// Capture's life in its process.
 pub fn run(args: &StageArgs) -> Result<String, RunError> {
     let config = checked_config(args)?;
-    let mut source = config.capture().open().map_err(RunError::Source)?;
+    let mut source = config.capture().open()?;
     eprintln!("deckwatch-capture: {}", source.describe());
     let (logger, bus) = setup(NAME, &config, source.frame_bytes())?;
     let publisher = bus.frame_publisher()?;
@@ -127,7 +127,7 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
                     .then(|| l.image(seq, t, pixels, width, height, width));
                 logged = Some((t, image, h.context.truth));
             }
-            Ok::<(), String>(())
+            Ok::<(), SourceError>(())
         });
         match result {
             Ok(_) => {
@@ -148,7 +148,7 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
                 drops.bad_frames += 1;
                 eprintln!("deckwatch-capture: frame {frame} skipped: {e}");
             }
-            Err(e) => return Err(RunError::Source(e.to_string())),
+            Err(e) => return Err(RunError::Publish(e.to_string())),
         }
         k += 1;
     }

@@ -321,16 +321,11 @@ mod tests {
             height: Some(480),
             look: Look::Clean,
             blur_px: Some(1.0),
-            exposure_ms: 0.0,
-            read_noise: None,
-            shot_noise: None,
-            vignetting: None,
-            gradient: None,
-            texture: None,
             contrast: Some(0.5),
             occlude: Some(4),
             glints: Some(3),
             distortion: Some(vec![-0.1, 0.0, 0.0, 0.0, 0.0]),
+            ..ImageArgs::default()
         };
         let (cam, o) = a.resolve(&sim).unwrap();
         assert_eq!((cam.width, cam.height, cam.distortion.k1), (640, 480, -0.1));

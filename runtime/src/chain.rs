@@ -8,7 +8,7 @@ use crate::stage::{Frame, RunError, Stage};
 use crate::stages::capture::{complete_header, new_header};
 use crate::stages::{DecideStage, DetectStage, EstimateStage};
 use deckwatch_capture::source::{CaptureSource, SourceError};
-use deckwatch_common::messages::{AttitudeMessage, DropCounts, LandingDecision, MarkerMessage};
+use deckwatch_common::messages::{AttitudeMessage, DropCounts, FrameSource, LandingDecision, MarkerMessage};
 use std::time::{Duration, Instant};
 
 /// What every stage made of one frame, and how long each took.
@@ -36,8 +36,16 @@ pub struct StageChain {
 
 impl StageChain {
     /// Opens the configured source and builds the stages. The source runs as fast as the
-    /// stages go: the chain paces nothing.
+    /// stages go: the chain paces nothing, so it takes sources that deliver on demand (the
+    /// simulator, a replay), not a camera.
     pub fn new(config: &PipelineConfig) -> Result<Self, RunError> {
+        if config.source.kind == FrameSource::Libcamera {
+            return Err(SourceError::Config {
+                key: "source.kind",
+                problem: "the in-process chain takes the simulator or a replay, not a camera".into(),
+            }
+            .into());
+        }
         let source = config.capture().open()?;
         Ok(Self {
             pixels: vec![0; source.frame_bytes()],

@@ -142,7 +142,10 @@ impl PipelineConfig {
         self.decide
             .validate()
             .map_err(|e| invalid(format!("decide.{}", e.key), e.problem))?;
-        self.rerun.validate().map_err(|e| invalid("rerun".into(), e))?;
+        self.rerun.validate().map_err(|e| match e {
+            deckwatch_viz::VizError::Config { key, problem } => invalid(format!("rerun.{key}"), problem),
+            other => invalid("rerun".into(), other.to_string()),
+        })?;
         let s = &self.supervisor;
         for (k, v) in [
             ("ready_timeout_ms", s.ready_timeout_ms),

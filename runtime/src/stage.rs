@@ -224,8 +224,8 @@ pub enum RunError {
     Config(#[from] ConfigError),
     #[error(transparent)]
     Bus(#[from] BusError),
-    #[error("rerun: {0}")]
-    Viewer(String),
+    #[error(transparent)]
+    Viewer(#[from] deckwatch_viz::VizError),
     #[error(transparent)]
     Source(#[from] deckwatch_capture::source::SourceError),
     /// Publishing a frame failed for another reason than a full queue or a bad frame.
@@ -267,7 +267,7 @@ pub(crate) fn setup(
     config: &PipelineConfig,
     max_frame_bytes: usize,
 ) -> Result<(Option<Logger>, Bus), RunError> {
-    let logger = Logger::start(&config.rerun, name).map_err(RunError::Viewer)?;
+    let logger = Logger::start(&config.rerun, name)?;
     quiet_logging();
     let bus = Bus::join(&config.bus.settings(max_frame_bytes), name)?;
     Ok((logger, bus))

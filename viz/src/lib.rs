@@ -37,6 +37,26 @@ pub const APPLICATION_ID: &str = "deckwatch";
 /// The viewer's default gRPC address.
 pub const DEFAULT_ADDRESS: &str = "rerun+http://127.0.0.1:9876/proxy";
 
+/// What went wrong with logging.
+#[derive(Debug, thiserror::Error)]
+pub enum VizError {
+    /// A `[rerun]` value: the key (without the section) and what is wrong with it.
+    #[error("rerun.{key}: {problem}")]
+    Config { key: &'static str, problem: String },
+    /// The rerun SDK refused (a viewer that cannot be spawned or reached, a file that cannot
+    /// be written, ...).
+    #[error("rerun ({sink}): {message}")]
+    Sink { sink: &'static str, message: String },
+    /// Reading or writing an `.rrd` file.
+    #[error("{}: {message}", path.display())]
+    File { path: PathBuf, message: String },
+    /// This build has no rerun (the `rerun` feature is off).
+    #[error("rerun.sink = \"{sink}\": this build has no rerun logging (it was built without the `rerun` feature, which is on by default); rebuild with it or set rerun.sink = \"off\"")]
+    NotBuilt { sink: &'static str },
+    #[error("rerun: cannot start the logging thread: {0}")]
+    Thread(String),
+}
+
 /// Where the log goes (`[rerun] sink`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -96,21 +116,25 @@ impl Default for RerunConfig {
 }
 
 impl RerunConfig {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), VizError> {
+        let invalid = |key, problem: String| Err(VizError::Config { key, problem });
         if self.sink == RerunSink::Save && self.path.is_none() {
-            return Err("path: required with sink = \"save\"".into());
+            return invalid("path", "required with sink = \"save\"".into());
         }
         if !(1..=1000).contains(&self.image_every) {
-            return Err(format!("image_every: must be 1..=1000, got {}", self.image_every));
+            return invalid(
+                "image_every",
+                format!("must be 1..=1000, got {}", self.image_every),
+            );
         }
         if !(1..=16).contains(&self.image_downscale) {
-            return Err(format!(
-                "image_downscale: must be 1..=16, got {}",
-                self.image_downscale
-            ));
+            return invalid(
+                "image_downscale",
+                format!("must be 1..=16, got {}", self.image_downscale),
+            );
         }
         if !(1..=100_000).contains(&self.queue) {
-            return Err(format!("queue: must be 1..=100000, got {}", self.queue));
+            return invalid("queue", format!("must be 1..=100000, got {}", self.queue));
         }
         Ok(())
     }
@@ -169,7 +193,7 @@ pub struct Logger {
 
 impl Logger {
     /// Starts the logging thread for `stage` (None when the sink is `off`).
-    pub fn start(config: &RerunConfig, stage: &str) -> Result<Option<Self>, String> {
+    pub fn start(config: &RerunConfig, stage: &str) -> Result<Option<Self>, VizError> {
         config.validate()?;
         if config.sink == RerunSink::Off {
             return Ok(None);

@@ -1,18 +1,29 @@
 //! The rerun side of the logging: recording streams, archetypes, the blueprint, `.rrd` files.
 
-use crate::{entities, Item, ItemKind, RerunConfig, RerunSink, APPLICATION_ID, DEFAULT_ADDRESS};
+use crate::{entities, Item, ItemKind, RerunConfig, RerunSink, VizError, APPLICATION_ID, DEFAULT_ADDRESS};
 use crossbeam_channel::Receiver;
 use rerun::{RecordingStream, RecordingStreamBuilder};
 use std::path::Path;
 use std::thread::JoinHandle;
+
+/// An error reading or writing an `.rrd` file.
+fn file_error(path: &Path, e: impl std::fmt::Display) -> VizError {
+    VizError::File {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    }
+}
 
 /// Opens the stream, then starts the thread that logs what arrives on `rx` until it closes.
 pub(crate) fn spawn_logging_thread(
     config: &RerunConfig,
     stage: &str,
     rx: Receiver<Item>,
-) -> Result<JoinHandle<()>, String> {
-    let rec = open_stream(config, stage)?.ok_or("rerun.sink: off")?;
+) -> Result<JoinHandle<()>, VizError> {
+    let rec = open_stream(config, stage)?.ok_or(VizError::Config {
+        key: "sink",
+        problem: "off: nothing to log to".into(),
+    })?;
     let downscale = config.image_downscale as f32;
     std::thread::Builder::new()
         .name(format!("rerun-{stage}"))
@@ -23,7 +34,7 @@ pub(crate) fn spawn_logging_thread(
             // Dropping the stream flushes it (and writes the .rrd footer).
             let _ = rec.flush_blocking();
         })
-        .map_err(|e| format!("rerun: cannot start the logging thread: {e}"))
+        .map_err(|e| VizError::Thread(e.to_string()))
 }
 
 /// The launcher's own stream, which carries the viewer layout; kept open while the pipeline runs.
@@ -39,7 +50,7 @@ impl Viewer {
 }
 
 /// Opens the launcher's stream of the configured sink and sends the blueprint (None: off).
-pub fn open_viewer(config: &RerunConfig, stage: &str) -> Result<Option<Viewer>, String> {
+pub fn open_viewer(config: &RerunConfig, stage: &str) -> Result<Option<Viewer>, VizError> {
     let Some(stream) = open_stream(config, stage)? else {
         return Ok(None);
     };
@@ -48,12 +59,15 @@ pub fn open_viewer(config: &RerunConfig, stage: &str) -> Result<Option<Viewer>, 
 }
 
 /// The recording stream of the configured sink (None: off).
-fn open_stream(config: &RerunConfig, stage: &str) -> Result<Option<RecordingStream>, String> {
+fn open_stream(config: &RerunConfig, stage: &str) -> Result<Option<RecordingStream>, VizError> {
     let mut builder = RecordingStreamBuilder::new(APPLICATION_ID);
     if let Some(id) = &config.recording_id {
         builder = builder.recording_id(id.clone());
     }
-    let err = |e: rerun::RecordingStreamError| format!("rerun ({}): {e}", config.sink.name());
+    let err = |e: rerun::RecordingStreamError| VizError::Sink {
+        sink: config.sink.name(),
+        message: e.to_string(),
+    };
     let rec = match config.sink {
         RerunSink::Off => return Ok(None),
         RerunSink::Spawn => builder.spawn().map_err(err)?,
@@ -61,10 +75,10 @@ fn open_stream(config: &RerunConfig, stage: &str) -> Result<Option<RecordingStre
             .connect_grpc_opts(config.address.clone().unwrap_or_else(|| DEFAULT_ADDRESS.into()))
             .map_err(err)?,
         RerunSink::Save => {
-            let path = config
-                .path
-                .as_ref()
-                .ok_or("rerun.path: required with sink = \"save\"")?;
+            let path = config.path.as_ref().ok_or(VizError::Config {
+                key: "path",
+                problem: "required with sink = \"save\"".into(),
+            })?;
             builder.save(RerunConfig::part_path(path, stage)).map_err(err)?
         }
     };
@@ -127,7 +141,7 @@ fn log_item(rec: &RecordingStream, item: &Item, downscale: f32) {
 }
 
 /// The viewer layout: the image with its overlays beside the angle plots, the decision below.
-pub fn send_blueprint(rec: &RecordingStream) -> Result<(), String> {
+pub fn send_blueprint(rec: &RecordingStream) -> Result<(), VizError> {
     use rerun::blueprint::{
         Blueprint, BlueprintActivation, Horizontal, Spatial2DView, TextLogView, TimeSeriesView, Vertical,
     };
@@ -155,22 +169,25 @@ pub fn send_blueprint(rec: &RecordingStream) -> Result<(), String> {
     let blueprint = Blueprint::new(Horizontal::new([left.into(), plots.into()]));
     blueprint
         .send(rec, BlueprintActivation::default())
-        .map_err(|e| format!("rerun: sending the blueprint: {e}"))
+        .map_err(|e| VizError::Sink {
+            sink: "blueprint",
+            message: e.to_string(),
+        })
 }
 
 /// Merges the per-process part files of a `save` run into one `.rrd` (one stream header), and
 /// removes the parts. Returns the number of messages written.
-pub fn merge_parts(path: &Path, stages: &[&str]) -> Result<u64, String> {
+pub fn merge_parts(path: &Path, stages: &[&str]) -> Result<u64, VizError> {
     use rerun::external::re_build_info::CrateVersion;
     use rerun::external::re_log_encoding as enc;
     use rerun::external::re_log_types::LogMsg;
-    let out = std::fs::File::create(path).map_err(|e| format!("{}: cannot create: {e}", path.display()))?;
+    let out = std::fs::File::create(path).map_err(|e| file_error(path, format!("cannot create: {e}")))?;
     let mut encoder = enc::Encoder::new_eager(
         CrateVersion::LOCAL,
         enc::EncodingOptions::PROTOBUF_COMPRESSED,
         std::io::BufWriter::new(out),
     )
-    .map_err(|e| format!("{}: {e}", path.display()))?;
+    .map_err(|e| file_error(path, e))?;
     let mut n = 0u64;
     let mut parts = Vec::new();
     for stage in stages {
@@ -178,19 +195,17 @@ pub fn merge_parts(path: &Path, stages: &[&str]) -> Result<u64, String> {
         if !part.exists() {
             continue;
         }
-        let file = std::fs::File::open(&part).map_err(|e| format!("{}: {e}", part.display()))?;
+        let file = std::fs::File::open(&part).map_err(|e| file_error(&part, e))?;
         let decoder = enc::Decoder::<LogMsg>::decode_eager(std::io::BufReader::new(file))
-            .map_err(|e| format!("{}: {e}", part.display()))?;
+            .map_err(|e| file_error(&part, e))?;
         for msg in decoder {
-            let msg = msg.map_err(|e| format!("{}: {e}", part.display()))?;
-            encoder
-                .append(&msg)
-                .map_err(|e| format!("{}: {e}", path.display()))?;
+            let msg = msg.map_err(|e| file_error(&part, e))?;
+            encoder.append(&msg).map_err(|e| file_error(path, e))?;
             n += 1;
         }
         parts.push(part);
     }
-    encoder.finish().map_err(|e| format!("{}: {e}", path.display()))?;
+    encoder.finish().map_err(|e| file_error(path, e))?;
     drop(encoder);
     for p in parts {
         let _ = std::fs::remove_file(p);
@@ -200,21 +215,21 @@ pub fn merge_parts(path: &Path, stages: &[&str]) -> Result<u64, String> {
 
 /// Rows logged per entity of the recording (blueprint stores excluded), read back from an
 /// `.rrd` file: what a test or a user checks a saved run with.
-pub fn rrd_entity_rows(path: &Path) -> Result<std::collections::BTreeMap<String, u64>, String> {
+pub fn rrd_entity_rows(path: &Path) -> Result<std::collections::BTreeMap<String, u64>, VizError> {
     use rerun::external::re_log_encoding as enc;
     use rerun::external::re_log_types::{LogMsg, StoreKind};
     use rerun::log::Chunk;
-    let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let file = std::fs::File::open(path).map_err(|e| file_error(path, e))?;
     let decoder = enc::Decoder::<LogMsg>::decode_eager(std::io::BufReader::new(file))
-        .map_err(|e| format!("{}: {e}", path.display()))?;
+        .map_err(|e| file_error(path, e))?;
     let mut rows = std::collections::BTreeMap::new();
     for msg in decoder {
-        let msg = msg.map_err(|e| format!("{}: {e}", path.display()))?;
+        let msg = msg.map_err(|e| file_error(path, e))?;
         if let LogMsg::ArrowMsg(store, arrow) = &msg {
             if store.kind() != StoreKind::Recording {
                 continue;
             }
-            let chunk = Chunk::from_arrow_msg(arrow).map_err(|e| format!("{}: {e}", path.display()))?;
+            let chunk = Chunk::from_arrow_msg(arrow).map_err(|e| file_error(path, e))?;
             *rows.entry(chunk.entity_path().to_string()).or_default() += chunk.num_rows() as u64;
         }
     }

@@ -107,7 +107,7 @@ fn start_viewer(config: &mut PipelineConfig) -> Result<Option<deckwatch_viz::Vie
             .unwrap_or_default();
         r.recording_id = Some(format!("deckwatch-{}-{}", now.as_secs(), std::process::id()));
     }
-    let viewer = deckwatch_viz::open_viewer(r, LAUNCHER)?;
+    let viewer = deckwatch_viz::open_viewer(r, LAUNCHER).map_err(|e| e.to_string())?;
     if r.sink == RerunSink::Spawn {
         // The viewer is up: the stages connect to it rather than spawning their own.
         r.sink = RerunSink::Connect;

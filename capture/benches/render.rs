@@ -8,11 +8,7 @@ fn bench(c: &mut Criterion) {
     let cam = CameraModel::rpi_v2();
     let scene = |roll: f64| SceneGeometry {
         attitude: Rpy::from_degrees(roll, 6.0, 3.0).to_matrix(),
-        viewpoint: Viewpoint {
-            offset_x_m: 0.2,
-            offset_y_m: -0.1,
-            altitude_m: 5.0,
-        },
+        viewpoint: Viewpoint::level(0.2, -0.1, 5.0),
     };
     let mut img = GrayImage::new(3280, 2464);
     let mut group = c.benchmark_group("render_3280x2464");

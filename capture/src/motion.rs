@@ -220,12 +220,75 @@ impl TrackingError {
 
     pub fn at(&self, t_s: f64) -> Viewpoint {
         let a = TAU * t_s / self.offset_period_s + self.phase;
-        Viewpoint {
-            offset_x_m: self.offset_m * a.cos(),
-            offset_y_m: self.offset_m * a.sin(),
-            altitude_m: self.altitude_mean_m
+        Viewpoint::level(
+            self.offset_m * a.cos(),
+            self.offset_m * a.sin(),
+            self.altitude_mean_m
                 + self.altitude_amplitude_m * (TAU * t_s / self.altitude_period_s + self.phase).sin(),
+        )
+    }
+}
+
+/// (amplitude deg, period s) of a hovering quadrotor's sway: it tilts to hold its position in
+/// wind and gusts, at 0.2-2 Hz. Roll up to 9.1 deg, pitch up to 7.8 deg; the largest rates
+/// (amplitude x 2 pi / period, summed) are 29 and 22 deg/s. Heading wanders slowly (5 deg).
+pub const HOVER_SWAY_ROLL: [(f64, f64); 3] = [(6.0, 4.0), (2.4, 1.25), (0.7, 0.6)];
+pub const HOVER_SWAY_PITCH: [(f64, f64); 3] = [(5.0, 5.0), (2.2, 1.45), (0.6, 0.67)];
+pub const HOVER_SWAY_YAW: [(f64, f64); 2] = [(4.0, 50.0), (1.0, 10.0)];
+
+/// The attitude of the vehicle that carries the camera (`R_V`, body to world; NOTES.md item 8)
+/// over time: a sum of sinusoids per axis with phases from the seed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VehicleSway {
+    pub roll_deg: Vec<Sinusoid>,
+    pub pitch_deg: Vec<Sinusoid>,
+    pub yaw_deg: Vec<Sinusoid>,
+}
+
+impl VehicleSway {
+    /// A hovering quadrotor ([`HOVER_SWAY_ROLL`] ...), amplitudes times `scale`.
+    pub fn hover(seed: u64, scale: f64) -> Self {
+        let mut rng = SplitMix64::new(seed ^ 0x0D_0A_0E_5E);
+        let mut axis = |table: &[(f64, f64)]| -> Vec<Sinusoid> {
+            table
+                .iter()
+                .map(|&(a, p)| Sinusoid {
+                    amplitude: a * scale,
+                    period_s: p,
+                    phase: TAU * rng.next_f64(),
+                })
+                .collect()
+        };
+        Self {
+            roll_deg: axis(&HOVER_SWAY_ROLL),
+            pitch_deg: axis(&HOVER_SWAY_PITCH),
+            yaw_deg: axis(&HOVER_SWAY_YAW),
         }
+    }
+
+    pub fn attitude(&self, t_s: f64) -> Rpy {
+        Rpy::from_degrees(
+            sum(&self.roll_deg, t_s),
+            sum(&self.pitch_deg, t_s),
+            sum(&self.yaw_deg, t_s),
+        )
+    }
+}
+
+/// A motion profile with the camera carried by a swaying vehicle: the inner profile's deck and
+/// position, the vehicle's attitude from the sway.
+pub struct Swaying<P> {
+    pub inner: P,
+    pub sway: VehicleSway,
+}
+
+impl<P: MotionProfile> MotionProfile for Swaying<P> {
+    fn sample(&self, t_s: f64) -> MotionSample {
+        let mut s = self.inner.sample(t_s);
+        s.viewpoint = s
+            .viewpoint
+            .with_vehicle_attitude(self.sway.attitude(t_s).to_matrix());
+        s
     }
 }
 
@@ -236,6 +299,35 @@ pub fn sample_series(profile: &dyn MotionProfile, rate_hz: f64, n: usize) -> Vec
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn hover_sway_stays_within_its_bounds_and_rates() {
+        let sway = VehicleSway::hover(3, 1.0);
+        let (mut max_tilt, mut max_rate) = ([0.0f64; 2], [0.0f64; 2]);
+        let dt = 0.001;
+        for k in 0..120_000 {
+            let t = k as f64 * dt;
+            let a = sway.attitude(t).to_degrees();
+            let b = sway.attitude(t + dt).to_degrees();
+            for i in 0..2 {
+                max_tilt[i] = max_tilt[i].max(a[i].abs());
+                max_rate[i] = max_rate[i].max((b[i] - a[i]).abs() / dt);
+            }
+        }
+        assert!(max_tilt[0] > 6.0 && max_tilt[0] <= 9.1 + 1e-9, "{max_tilt:?}");
+        assert!(max_tilt[1] > 5.0 && max_tilt[1] <= 7.8 + 1e-9, "{max_tilt:?}");
+        assert!(max_rate[0] > 15.0 && max_rate[0] <= 30.0, "{max_rate:?}");
+        assert!(max_rate[1] <= 30.0, "{max_rate:?}");
+        let s = Swaying {
+            inner: Case1Sweep::paper(),
+            sway,
+        }
+        .sample(2.0);
+        let expected = VehicleSway::hover(3, 1.0).attitude(2.0).to_matrix();
+        assert_eq!(s.viewpoint.vehicle_attitude, expected);
+        assert_eq!(s.attitude, Case1Sweep::paper().sample(2.0).attitude);
+    }
+
     use super::*;
 
     #[test]

@@ -898,11 +898,7 @@ mod tests {
         let deck = DeckLayout::paper();
         let s = scene(
             Rpy::from_degrees(18.0, -7.0, 4.0),
-            Viewpoint {
-                offset_x_m: 0.3,
-                offset_y_m: -0.1,
-                altitude_m: 4.7,
-            },
+            Viewpoint::level(0.3, -0.1, 4.7),
         );
         let h = pixel_to_deck(&cam, &s).unwrap();
         for i in 0..deck.marker_count() {

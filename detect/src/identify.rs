@@ -181,7 +181,7 @@ mod tests {
                                        ox in -0.3..0.3f64, oy in -0.3..0.3f64, h in 4.0..6.0f64,
                                        seed in 0u64..1000, hide in 0usize..10, paper_cam in any::<bool>()) {
             let cam = if paper_cam { CameraModel::paper() } else { CameraModel::rpi_v2() };
-            let vp = Viewpoint { offset_x_m: ox, offset_y_m: oy, altitude_m: h };
+            let vp = Viewpoint::level(ox, oy, h);
             let mut blobs = blobs_for(Rpy::from_degrees(roll, pitch, yaw), vp, &cam);
             let mut original: Vec<usize> = (0..blobs.len()).collect();
             // Hide one ring marker other than the bow (hide >= 9: hide none).

@@ -14,7 +14,8 @@
 
 use crate::ellipse::{Ellipse, EllipseFit, EllipseFitError};
 use deckwatch_common::deck::{BOW, CENTRE, MAX_MARKERS};
-use deckwatch_common::{Attitude, CameraModel, DeckLayout, Euler313};
+use deckwatch_common::scene::camera_from_world;
+use deckwatch_common::{Attitude, CameraModel, DeckLayout, Distortion, Euler313, RotationMatrix};
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 
 /// How beta and gamma are taken from the triangles of the paper's Figs. 8 and 9.
@@ -166,6 +167,25 @@ impl PaperEstimator {
 
     /// Estimates the deck attitude from marker pixels in marker-index order (None = not seen;
     /// distorted pixels as detected) and the altimeter height of the camera over the deck centre.
+    /// The same for a camera carried by a vehicle at attitude `vehicle` (`R_V`, body to world,
+    /// NOTES.md item 8). The method assumes a level camera, so the marker bearings are first
+    /// turned into those of a virtual level camera at the same optical centre (a pure rotation
+    /// of the viewing rays: `r_level = R_CW0 R_V R_CW0^T r_cam`), then estimated as usual; the
+    /// altimeter's height is still the optical centre's. The image ellipse of the result is in
+    /// the virtual level camera's (undistorted) pixels.
+    pub fn estimate_with_vehicle(
+        &self,
+        markers: &[Option<[f64; 2]>],
+        altitude_m: Option<f64>,
+        vehicle: &RotationMatrix,
+    ) -> Result<PaperEstimate, NotEstimable> {
+        if *vehicle == RotationMatrix::identity() {
+            return self.estimate(markers, altitude_m);
+        }
+        let (level_camera, level) = level_camera_pixels(&self.camera, vehicle, markers);
+        PaperEstimator::new(level_camera, self.deck, self.variant).estimate(&level, altitude_m)
+    }
+
     pub fn estimate(
         &self,
         markers: &[Option<[f64; 2]>],
@@ -460,6 +480,32 @@ fn plane_through_origin(points: &[Vector3<f64>]) -> (Vector3<f64>, f64) {
     }
     let spread = eig.eigenvalues[order[1]] / eig.eigenvalues[order[2]].max(f64::MIN_POSITIVE);
     (normal, if spread > 1e-12 { spread } else { 0.0 })
+}
+
+/// Marker pixels as a level camera at the same optical centre would see them: each pixel's
+/// viewing ray (undistorted) turned by `R_CW0 R_V R_CW0^T` and projected with the same focal
+/// lengths and principal point. Returns that camera (no distortion: the pixels are undistorted)
+/// and the pixels; a ray that would point above the virtual camera's horizon gives None.
+pub fn level_camera_pixels(
+    camera: &CameraModel,
+    vehicle: &RotationMatrix,
+    markers: &[Option<[f64; 2]>],
+) -> (CameraModel, Vec<Option<[f64; 2]>>) {
+    let c = camera_from_world();
+    let turn = c * vehicle * c.transpose();
+    let level_camera = CameraModel {
+        distortion: Distortion::default(),
+        ..*camera
+    };
+    let pixels = markers
+        .iter()
+        .map(|m| {
+            let [x, y] = camera.unproject((*m)?)?;
+            let r = turn * Vector3::new(x, y, 1.0);
+            (r.z > 0.0).then(|| level_camera.project(&r)).flatten()
+        })
+        .collect();
+    (level_camera, pixels)
 }
 
 #[cfg(test)]

@@ -17,7 +17,7 @@
 use deckwatch_common::deck::BOW;
 use deckwatch_common::homography;
 use deckwatch_common::scene::camera_from_world;
-use deckwatch_common::{Attitude, CameraModel, DeckLayout, Rpy, Viewpoint};
+use deckwatch_common::{Attitude, CameraModel, DeckLayout, RotationMatrix, Rpy, Viewpoint};
 use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, Vector3};
 
 /// Settings of the full-pose estimator.
@@ -133,12 +133,26 @@ impl PoseEstimator {
         &self.deck
     }
 
-    /// The pose from marker pixels by marker index (None = not seen). `centres_corrected`:
-    /// the pixels are already free of the perspective bias (the detector's default).
+    /// The pose from marker pixels by marker index (None = not seen), for a level camera.
+    /// `centres_corrected`: the pixels are already free of the perspective bias (the
+    /// detector's default).
     pub fn estimate(
         &self,
         markers: &[Option<[f64; 2]>],
         centres_corrected: bool,
+    ) -> Result<PoseEstimate, PoseError> {
+        self.estimate_with_vehicle(markers, centres_corrected, &RotationMatrix::identity())
+    }
+
+    /// The same for a camera carried by a vehicle at attitude `vehicle` (`R_V`, body to world,
+    /// NOTES.md item 8): the pose is solved in the camera (the deck relative to the camera is
+    /// the same whatever the vehicle does) and composed with `R_V R_CW0^T`, so the deck's
+    /// attitude and the camera's position come out in the world frame.
+    pub fn estimate_with_vehicle(
+        &self,
+        markers: &[Option<[f64; 2]>],
+        centres_corrected: bool,
+        vehicle: &RotationMatrix,
     ) -> Result<PoseEstimate, PoseError> {
         let n = self.deck.marker_count();
         if markers.len() != n {
@@ -198,7 +212,7 @@ impl PoseEstimator {
                 pose = self.refine(&obs, pose);
             }
         }
-        Ok(self.result(&obs, &pose, outliers))
+        Ok(self.result(&obs, &pose, outliers, vehicle))
     }
 
     fn pixel_residuals(&self, obs: &[Observation], (r, t): &Pose) -> Option<Vec<f64>> {
@@ -338,8 +352,15 @@ impl PoseEstimator {
         Some(rows)
     }
 
-    fn result(&self, obs: &[Observation], pose: &Pose, outlier_mask: u32) -> PoseEstimate {
-        let c = camera_from_world();
+    fn result(
+        &self,
+        obs: &[Observation],
+        pose: &Pose,
+        outlier_mask: u32,
+        vehicle: &RotationMatrix,
+    ) -> PoseEstimate {
+        // Camera to world: R_V R_CW0^T.
+        let c = (vehicle * camera_from_world().transpose()).transpose();
         let r_deck = c.transpose() * pose.0.matrix();
         let position = -(c.transpose() * pose.1);
         let res = self.pixel_residuals(obs, pose).unwrap_or_default();
@@ -375,11 +396,7 @@ impl PoseEstimator {
         }
         PoseEstimate {
             attitude: Attitude::from_matrix(r_deck),
-            viewpoint: Viewpoint {
-                offset_x_m: position.x,
-                offset_y_m: position.y,
-                altitude_m: position.z,
-            },
+            viewpoint: Viewpoint::level(position.x, position.y, position.z).with_vehicle_attitude(*vehicle),
             reprojection_rms_px: rms,
             used_mask: obs.iter().fold(0, |m, o| m | 1 << o.index),
             outlier_mask,
@@ -417,11 +434,7 @@ mod tests {
             (Rpy::from_degrees(14.0, -6.0, 170.0), Viewpoint::centred(4.5)),
             (
                 Rpy::from_degrees(-20.0, 7.5, -35.0),
-                Viewpoint {
-                    offset_x_m: 0.3,
-                    offset_y_m: -0.2,
-                    altitude_m: 5.5,
-                },
+                Viewpoint::level(0.3, -0.2, 5.5),
             ),
         ] {
             let px = scene(rpy, vp).project_markers(&cam, &deck);

@@ -130,11 +130,7 @@ pub fn attitude_items(a: &AttitudeMessage) -> Vec<Item> {
     if a.valid && z.is_finite() {
         let scene = SceneGeometry {
             attitude: a.rpy.to_matrix(),
-            viewpoint: Viewpoint {
-                offset_x_m: x,
-                offset_y_m: y,
-                altitude_m: z,
-            },
+            viewpoint: Viewpoint::level(x, y, z),
         };
         let deck = &a.context.deck;
         let points: Vec<[f32; 2]> = scene

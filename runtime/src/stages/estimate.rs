@@ -251,11 +251,7 @@ mod tests {
         let truth = Rpy::from_degrees(3.0, -2.0, 10.0);
         let scene = SceneGeometry {
             attitude: truth.to_matrix(),
-            viewpoint: Viewpoint {
-                offset_x_m: 0.1,
-                offset_y_m: 0.0,
-                altitude_m: 5.0,
-            },
+            viewpoint: Viewpoint::level(0.1, 0.0, 5.0),
         };
         let mut m = MarkerMessage::default();
         m.context.camera = camera;

@@ -70,6 +70,19 @@ impl Sinusoid {
     }
 }
 
+/// Sinusoids of a table of (amplitude, period s), amplitudes times `scale`, phases drawn in
+/// table order from `rng`.
+fn sinusoids(rng: &mut SplitMix64, table: &[(f64, f64)], scale: f64) -> Vec<Sinusoid> {
+    table
+        .iter()
+        .map(|&(a, p)| Sinusoid {
+            amplitude: a * scale,
+            period_s: p,
+            phase: TAU * rng.next_f64(),
+        })
+        .collect()
+}
+
 fn sum(components: &[Sinusoid], t_s: f64) -> f64 {
     components.iter().map(|c| c.at(t_s)).sum()
 }
@@ -104,20 +117,10 @@ impl ShipMotion {
     /// The same spectrum with every amplitude multiplied by `scale` (a calmer or rougher sea).
     pub fn scaled(seed: u64, scale: f64) -> Self {
         let mut rng = SplitMix64::new(seed);
-        let mut axis = |table: &[(f64, f64)]| -> Vec<Sinusoid> {
-            table
-                .iter()
-                .map(|&(a, p)| Sinusoid {
-                    amplitude: a * scale,
-                    period_s: p,
-                    phase: TAU * rng.next_f64(),
-                })
-                .collect()
-        };
         Self {
-            roll_deg: axis(&SEA_STATE_6_ROLL),
-            pitch_deg: axis(&SEA_STATE_6_PITCH),
-            yaw_deg: axis(&SEA_STATE_6_YAW),
+            roll_deg: sinusoids(&mut rng, &SEA_STATE_6_ROLL, scale),
+            pitch_deg: sinusoids(&mut rng, &SEA_STATE_6_PITCH, scale),
+            yaw_deg: sinusoids(&mut rng, &SEA_STATE_6_YAW, scale),
             tracking: TrackingError::hover(5.0),
         }
     }
@@ -249,20 +252,10 @@ impl VehicleSway {
     /// A hovering quadrotor ([`HOVER_SWAY_ROLL`] ...), amplitudes times `scale`.
     pub fn hover(seed: u64, scale: f64) -> Self {
         let mut rng = SplitMix64::new(seed ^ 0x0D_0A_0E_5E);
-        let mut axis = |table: &[(f64, f64)]| -> Vec<Sinusoid> {
-            table
-                .iter()
-                .map(|&(a, p)| Sinusoid {
-                    amplitude: a * scale,
-                    period_s: p,
-                    phase: TAU * rng.next_f64(),
-                })
-                .collect()
-        };
         Self {
-            roll_deg: axis(&HOVER_SWAY_ROLL),
-            pitch_deg: axis(&HOVER_SWAY_PITCH),
-            yaw_deg: axis(&HOVER_SWAY_YAW),
+            roll_deg: sinusoids(&mut rng, &HOVER_SWAY_ROLL, scale),
+            pitch_deg: sinusoids(&mut rng, &HOVER_SWAY_PITCH, scale),
+            yaw_deg: sinusoids(&mut rng, &HOVER_SWAY_YAW, scale),
         }
     }
 

@@ -100,7 +100,13 @@ fn recording_check_reads_every_image_and_names_bad_ones() {
     let dir = tempfile::tempdir().unwrap();
     let rec = dir.path().join("rec");
     let cam = CameraModel::rpi_v2().scaled_to(32, 24);
-    let mut w = RecordingWriter::create(&rec, &cam, &DeckLayout::paper(), [true; 6]).unwrap();
+    let mut w = RecordingWriter::create(
+        &rec,
+        &cam,
+        &DeckLayout::paper(),
+        deckwatch_common::recording::LEVEL_TRUTH,
+    )
+    .unwrap();
     let img = GrayImage::new(32, 24);
     for i in 0..3 {
         let truth = GroundTruth {

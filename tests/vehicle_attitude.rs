@@ -72,3 +72,66 @@ fn both_estimators_are_exact_with_the_vehicle_attitude_and_wrong_without() {
     // Uncompensated: degrees off, as the issue measured on main (4-5 deg RMSE).
     assert!(uncompensated.rmse()[0] > 1.0 && uncompensated.rmse()[1] > 1.0);
 }
+
+/// Rendered frames of a swaying vehicle (`sim record --vehicle sway` writes the vehicle columns)
+/// through the stage chain (`deckwatch eval`): both estimators get the vehicle's attitude from
+/// the recording and report the deck in the world frame.
+#[test]
+fn a_recording_of_a_swaying_vehicle_is_compensated_end_to_end() {
+    use deckwatch_tests::workspace_binary;
+    use std::process::Command;
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("sway");
+    let out = Command::new(workspace_binary("deckwatch"))
+        .args([
+            "sim",
+            "record",
+            "--scenario",
+            "ship",
+            "--vehicle",
+            "sway",
+            "--frames",
+            "20",
+        ])
+        .args([
+            "--width", "640", "--height", "480", "--look", "clean", "--seed", "2",
+        ])
+        .arg("--out")
+        .arg(&rec)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let recording = deckwatch_common::Recording::open(&rec).unwrap();
+    let tilts: Vec<f64> = recording
+        .frames
+        .iter()
+        .map(|f| {
+            let [r, p, _] = f.truth.vehicle_attitude().unwrap().to_degrees();
+            r.abs().max(p.abs())
+        })
+        .collect();
+    assert!(tilts.iter().cloned().fold(0.0, f64::max) > 3.0, "{tilts:?}");
+
+    let out = Command::new(workspace_binary("deckwatch"))
+        .arg("eval")
+        .arg(&rec)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    println!("{text}");
+    for est in ["full-pose", "paper-atan2"] {
+        let row: Vec<String> = text
+            .lines()
+            .find(|l| l.starts_with("sway") && l.split_whitespace().nth(1) == Some(est))
+            .unwrap_or_else(|| panic!("{est} in\n{text}"))
+            .split_whitespace()
+            .map(str::to_string)
+            .collect();
+        // Columns: recording estimator frames estim missed nodeck rmse(3) max(3) ...
+        assert_eq!(row[4], "0", "{est}: no misses: {row:?}");
+        let rmse: Vec<f64> = row[6..9].iter().map(|v| v.parse().unwrap()).collect();
+        // Without the vehicle's attitude the error is the sway itself (degrees).
+        assert!(rmse.iter().all(|e| *e < 0.2), "{est}: {rmse:?}\n{text}");
+    }
+}

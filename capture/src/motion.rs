@@ -20,6 +20,12 @@ pub trait MotionProfile {
     fn sample(&self, t_s: f64) -> MotionSample;
 }
 
+impl<P: MotionProfile + ?Sized> MotionProfile for Box<P> {
+    fn sample(&self, t_s: f64) -> MotionSample {
+        (**self).sample(t_s)
+    }
+}
+
 /// The paper's Case 1: every angle changes in one direction, linearly over `duration_s`:
 /// roll -20 -> 20 deg, pitch -10 -> 10 deg, yaw -5 -> 5 deg.
 #[derive(Debug, Clone, Copy, PartialEq)]

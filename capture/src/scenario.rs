@@ -80,6 +80,10 @@ pub struct SimulationArgs {
     /// Camera preset (paper, rpi-v2); default: the scenario's.
     #[cfg_attr(feature = "cli", arg(long))]
     pub camera: Option<String>,
+    /// The vehicle carrying the camera: `level` (the paper's camera) or `sway` (a hovering
+    /// quadrotor's sway, `VehicleSway::hover`).
+    #[cfg_attr(feature = "cli", arg(long, default_value = "level"))]
+    pub vehicle: VehicleMotion,
     /// Seed of the sea's phases, the textures and the noise.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = 1))]
     pub seed: u64,
@@ -93,9 +97,21 @@ impl Default for SimulationArgs {
             frames: 600,
             rate: 10.0,
             camera: None,
+            vehicle: VehicleMotion::Level,
             seed: 1,
         }
     }
+}
+
+/// The motion of the vehicle carrying the camera (`--vehicle`, `[sim] vehicle`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum VehicleMotion {
+    /// Level, as the paper assumes.
+    Level,
+    /// A hovering quadrotor's sway ([`crate::VehicleSway::hover`]).
+    Sway,
 }
 
 /// A validated [`SimulationArgs`].
@@ -132,6 +148,27 @@ impl SimulationArgs {
             camera,
             deck: DeckLayout::paper(),
         })
+    }
+
+    /// The run's motion: the scenario's deck and camera position, on the configured vehicle.
+    pub fn profile(&self) -> Box<dyn MotionProfile + Send + Sync> {
+        let scenario = self.scenario.profile(self.seed);
+        match self.vehicle {
+            VehicleMotion::Level => scenario,
+            VehicleMotion::Sway => Box::new(crate::Swaying {
+                inner: scenario,
+                sway: crate::VehicleSway::hover(self.seed, 1.0),
+            }),
+        }
+    }
+
+    /// The ground-truth columns a recording of this simulation has: the vehicle's only when it
+    /// is not level.
+    pub fn truth_columns(&self) -> deckwatch_common::recording::TruthColumns {
+        match self.vehicle {
+            VehicleMotion::Level => deckwatch_common::recording::LEVEL_TRUTH,
+            VehicleMotion::Sway => deckwatch_common::recording::ALL_TRUTH,
+        }
     }
 
     /// The simulated marker rows (with ground truth) of the whole run, with Gaussian pixel noise
@@ -196,6 +233,7 @@ impl MarkerSimulator {
                 alt_m: Some(s.viewpoint.altitude_m),
                 offset_x_m: Some(s.viewpoint.offset_x_m),
                 offset_y_m: Some(s.viewpoint.offset_y_m),
+                ..GroundTruth::default()
             },
         }
     }

@@ -26,6 +26,7 @@ impl FrameTruth {
     pub fn ground_truth(&self) -> GroundTruth {
         let [roll, pitch, yaw] = self.sample.attitude.to_degrees();
         let v = self.sample.viewpoint;
+        let vehicle = deckwatch_common::Rpy::from_matrix(&v.vehicle_attitude).to_degrees();
         let seen = |x: f64| self.deck_in_view.then_some(x);
         GroundTruth {
             roll_deg: seen(roll),
@@ -34,6 +35,9 @@ impl FrameTruth {
             alt_m: Some(v.altitude_m),
             offset_x_m: Some(v.offset_x_m),
             offset_y_m: Some(v.offset_y_m),
+            vehicle_roll_deg: Some(vehicle[0]),
+            vehicle_pitch_deg: Some(vehicle[1]),
+            vehicle_yaw_deg: Some(vehicle[2]),
         }
     }
 }
@@ -286,8 +290,8 @@ mod tests {
             scenario: crate::Scenario::from_name(scenario).unwrap(),
             frames: 3,
             rate: 10.0,
-            camera: None,
             seed: 5,
+            ..SimulationArgs::default()
         }
     }
 

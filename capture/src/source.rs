@@ -176,7 +176,7 @@ impl CaptureConfig {
         let renderer = Renderer::new(camera, sim.deck, options, self.sim.seed)
             .map_err(|e| SourceError::Simulator(format!("[image] {e}")))?;
         let frames = FrameSimulator::new(
-            sim.scenario.profile(self.sim.seed),
+            self.sim.profile(),
             renderer,
             self.sim.rate,
             self.image.exposure_ms / 1e3,
@@ -261,7 +261,7 @@ impl CaptureConfig {
             altimeter: self.source.altimeter,
             inner: Inner::Replay {
                 truth_known: rec.has_attitude_truth(),
-                rec,
+                rec: Box::new(rec),
                 preloaded,
                 pace,
                 loops: r.loops,
@@ -326,7 +326,7 @@ enum Inner {
         period_ns: u64,
     },
     Replay {
-        rec: Recording,
+        rec: Box<Recording>,
         preloaded: Option<Vec<Result<Vec<u8>, String>>>,
         pace: Pace,
         loops: u32,

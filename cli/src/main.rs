@@ -129,15 +129,15 @@ fn record(a: RecordArgs) -> Result<(), String> {
     let (camera, options) = a.image.resolve(&sim)?;
     let renderer = Renderer::new(camera, sim.deck, options, a.sim.seed)?;
     let mut frames = FrameSimulator::new(
-        sim.scenario.profile(a.sim.seed),
+        a.sim.profile(),
         renderer,
         a.sim.rate,
         a.image.exposure_ms / 1e3,
         a.exposure_steps,
         a.sim.seed,
     )?;
-    let mut writer =
-        RecordingWriter::create(&a.out, &camera, &sim.deck, [true; 6]).map_err(|e| e.to_string())?;
+    let mut writer = RecordingWriter::create(&a.out, &camera, &sim.deck, a.sim.truth_columns())
+        .map_err(|e| e.to_string())?;
     let mut virtual_camera = a
         .virtual_camera
         .as_deref()
@@ -199,7 +199,8 @@ fn camera_record(
     let mut source = c.capture().open().map_err(|e| e.to_string())?;
     eprintln!("{}", source.describe());
     let (camera, deck) = (*source.camera(), *source.deck());
-    let mut writer = RecordingWriter::create(out, &camera, &deck, [false; 6]).map_err(|e| e.to_string())?;
+    let mut writer = RecordingWriter::create(out, &camera, &deck, deckwatch_common::recording::NO_TRUTH)
+        .map_err(|e| e.to_string())?;
     let mut img = GrayImage::new(camera.width as usize, camera.height as usize);
     let (mut k, mut bad) = (0, 0);
     while k < frames {

@@ -82,7 +82,7 @@ pub struct MarkerTableReader<R: Read> {
     cols: Vec<(usize, usize)>,
     index_col: usize,
     ts_col: usize,
-    truth_cols: [Option<usize>; 6],
+    truth_cols: [Option<usize>; crate::recording::TRUTH_COLUMNS.len()],
     record: csv::StringRecord,
 }
 
@@ -170,20 +170,11 @@ impl<R: Read> MarkerTableReader<R> {
             });
         }
         let mut truth = GroundTruth::default();
-        let mut vals = [None; 6];
         for (k, c) in self.truth_cols.iter().enumerate() {
             if let Some(c) = c {
-                vals[k] = num(*c, crate::recording::TRUTH_COLUMNS[k])?;
+                truth.set(k, num(*c, crate::recording::TRUTH_COLUMNS[k])?);
             }
         }
-        [
-            truth.roll_deg,
-            truth.pitch_deg,
-            truth.yaw_deg,
-            truth.alt_m,
-            truth.offset_x_m,
-            truth.offset_y_m,
-        ] = vals;
         Ok(MarkerRow {
             index: int(self.index_col, "index")?,
             timestamp_ns: int(self.ts_col, "timestamp_ns")?,
@@ -211,6 +202,7 @@ mod tests {
                     alt_m: Some(5.0),
                     offset_x_m: None,
                     offset_y_m: Some(0.3),
+                    ..GroundTruth::default()
                 },
             },
             MarkerRow {

@@ -291,10 +291,44 @@ impl Truth {
     }
 }
 
+/// The attitude of the vehicle that carried the camera when the frame was taken (`R_V`, body
+/// to world; NOTES.md item 8).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(
+    feature = "shm",
+    derive(ZeroCopySend),
+    type_name("deckwatch.VehicleAttitude.v1")
+)]
+pub struct VehicleAttitude {
+    /// Whether the source knows it (the simulator, recordings with vehicle columns); false: the
+    /// camera is taken to be level, as the paper assumes.
+    pub known: bool,
+    pub rpy: Rpy,
+}
+
+impl VehicleAttitude {
+    pub fn from_rpy(rpy: Option<Rpy>) -> Self {
+        Self {
+            known: rpy.is_some(),
+            rpy: rpy.unwrap_or_default(),
+        }
+    }
+
+    /// `R_V` when known, else the identity (a level camera).
+    pub fn matrix(&self) -> crate::RotationMatrix {
+        if self.known {
+            self.rpy.to_matrix()
+        } else {
+            crate::RotationMatrix::identity()
+        }
+    }
+}
+
 /// What a frame's pixels mean, carried from capture to decide with every message.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.FrameContext.v1"))]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.FrameContext.v2"))]
 pub struct FrameContext {
     pub source: FrameSource,
     /// Index of the frame at its source: recording frame index, camera sequence, simulator
@@ -307,12 +341,14 @@ pub struct FrameContext {
     pub camera: CameraModel,
     pub deck: DeckLayout,
     pub truth: Truth,
+    /// The vehicle's attitude at the frame, which the estimators compensate.
+    pub vehicle: VehicleAttitude,
 }
 
 /// The user header of a frame sample; the payload is the `[u8]` pixel buffer itself.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.FrameHeader.v1"))]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.FrameHeader.v2"))]
 pub struct FrameHeader {
     pub stamp: FrameStamp,
     pub context: FrameContext,
@@ -339,7 +375,7 @@ impl FrameHeader {
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
-    type_name("deckwatch.MarkerMessage.v1")
+    type_name("deckwatch.MarkerMessage.v2")
 )]
 pub struct MarkerMessage {
     pub stamp: FrameStamp,
@@ -417,7 +453,7 @@ pub enum AttitudeFailure {
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
-    type_name("deckwatch.AttitudeMessage.v1")
+    type_name("deckwatch.AttitudeMessage.v2")
 )]
 pub struct AttitudeMessage {
     pub stamp: FrameStamp,
@@ -550,7 +586,7 @@ impl DecisionReason {
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
-    type_name("deckwatch.LandingDecision.v1")
+    type_name("deckwatch.LandingDecision.v2")
 )]
 pub struct LandingDecision {
     pub stamp: FrameStamp,
@@ -613,8 +649,7 @@ mod tests {
             pitch_deg: Some(-2.0),
             yaw_deg: Some(3.0),
             alt_m: Some(5.0),
-            offset_x_m: None,
-            offset_y_m: None,
+            ..GroundTruth::default()
         };
         let t = Truth::from_ground_truth(&g, true);
         assert_eq!(

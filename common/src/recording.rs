@@ -3,7 +3,8 @@
 //!   (`ring_radius_m, marker_radius_m, bow_marker_radius_m, n_ring, markers_deck_xyz_m`);
 //!   unknown extra keys are ignored;
 //! - `frames.csv`: a header row, then `index,timestamp_ns,file` and optionally
-//!   `roll_deg,pitch_deg,yaw_deg,alt_m,offset_x_m,offset_y_m` (ground truth / altimeter), in any
+//!   `roll_deg,pitch_deg,yaw_deg,alt_m,offset_x_m,offset_y_m` (ground truth / altimeter) and
+//!   `vehicle_roll_deg,vehicle_pitch_deg,vehicle_yaw_deg` (the camera's vehicle), in any
 //!   column order, further columns ignored; `nan` (or an empty field) where a value is unknown,
 //!   e.g. the attitude when no deck is in view;
 //! - 8-bit grayscale PNG images at the relative paths named in `file`.
@@ -224,6 +225,11 @@ pub struct GroundTruth {
     pub alt_m: Option<f64>,
     pub offset_x_m: Option<f64>,
     pub offset_y_m: Option<f64>,
+    /// The attitude of the vehicle carrying the camera at mid-exposure (`R_V`, body to world,
+    /// X-Y-Z degrees; NOTES.md item 8); None: a level camera.
+    pub vehicle_roll_deg: Option<f64>,
+    pub vehicle_pitch_deg: Option<f64>,
+    pub vehicle_yaw_deg: Option<f64>,
 }
 
 impl GroundTruth {
@@ -232,7 +238,16 @@ impl GroundTruth {
         Some(Rpy::from_degrees(self.roll_deg?, self.pitch_deg?, self.yaw_deg?))
     }
 
-    fn values(&self) -> [Option<f64>; 6] {
+    /// The vehicle's attitude, when all three of its angles are known.
+    pub fn vehicle_attitude(&self) -> Option<Rpy> {
+        Some(Rpy::from_degrees(
+            self.vehicle_roll_deg?,
+            self.vehicle_pitch_deg?,
+            self.vehicle_yaw_deg?,
+        ))
+    }
+
+    fn values(&self) -> [Option<f64>; TRUTH_COLUMNS.len()] {
         [
             self.roll_deg,
             self.pitch_deg,
@@ -240,30 +255,50 @@ impl GroundTruth {
             self.alt_m,
             self.offset_x_m,
             self.offset_y_m,
+            self.vehicle_roll_deg,
+            self.vehicle_pitch_deg,
+            self.vehicle_yaw_deg,
         ]
     }
 
-    fn set(&mut self, column: usize, v: Option<f64>) {
+    /// Sets the value of column `column` of [`TRUTH_COLUMNS`].
+    pub(crate) fn set(&mut self, column: usize, v: Option<f64>) {
         match column {
             0 => self.roll_deg = v,
             1 => self.pitch_deg = v,
             2 => self.yaw_deg = v,
             3 => self.alt_m = v,
             4 => self.offset_x_m = v,
-            _ => self.offset_y_m = v,
+            5 => self.offset_y_m = v,
+            6 => self.vehicle_roll_deg = v,
+            7 => self.vehicle_pitch_deg = v,
+            _ => self.vehicle_yaw_deg = v,
         }
     }
 }
 
 /// Names of the optional ground-truth columns, in [`GroundTruth`] order.
-pub const TRUTH_COLUMNS: [&str; 6] = [
+pub const TRUTH_COLUMNS: [&str; 9] = [
     "roll_deg",
     "pitch_deg",
     "yaw_deg",
     "alt_m",
     "offset_x_m",
     "offset_y_m",
+    "vehicle_roll_deg",
+    "vehicle_pitch_deg",
+    "vehicle_yaw_deg",
 ];
+
+/// Which columns of [`TRUTH_COLUMNS`] a recording has or a writer writes.
+pub type TruthColumns = [bool; TRUTH_COLUMNS.len()];
+
+/// Every ground-truth column but the vehicle's (a level camera).
+pub const LEVEL_TRUTH: TruthColumns = [true, true, true, true, true, true, false, false, false];
+/// Every ground-truth column.
+pub const ALL_TRUTH: TruthColumns = [true; TRUTH_COLUMNS.len()];
+/// No ground-truth column (a real camera).
+pub const NO_TRUTH: TruthColumns = [false; TRUTH_COLUMNS.len()];
 
 /// One row of `frames.csv`.
 #[derive(Debug, Clone, PartialEq)]
@@ -285,7 +320,7 @@ pub struct Recording {
     pub deck: DeckLayout,
     pub frames: Vec<FrameRecord>,
     /// Which optional ground-truth columns the recording has (in [`TRUTH_COLUMNS`] order).
-    pub truth_columns: [bool; 6],
+    pub truth_columns: TruthColumns,
 }
 
 impl Recording {
@@ -387,7 +422,7 @@ fn check_relative_path(path: &Path, line: u64, file: &str) -> Result<(), Recordi
 pub fn parse_frames_csv(
     path: &Path,
     reader: impl std::io::Read,
-) -> Result<(Vec<FrameRecord>, [bool; 6]), RecordingError> {
+) -> Result<(Vec<FrameRecord>, TruthColumns), RecordingError> {
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(true)
         .flexible(false)
@@ -418,7 +453,7 @@ pub fn parse_frames_csv(
         })
     };
     let (c_index, c_ts, c_file) = (required("index")?, required("timestamp_ns")?, required("file")?);
-    let mut truth_cols = [None; 6];
+    let mut truth_cols = [None; TRUTH_COLUMNS.len()];
     for (i, name) in TRUTH_COLUMNS.iter().enumerate() {
         truth_cols[i] = find(name)?;
     }
@@ -558,7 +593,7 @@ pub struct RecordingWriter {
     dir: PathBuf,
     camera: CameraModel,
     csv: csv::Writer<BufWriter<File>>,
-    truth_columns: [bool; 6],
+    truth_columns: TruthColumns,
     last: Option<(u64, u64)>,
     frames_written: u64,
 }
@@ -570,7 +605,7 @@ impl RecordingWriter {
         dir: impl AsRef<Path>,
         camera: &CameraModel,
         deck: &DeckLayout,
-        truth_columns: [bool; 6],
+        truth_columns: TruthColumns,
     ) -> Result<Self, RecordingError> {
         let dir = dir.as_ref().to_path_buf();
         camera
@@ -681,7 +716,7 @@ impl RecordingWriter {
 mod tests {
     use super::*;
 
-    fn parse(text: &str) -> Result<(Vec<FrameRecord>, [bool; 6]), RecordingError> {
+    fn parse(text: &str) -> Result<(Vec<FrameRecord>, TruthColumns), RecordingError> {
         parse_frames_csv(Path::new("rec/frames.csv"), text.as_bytes())
     }
 
@@ -691,7 +726,7 @@ mod tests {
         let rec_dir = dir.path().join("rec");
         let cam = CameraModel::rpi_v2().scaled_to(64, 48);
         let deck = DeckLayout::paper();
-        let mut w = RecordingWriter::create(&rec_dir, &cam, &deck, [true; 6]).unwrap();
+        let mut w = RecordingWriter::create(&rec_dir, &cam, &deck, ALL_TRUTH).unwrap();
         let mut img = GrayImage::new(64, 48);
         for (i, px) in img.data.iter_mut().enumerate() {
             *px = (i * 7 % 251) as u8;
@@ -703,6 +738,9 @@ mod tests {
             alt_m: Some(5.0),
             offset_x_m: Some(0.3),
             offset_y_m: Some(-0.3),
+            vehicle_roll_deg: Some(4.5),
+            vehicle_pitch_deg: Some(-1.0 / 3.0),
+            vehicle_yaw_deg: Some(170.0),
         };
         let t1 = GroundTruth {
             alt_m: Some(5.5),
@@ -721,19 +759,22 @@ mod tests {
         assert!(rec.has_attitude_truth());
         assert_eq!(rec.frames.len(), 2);
         assert_eq!(rec.frames[0].truth, t0, "floats round-trip exactly");
+        assert_eq!(rec.truth_columns, ALL_TRUTH);
+        assert!(rec.frames[0].truth.vehicle_attitude().is_some());
+        assert!(rec.frames[1].truth.vehicle_attitude().is_none(), "nan: unknown");
         assert_eq!(rec.frames[1].truth, t1);
         assert!(rec.frames[1].truth.attitude().is_none(), "nan attitude = no deck");
         assert_eq!(rec.frames[1].index, 3);
         assert_eq!(rec.read_image(&rec.frames[1]).unwrap(), img);
         // A second writer refuses to overwrite.
-        assert!(RecordingWriter::create(&rec_dir, &cam, &deck, [true; 6]).is_err());
+        assert!(RecordingWriter::create(&rec_dir, &cam, &deck, LEVEL_TRUTH).is_err());
     }
 
     #[test]
     fn strided_images_are_written_row_by_row() {
         let dir = tempfile::tempdir().unwrap();
         let cam = CameraModel::rpi_v2().scaled_to(5, 3);
-        let mut w = RecordingWriter::create(dir.path(), &cam, &DeckLayout::paper(), [false; 6]).unwrap();
+        let mut w = RecordingWriter::create(dir.path(), &cam, &DeckLayout::paper(), NO_TRUTH).unwrap();
         let buf: Vec<u8> = (0..8 * 3).map(|i| i as u8).collect();
         let view = GrayView::new(&buf, 5, 3, 8).unwrap();
         w.write_frame(0, 0, view, &GroundTruth::default()).unwrap();
@@ -748,7 +789,10 @@ mod tests {
     fn columns_in_any_order_and_extra_columns_ignored() {
         let (frames, cols) =
             parse("file,comment,timestamp_ns,index,yaw_deg\na.png,hi,10,0,nan\nb.png,,20,1,2.5\n").unwrap();
-        assert_eq!(cols, [false, false, true, false, false, false]);
+        assert_eq!(
+            cols,
+            [false, false, true, false, false, false, false, false, false]
+        );
         assert_eq!(frames[1].file, "b.png");
         assert_eq!(frames[1].truth.yaw_deg, Some(2.5));
         assert_eq!(frames[0].truth.yaw_deg, None);
@@ -839,7 +883,7 @@ mod tests {
     fn bad_images_are_reported_with_their_file() {
         let dir = tempfile::tempdir().unwrap();
         let cam = CameraModel::rpi_v2().scaled_to(4, 4);
-        let mut w = RecordingWriter::create(dir.path(), &cam, &DeckLayout::paper(), [false; 6]).unwrap();
+        let mut w = RecordingWriter::create(dir.path(), &cam, &DeckLayout::paper(), NO_TRUTH).unwrap();
         let img = GrayImage::new(4, 4);
         w.write_frame(0, 0, img.view(), &GroundTruth::default()).unwrap();
         w.write_frame(1, 1, img.view(), &GroundTruth::default()).unwrap();

@@ -130,7 +130,7 @@ pub fn attitude_items(a: &AttitudeMessage) -> Vec<Item> {
     if a.valid && z.is_finite() {
         let scene = SceneGeometry {
             attitude: a.rpy.to_matrix(),
-            viewpoint: Viewpoint::level(x, y, z),
+            viewpoint: Viewpoint::level(x, y, z).with_vehicle_attitude(a.context.vehicle.matrix()),
         };
         let deck = &a.context.deck;
         let points: Vec<[f32; 2]> = scene

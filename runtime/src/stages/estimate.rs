@@ -166,6 +166,9 @@ impl EstimateStage {
         }
         let est = self.estimators.as_ref().expect("set above");
         let pixels = m.markers.pixels(deck.marker_count());
+        // The camera's vehicle: both estimators compensate its attitude (level when unknown).
+        let vehicle = m.context.vehicle.matrix();
+        let level = vehicle == deckwatch_common::RotationMatrix::identity();
         match paper_variant(kind) {
             Some(variant) => {
                 let paper = PaperEstimator::new(camera, deck, variant);
@@ -175,12 +178,14 @@ impl EstimateStage {
                     &paper
                 };
                 let altitude = m.context.altitude_m.is_finite().then_some(m.context.altitude_m);
-                match paper.estimate(&pixels, altitude) {
+                match paper.estimate_with_vehicle(&pixels, altitude, &vehicle) {
                     Ok(e) => Outcome {
                         kind,
                         result: Ok(Estimate {
                             attitude: e.attitude,
-                            image_ellipse: e.image_ellipse,
+                            // Tilted, the ellipse is in a virtual level camera's pixels: not
+                            // drawn on the image.
+                            image_ellipse: e.image_ellipse.filter(|_| level),
                             residual: e.fit_rms_m,
                             markers_used: (e.ring_markers_used + 2) as u32,
                             rpy_std_deg: [f64::NAN; 3],
@@ -190,7 +195,10 @@ impl EstimateStage {
                     Err(e) => fail(paper_failure(&e)),
                 }
             }
-            None => match est.pose.estimate(&pixels, m.markers.perspective_corrected) {
+            None => match est
+                .pose
+                .estimate_with_vehicle(&pixels, m.markers.perspective_corrected, &vehicle)
+            {
                 Ok(e) => Outcome {
                     kind,
                     result: Ok(Estimate {

@@ -265,6 +265,29 @@ impl VehicleSway {
         }
     }
 
+    /// The same sway about a constant tilt (deg; a hover in wind leans into it): the constant
+    /// is a sinusoid of infinite period at its crest.
+    pub fn with_tilt(mut self, [roll, pitch, yaw]: [f64; 3]) -> Self {
+        let constant = |amplitude| Sinusoid {
+            amplitude,
+            period_s: f64::INFINITY,
+            phase: std::f64::consts::FRAC_PI_2,
+        };
+        self.roll_deg.push(constant(roll));
+        self.pitch_deg.push(constant(pitch));
+        self.yaw_deg.push(constant(yaw));
+        self
+    }
+
+    /// No sway at all.
+    pub fn still() -> Self {
+        Self {
+            roll_deg: Vec::new(),
+            pitch_deg: Vec::new(),
+            yaw_deg: Vec::new(),
+        }
+    }
+
     pub fn attitude(&self, t_s: f64) -> Rpy {
         Rpy::from_degrees(
             sum(&self.roll_deg, t_s),

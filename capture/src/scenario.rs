@@ -84,6 +84,13 @@ pub struct SimulationArgs {
     /// quadrotor's sway, `VehicleSway::hover`).
     #[cfg_attr(feature = "cli", arg(long, default_value = "level"))]
     pub vehicle: VehicleMotion,
+    /// The vehicle's constant tilt with `tilted` and `sway` (roll, pitch, yaw deg; a hover in
+    /// wind leans into it).
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, num_args = 3, value_delimiter = ',', allow_negative_numbers = true, default_values_t = [0.0, 0.0, 0.0])
+    )]
+    pub vehicle_tilt_deg: Vec<f64>,
     /// Seed of the sea's phases, the textures and the noise.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = 1))]
     pub seed: u64,
@@ -98,6 +105,7 @@ impl Default for SimulationArgs {
             rate: 10.0,
             camera: None,
             vehicle: VehicleMotion::Level,
+            vehicle_tilt_deg: vec![0.0; 3],
             seed: 1,
         }
     }
@@ -110,6 +118,8 @@ impl Default for SimulationArgs {
 pub enum VehicleMotion {
     /// Level, as the paper assumes.
     Level,
+    /// A constant tilt (`vehicle_tilt_deg`).
+    Tilted,
     /// A hovering quadrotor's sway ([`crate::VehicleSway::hover`]).
     Sway,
 }
@@ -142,6 +152,17 @@ impl SimulationArgs {
         if self.frames == 0 {
             return Err("--frames: must be at least 1".into());
         }
+        let tilt_ok = self.vehicle_tilt_deg.len() == 3
+            && self
+                .vehicle_tilt_deg
+                .iter()
+                .all(|a| a.is_finite() && a.abs() <= 45.0);
+        if !tilt_ok {
+            return Err(format!(
+                "--vehicle-tilt-deg: three angles (roll, pitch, yaw) within +-45 deg, got {:?}",
+                self.vehicle_tilt_deg
+            ));
+        }
         Ok(Simulation {
             scenario,
             camera_name,
@@ -153,13 +174,19 @@ impl SimulationArgs {
     /// The run's motion: the scenario's deck and camera position, on the configured vehicle.
     pub fn profile(&self) -> Box<dyn MotionProfile + Send + Sync> {
         let scenario = self.scenario.profile(self.seed);
-        match self.vehicle {
-            VehicleMotion::Level => scenario,
-            VehicleMotion::Sway => Box::new(crate::Swaying {
-                inner: scenario,
-                sway: crate::VehicleSway::hover(self.seed, 1.0),
-            }),
-        }
+        let tilt = match self.vehicle_tilt_deg[..] {
+            [r, p, y] => [r, p, y],
+            _ => [0.0; 3], // refused by `resolve`
+        };
+        let sway = match self.vehicle {
+            VehicleMotion::Level => return scenario,
+            VehicleMotion::Tilted => crate::VehicleSway::still(),
+            VehicleMotion::Sway => crate::VehicleSway::hover(self.seed, 1.0),
+        };
+        Box::new(crate::Swaying {
+            inner: scenario,
+            sway: sway.with_tilt(tilt),
+        })
     }
 
     /// The ground-truth columns a recording of this simulation has: the vehicle's only when it
@@ -167,7 +194,7 @@ impl SimulationArgs {
     pub fn truth_columns(&self) -> deckwatch_common::recording::TruthColumns {
         match self.vehicle {
             VehicleMotion::Level => deckwatch_common::recording::LEVEL_TRUTH,
-            VehicleMotion::Sway => deckwatch_common::recording::ALL_TRUTH,
+            VehicleMotion::Tilted | VehicleMotion::Sway => deckwatch_common::recording::ALL_TRUTH,
         }
     }
 

@@ -94,7 +94,7 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
         let mut chain = StageChain::new(&config).map_err(|e| e.to_string())?;
         let mut others: Vec<EstimateStage> = ESTIMATORS[1..]
             .iter()
-            .map(|&k| EstimateStage::new(&stage_config(k), false))
+            .map(|&k| EstimateStage::new(&stage_config(k), &config.vehicle, false))
             .collect();
         let mut tallies: Vec<Tally> = ESTIMATORS.iter().map(|_| Tally::default()).collect();
         let name = dir

@@ -43,6 +43,39 @@ pub struct RunArgs {
     /// rerun logging: `off`, `spawn` (start a viewer), `connect [ADDR]`, `save FILE.rrd`.
     #[arg(long, num_args = 1..=2, value_names = ["MODE", "ARG"])]
     rerun: Vec<String>,
+    /// Start the MAVLink link to the autopilot at this address (`udpin:0.0.0.0:14540`,
+    /// `udpout:HOST:PORT`, `serial:/dev/ttyAMA0:921600`); sets `[link]`.
+    #[arg(long, value_name = "ADDRESS")]
+    link: Option<String>,
+    /// Where the vehicle's attitude comes from: `frames`, `autopilot` (the link) or `level`.
+    #[arg(long, value_name = "SOURCE")]
+    vehicle_attitude: Option<String>,
+}
+
+/// Applies `--link ADDRESS` and `--vehicle-attitude SOURCE`.
+pub fn apply_link(
+    c: &mut PipelineConfig,
+    link: Option<String>,
+    vehicle_attitude: Option<&str>,
+) -> Result<(), String> {
+    use deckwatch_common::vehicle::VehicleAttitudeSource;
+    if let Some(address) = link {
+        c.link.enabled = true;
+        c.link.address = address;
+    }
+    if let Some(v) = vehicle_attitude {
+        c.vehicle.attitude = match v {
+            "frames" => VehicleAttitudeSource::Frames,
+            "autopilot" => VehicleAttitudeSource::Autopilot,
+            "level" => VehicleAttitudeSource::Level,
+            other => {
+                return Err(format!(
+                    "--vehicle-attitude: unknown `{other}` (frames, autopilot, level)"
+                ))
+            }
+        };
+    }
+    Ok(())
 }
 
 /// Applies `--rerun MODE [ARG]`.
@@ -139,6 +172,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
         c.bus.domain = d;
     }
     apply_rerun(&mut c, &a.rerun)?;
+    apply_link(&mut c, a.link, a.vehicle_attitude.as_deref())?;
     if a.print_config {
         c.validate(&file).map_err(|e| e.to_string())?;
         print!("{}", c.to_toml());

@@ -18,6 +18,7 @@ pub mod recording;
 pub mod rotation;
 pub mod scene;
 pub mod stats;
+pub mod vehicle;
 
 pub use camera::{CameraModel, Distortion};
 pub use deck::DeckLayout;

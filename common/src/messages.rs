@@ -15,6 +15,7 @@ use crate::ellipse::Ellipse;
 use crate::markers::MarkerSet;
 use crate::recording::GroundTruth;
 use crate::rotation::{Euler313, Quaternion, Rpy};
+use crate::vehicle::Compensation;
 #[cfg(feature = "shm")]
 use iceoryx2::prelude::ZeroCopySend;
 
@@ -453,7 +454,7 @@ pub enum AttitudeFailure {
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
-    type_name("deckwatch.AttitudeMessage.v2")
+    type_name("deckwatch.AttitudeMessage.v3")
 )]
 pub struct AttitudeMessage {
     pub stamp: FrameStamp,
@@ -482,6 +483,18 @@ pub struct AttitudeMessage {
     pub camera_position_m: [f64; 3],
     /// The other estimator's result on the same markers, for comparison (when enabled).
     pub alternative: AlternativeAttitude,
+    /// How the vehicle's attitude was taken out of `rpy`; `Missing`: `rpy` is relative to the
+    /// camera and decide never clears on it.
+    pub compensation: Compensation,
+    /// The vehicle attitude used (`R_V`, body to world; W's x is the ship's mean heading when it
+    /// came from the autopilot).
+    pub vehicle: VehicleAttitude,
+    /// From mid-exposure to the nearest vehicle sample used (ms; 0 for the frame's own, NaN
+    /// when none).
+    pub vehicle_age_ms: f64,
+    /// The deck relative to the body-level camera (`(R_V R_M)^T R_D`): what the camera alone
+    /// sees.
+    pub camera_rpy: Rpy,
 }
 
 /// A second estimator's attitude for the same frame.
@@ -562,6 +575,9 @@ pub enum DecisionReason {
     PredictionUnreliable = 7,
     /// The deck is predicted to leave the capacity during the touchdown.
     PredictedOutside = 8,
+    /// The vehicle's attitude was needed but missing (the autopilot's stream stopped or lags):
+    /// the attitude is the deck relative to a tilted camera.
+    NoVehicleAttitude = 9,
 }
 
 impl DecisionReason {
@@ -576,8 +592,54 @@ impl DecisionReason {
             Self::Warmup => "warmup",
             Self::PredictionUnreliable => "prediction-unreliable",
             Self::PredictedOutside => "predicted-outside",
+            Self::NoVehicleAttitude => "no-vehicle-attitude",
         }
     }
+}
+
+/// How a vehicle sample's autopilot time was put on this machine's clock.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.ClockMethod.v1"))]
+pub enum ClockMethod {
+    /// Not yet: no offset estimate.
+    #[default]
+    None = 0,
+    /// MAVLink TIMESYNC round trips (offset and drift).
+    Timesync = 1,
+    /// Arrival times only (the autopilot does not answer TIMESYNC): late by the link latency.
+    Arrival = 2,
+}
+
+/// One attitude sample of the vehicle, from the autopilot (the `link` process), on this
+/// machine's `CLOCK_MONOTONIC`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(
+    feature = "shm",
+    derive(ZeroCopySend),
+    type_name("deckwatch.VehicleSample.v1")
+)]
+pub struct VehicleSample {
+    /// The link's count of samples, from 0.
+    pub seq: u64,
+    /// When the autopilot measured it, on `CLOCK_MONOTONIC` (ns).
+    pub time_ns: u64,
+    /// The same instant on the autopilot's clock (us since its boot).
+    pub autopilot_time_us: u64,
+    /// When it arrived here (`CLOCK_MONOTONIC`, ns).
+    pub received_ns: u64,
+    /// `R_V`: body (x forward, y left, z up) to north-west-up.
+    pub quaternion: Quaternion,
+    /// Height above the ground or deck (m; DISTANCE_SENSOR or LOCAL_POSITION_NED), NaN unknown.
+    pub altitude_m: f64,
+    /// autopilot time - monotonic time (ns), and how it was estimated.
+    pub clock_offset_ns: i64,
+    pub clock_method: ClockMethod,
+    /// Drift of the autopilot's clock against this machine's (parts per million).
+    pub clock_drift_ppm: f64,
+    /// The link: a heartbeat and attitude came within the configured time.
+    pub link_up: bool,
 }
 
 /// Decide's output for one frame.
@@ -586,7 +648,7 @@ impl DecisionReason {
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
-    type_name("deckwatch.LandingDecision.v2")
+    type_name("deckwatch.LandingDecision.v3")
 )]
 pub struct LandingDecision {
     pub stamp: FrameStamp,

@@ -330,6 +330,32 @@ impl Quaternion {
         q.normalized().unwrap_or(Self::IDENTITY).canonical()
     }
 
+    /// Spherical linear interpolation from `self` (s = 0) to `other` (s = 1) along the shorter
+    /// arc; both unit quaternions.
+    pub fn slerp(&self, other: &Self, s: f64) -> Self {
+        let mut b = *other;
+        let mut dot = self.w * b.w + self.x * b.x + self.y * b.y + self.z * b.z;
+        if dot < 0.0 {
+            b = Self::new(-b.w, -b.x, -b.y, -b.z);
+            dot = -dot;
+        }
+        // The same rotation to rounding: the chord is the arc (and sin(theta) would vanish).
+        let (ka, kb) = if 1.0 - dot < 1e-12 {
+            (1.0 - s, s)
+        } else {
+            let theta = dot.min(1.0).acos();
+            let sin = theta.sin();
+            (((1.0 - s) * theta).sin() / sin, (s * theta).sin() / sin)
+        };
+        let q = Self::new(
+            ka * self.w + kb * b.w,
+            ka * self.x + kb * b.x,
+            ka * self.y + kb * b.y,
+            ka * self.z + kb * b.z,
+        );
+        q.normalized().unwrap_or(*self)
+    }
+
     /// Roll/pitch/yaw (X-Y-Z) of this quaternion, through its matrix.
     pub fn to_rpy(&self) -> Rpy {
         Rpy::from_matrix(&self.to_matrix())

@@ -335,6 +335,18 @@ impl LandingDecider {
         self.decide(t, attitude, age_s, t)
     }
 
+    /// Refuses the input of a frame captured at `t` for `reason` (say, its attitude could not
+    /// be compensated for the vehicle's): never clear on it, abort a committed landing.
+    pub fn refuse_at_capture(&mut self, t: f64, reason: DecisionReason) -> Decision {
+        let now = if t.is_finite() {
+            self.last_input = Some(t);
+            t
+        } else {
+            self.last_input.unwrap_or(f64::NEG_INFINITY)
+        };
+        self.transition(Err(reason), now)
+    }
+
     fn decide(&mut self, t: f64, attitude: Option<[f64; 2]>, age_s: f64, now: f64) -> Decision {
         // A time that is not a number cannot move the clock: a committed landing must still
         // see itself committed (and abort), not forget it.

@@ -15,7 +15,7 @@
 //! iceoryx2 file in `/dev/shm` and under `/tmp/iceoryx2`.
 
 use deckwatch_common::messages::{
-    monotonic_ns, AttitudeMessage, FrameHeader, LandingDecision, MarkerMessage,
+    monotonic_ns, AttitudeMessage, FrameHeader, LandingDecision, MarkerMessage, VehicleSample,
 };
 use iceoryx2::config::Config;
 use iceoryx2::node::{NodeState, NodeView};
@@ -40,6 +40,8 @@ pub mod services {
     pub const MARKERS: &str = "deckwatch/markers";
     pub const ATTITUDE: &str = "deckwatch/attitude";
     pub const DECISION: &str = "deckwatch/decision";
+    /// The vehicle's attitude samples from the autopilot (the link process).
+    pub const VEHICLE: &str = "deckwatch/vehicle";
 }
 
 /// The default domain.
@@ -203,6 +205,8 @@ pub struct Bus {
 /// A small fixed-size message published on its own service.
 pub trait Message: Debug + Copy + Default + ZeroCopySend + 'static {
     const SERVICE: &'static str;
+    /// Messages queued per subscriber before the oldest is dropped.
+    const QUEUE: usize = MESSAGE_QUEUE;
 }
 
 impl Message for MarkerMessage {
@@ -213,6 +217,11 @@ impl Message for AttitudeMessage {
 }
 impl Message for LandingDecision {
     const SERVICE: &'static str = services::DECISION;
+}
+impl Message for VehicleSample {
+    const SERVICE: &'static str = services::VEHICLE;
+    // 200 Hz: 320 ms of samples, so a frame's mid-exposure stays bracketed while estimate is busy.
+    const QUEUE: usize = 64;
 }
 
 type PubSub<P, H> = iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, P, H>;
@@ -321,7 +330,7 @@ impl Bus {
             .publish_subscribe::<M>()
             .max_publishers(2)
             .max_subscribers(MESSAGE_SUBSCRIBERS)
-            .subscriber_max_buffer_size(MESSAGE_QUEUE)
+            .subscriber_max_buffer_size(M::QUEUE)
             .subscriber_max_borrowed_samples(2)
             .history_size(0)
             .enable_safe_overflow(true)
@@ -392,7 +401,7 @@ impl Bus {
         let service = self.message_service::<M>()?;
         let subscriber = service
             .subscriber_builder()
-            .buffer_size(MESSAGE_QUEUE)
+            .buffer_size(M::QUEUE)
             .create()
             .map_err(context(format!("subscriber of `{}`", M::SERVICE)))?;
         let listener = self

@@ -10,8 +10,11 @@ use deckwatch_capture::camera::CameraConfig;
 use deckwatch_capture::scenario::SimulationArgs;
 use deckwatch_capture::sim::ImageArgs;
 use deckwatch_capture::source::{CaptureConfig, ReplayConfig, SourceConfig, SourceError};
+use deckwatch_common::messages::FrameSource;
+use deckwatch_common::vehicle::{VehicleAttitudeSource, VehicleConfig};
 use deckwatch_decide::DecisionConfig;
 use deckwatch_estimate::EstimateConfig;
+use deckwatch_link::LinkConfig;
 use deckwatch_viz::RerunConfig;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -62,8 +65,10 @@ pub struct PipelineConfig {
     pub image: ImageArgs,
     pub replay: ReplayConfig,
     pub libcamera: CameraConfig,
+    pub vehicle: VehicleConfig,
     pub estimate: EstimateConfig,
     pub decide: DecisionConfig,
+    pub link: LinkConfig,
     pub supervisor: SupervisorConfig,
     pub rerun: RerunConfig,
 }
@@ -142,6 +147,20 @@ impl PipelineConfig {
         self.decide
             .validate()
             .map_err(|e| invalid(format!("decide.{}", e.key), e.problem))?;
+        self.vehicle
+            .validate()
+            .map_err(|e| invalid(format!("vehicle.{}", e.field), e.problem))?;
+        self.link
+            .validate()
+            .map_err(|e| invalid(format!("link.{}", e.field), e.problem))?;
+        if self.source.kind == FrameSource::Libcamera
+            && self.vehicle.attitude == VehicleAttitudeSource::Frames
+        {
+            return Err(invalid(
+                "vehicle.attitude".into(),
+                "a camera's frames carry no vehicle attitude: use \"autopilot\" (the link process), or \"level\" for a gimballed camera".into(),
+            ));
+        }
         self.rerun.validate().map_err(|e| match e {
             deckwatch_viz::VizError::Config { key, problem } => invalid(format!("rerun.{key}"), problem),
             other => invalid("rerun".into(), other.to_string()),

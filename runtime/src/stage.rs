@@ -13,7 +13,7 @@ use crate::bus::{
     MessageSubscriber, Wake,
 };
 use crate::config::{ConfigError, PipelineConfig, DEFAULTS};
-use deckwatch_common::messages::{monotonic_ns, FrameHeader};
+use deckwatch_common::messages::{monotonic_ns, FrameHeader, VehicleSample};
 use deckwatch_viz::{Item, Logger};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -51,6 +51,16 @@ pub trait Stage: Sized {
     fn tick(&mut self, _now_ns: u64) -> Option<Self::Output> {
         None
     }
+
+    /// Whether the stage follows the vehicle's attitude stream ([`VehicleSample`], from the link
+    /// process) besides its input.
+    fn wants_vehicle(&self) -> bool {
+        false
+    }
+
+    /// A vehicle attitude sample; every sample that arrived is handed over before the inputs
+    /// that arrived with it.
+    fn vehicle_sample(&mut self, _sample: &VehicleSample) {}
 
     /// What was wrong with the last input, if anything (said once, on stderr).
     fn take_warning(&mut self) -> Option<String> {
@@ -159,8 +169,13 @@ pub struct StageInfo {
 }
 
 /// The stages in start order: each one's input service has a subscriber before the stage
-/// upstream of it starts, so no frame is published into the void.
-pub const STAGES: [StageInfo; 4] = [
+/// upstream of it starts, so no frame is published into the void. The link comes first: the
+/// vehicle's attitude must flow before the first frame needs it.
+pub const STAGES: [StageInfo; 5] = [
+    StageInfo {
+        name: crate::stages::link::NAME,
+        ready_service: None,
+    },
     StageInfo {
         name: crate::stages::DecideStage::NAME,
         ready_service: Some(<<crate::stages::DecideStage as Stage>::Input as Input>::SERVICE),
@@ -178,6 +193,14 @@ pub const STAGES: [StageInfo; 4] = [
         ready_service: None,
     },
 ];
+
+/// The stages a configuration runs, in start order (the link only with `[link] enabled`).
+pub fn active_stages(config: &PipelineConfig) -> Vec<StageInfo> {
+    STAGES
+        .into_iter()
+        .filter(|s| s.name != crate::stages::link::NAME || config.link.enabled)
+        .collect()
+}
 
 /// The command line of every stage binary: the pipeline configuration and the domain.
 #[derive(Debug, Clone, clap::Parser)]
@@ -288,7 +311,19 @@ pub fn run<S: Stage>(args: &StageArgs) -> Result<String, RunError> {
         }
     };
     let period = stage.tick_period();
-    event_loop(&[input.listener()], period, |wake| {
+    let vehicle = if stage.wants_vehicle() {
+        Some(bus.subscriber::<VehicleSample>()?)
+    } else {
+        None
+    };
+    let mut listeners = vec![input.listener()];
+    listeners.extend(vehicle.as_ref().map(|v| v.listener()));
+    event_loop(&listeners, period, |wake| {
+        if let Some(v) = &vehicle {
+            while let Some(sample) = v.receive()? {
+                stage.vehicle_sample(&sample);
+            }
+        }
         if wake == Wake::Tick {
             if let Some(o) = stage.tick(monotonic_ns()) {
                 output.send(&o)?;

@@ -29,6 +29,11 @@ pub const CALM_WINDOW_START: &str = "decision/calm_window/start_s";
 pub const CALM_WINDOW_LENGTH: &str = "decision/calm_window/length_s";
 /// State changes as text.
 pub const DECISION_LOG: &str = "decision/log";
+/// The vehicle's attitude from the autopilot (deg; north-west-up) and the link's clock.
+pub const VEHICLE_ROLL: &str = "vehicle/roll";
+pub const VEHICLE_PITCH: &str = "vehicle/pitch";
+pub const LINK_CLOCK_OFFSET: &str = "link/clock_offset_ms";
+pub const LINK_UP: &str = "link/up";
 
 /// Colours (RGBA): detections stand out from the model they are compared with.
 pub const MARKER_COLOUR: [u8; 4] = [255, 200, 0, 255];
@@ -171,6 +176,21 @@ pub fn attitude_items(a: &AttitudeMessage) -> Vec<Item> {
         ));
     }
     out
+}
+
+/// A vehicle attitude sample from the autopilot as plotted values.
+pub fn vehicle_items(v: &deckwatch_common::messages::VehicleSample) -> Vec<Item> {
+    let [roll, pitch, _] = v.quaternion.to_rpy().to_degrees();
+    vec![item(
+        v.seq,
+        v.time_ns,
+        ItemKind::Scalars(vec![
+            (VEHICLE_ROLL.into(), roll),
+            (VEHICLE_PITCH.into(), pitch),
+            (LINK_CLOCK_OFFSET.into(), v.clock_offset_ns as f64 / 1e6),
+            (LINK_UP.into(), f64::from(u8::from(v.link_up))),
+        ]),
+    )]
 }
 
 /// The decision as plotted values; with `state_changed`, also a line of text.

@@ -13,7 +13,7 @@ pub mod supervise;
 
 use deckwatch_runtime::bus::{quiet_logging, Bus};
 use deckwatch_runtime::config::PipelineConfig;
-use deckwatch_runtime::stage::STAGES;
+use deckwatch_runtime::stage::active_stages;
 use deckwatch_viz::RerunSink;
 use process::{stage_binary, stop_all, StageProcess};
 pub use report::{print_report, RunReport};
@@ -39,7 +39,8 @@ pub fn launch(config: &PipelineConfig, file: &str, options: &LaunchOptions) -> R
             alive.join(", ")
         ));
     }
-    let mut stages = STAGES
+    let active = active_stages(config);
+    let mut stages = active
         .iter()
         .map(|s| {
             stage_binary(options.stage_dir.as_deref(), s.name)
@@ -78,7 +79,7 @@ pub fn launch(config: &PipelineConfig, file: &str, options: &LaunchOptions) -> R
     if config.rerun.sink == RerunSink::Save {
         if let Some(path) = &config.rerun.path {
             let mut parts = vec![LAUNCHER];
-            parts.extend(STAGES.iter().rev().map(|s| s.name));
+            parts.extend(active.iter().rev().map(|s| s.name));
             match deckwatch_viz::merge_parts(path, &parts) {
                 Ok(n) => say(format_args!("rerun recording: {} ({n} messages)", path.display())),
                 Err(e) => say(format_args!(

@@ -12,7 +12,7 @@ use super::say;
 use deckwatch_common::messages::LandingDecision;
 use deckwatch_runtime::bus::{event_loop, Bus, BusError, Flow, LoopEnd, Wake};
 use deckwatch_runtime::config::{PipelineConfig, SupervisorConfig};
-use deckwatch_runtime::stage::STAGES;
+use deckwatch_runtime::stage::active_stages;
 use deckwatch_runtime::stages::capture;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -122,7 +122,7 @@ pub fn supervise(
     let mut observer = Observer::new(options.decisions_csv.as_deref())?;
     let start = Instant::now();
 
-    for (s, info) in stages.iter_mut().zip(STAGES) {
+    for (s, info) in stages.iter_mut().zip(active_stages(config)) {
         s.spawn(config_path, domain)?;
         let Some(service) = info.ready_service else {
             continue;

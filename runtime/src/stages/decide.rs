@@ -12,6 +12,7 @@ use crate::stage::Stage;
 use deckwatch_common::messages::{
     monotonic_ns, AttitudeMessage, DecisionReason, DecisionState, GapCounter, LandingDecision,
 };
+use deckwatch_common::vehicle::Compensation;
 use deckwatch_decide::{DecisionConfig, LandingDecider};
 use deckwatch_viz::Item;
 use std::time::Duration;
@@ -74,7 +75,13 @@ impl DecideStage {
             received_ns as f64 / 1e9 - seconds(captured)
         };
         let t = frame_time_s(a);
-        let d = self.decider.update_at_capture(t, attitude, age_s);
+        let d = if a.valid && a.compensation == Compensation::Missing {
+            // The deck relative to a tilted camera is not the deck.
+            self.decider
+                .refuse_at_capture(t, DecisionReason::NoVehicleAttitude)
+        } else {
+            self.decider.update_at_capture(t, attitude, age_s)
+        };
         self.last_input = Some((t, received_ns));
         let (start, length) = d.calm_window.unwrap_or((f64::NAN, f64::NAN));
         let mut out = LandingDecision {
@@ -194,6 +201,38 @@ mod tests {
         let e = PipelineConfig::from_toml("d.toml", "[decide]\nmax_age_ms = -1\n").unwrap();
         let e = DecideStage::from_config(&e, false).err().unwrap().to_string();
         assert!(e.contains("decide.max_age_ms"), "{e}");
+    }
+
+    /// A frame whose attitude could not be compensated for the vehicle's ends a clearance at
+    /// once (an abort when committed), with its reason.
+    #[test]
+    fn an_uncompensated_frame_never_clears() {
+        let mut s = DecideStage::new(DecisionConfig::default(), false).unwrap();
+        let mut a = AttitudeMessage {
+            valid: true,
+            compensation: Compensation::Stream,
+            ..Default::default()
+        };
+        let mut cleared_at = None;
+        for k in 0..600u64 {
+            let t = k as f64 * 0.1;
+            a.rpy = Rpy::from_degrees(0.8 * (0.7 * t).sin(), 0.6 * (0.5 * t + 1.0).sin(), 0.0);
+            a.stamp.seq = k;
+            a.context.source_timestamp_ns = k * 100_000_000;
+            a.stamp.times.captured_ns = 1_000_000_000 + k * 100_000_000;
+            if s.process(&a, a.stamp.times.captured_ns + 5_000_000).state == DecisionState::ClearToLand {
+                cleared_at = Some(k);
+                break;
+            }
+        }
+        let k = cleared_at.expect("a calm sea clears");
+        a.compensation = Compensation::Missing;
+        a.stamp.seq = k + 1;
+        a.context.source_timestamp_ns = (k + 1) * 100_000_000;
+        a.stamp.times.captured_ns += 100_000_000;
+        let d = s.process(&a, a.stamp.times.captured_ns + 5_000_000);
+        assert_eq!(d.reason, DecisionReason::NoVehicleAttitude);
+        assert_ne!(d.state, DecisionState::ClearToLand);
     }
 
     /// The decision depends on the frames' timeline, not on when they arrived.

@@ -7,8 +7,13 @@ use crate::stage::Stage;
 use deckwatch_common::markers::DetectionStatus;
 use deckwatch_common::messages::{
     monotonic_ns, AlternativeAttitude, AttitudeFailure, AttitudeMessage, EstimatorKind, GapCounter,
-    MarkerMessage,
+    MarkerMessage, VehicleAttitude, VehicleSample,
 };
+use deckwatch_common::rotation::rot_z;
+use deckwatch_common::vehicle::{
+    Compensation, MeanHeading, VehicleAttitudeSource, VehicleConfig, VehicleTrack,
+};
+use deckwatch_common::{Attitude, RotationMatrix, Rpy};
 use deckwatch_estimate::config::paper_variant;
 use deckwatch_estimate::{
     EstimateConfig, NotEstimable, PaperEstimator, PaperVariant, PoseConfig, PoseError, PoseEstimator,
@@ -72,11 +77,25 @@ struct Estimators {
     pose: PoseEstimator,
 }
 
+/// The vehicle attitude a frame is compensated with.
+struct VehicleForFrame {
+    compensation: Compensation,
+    /// `R_V` (north-west-up for the autopilot's).
+    r_v: RotationMatrix,
+    age_ms: f64,
+}
+
 /// State of the estimate stage across frames.
 pub struct EstimateStage {
     primary: EstimatorKind,
     secondary: Option<EstimatorKind>,
     estimators: Option<Estimators>,
+    vehicle: VehicleConfig,
+    /// The autopilot's attitude samples (`[vehicle] attitude = "autopilot"`).
+    track: VehicleTrack,
+    /// The ship's mean heading from north: W's x with the autopilot's attitude.
+    heading: MeanHeading,
+    pub uncompensated: u64,
     gaps: GapCounter,
     pub dropped: u64,
     pub processed: u64,
@@ -85,11 +104,15 @@ pub struct EstimateStage {
 
 impl EstimateStage {
     /// `joined_late`: the pipeline was already running (see [`GapCounter::new`]).
-    pub fn new(config: &EstimateConfig, joined_late: bool) -> Self {
+    pub fn new(config: &EstimateConfig, vehicle: &VehicleConfig, joined_late: bool) -> Self {
         Self {
             primary: config.estimator,
             secondary: config.secondary(),
             estimators: None,
+            vehicle: vehicle.clone(),
+            track: VehicleTrack::new(512),
+            heading: MeanHeading::default(),
+            uncompensated: 0,
             gaps: GapCounter::new(joined_late),
             dropped: 0,
             processed: 0,
@@ -112,13 +135,47 @@ impl EstimateStage {
         };
         out.stamp.drops.estimate = self.dropped;
         out.stamp.times.estimate_received_ns = received_ns;
-        match self.run(self.primary, m).result {
-            Ok(e) => e.write(&mut out),
+        let vehicle = self.vehicle_for(m);
+        let camera = self.vehicle.camera_attitude(&vehicle.r_v);
+        out.compensation = vehicle.compensation;
+        out.vehicle_age_ms = vehicle.age_ms;
+        self.uncompensated += (vehicle.compensation == Compensation::Missing) as u64;
+        // With the autopilot's north-referenced attitude, W's x is the ship's mean heading.
+        let mut to_w = RotationMatrix::identity();
+        let primary = self.run(self.primary, m, &camera);
+        if let Ok(e) = &primary.result {
+            if vehicle.compensation == Compensation::Stream {
+                let t_s = m.context.source_timestamp_ns as f64 / 1e9;
+                let deck_heading = e.attitude.rpy.yaw;
+                if let Some(h) = self
+                    .heading
+                    .update(t_s, deck_heading, self.vehicle.heading_time_constant_s)
+                {
+                    to_w = rot_z(-h);
+                }
+            }
+        }
+        out.vehicle = VehicleAttitude {
+            known: vehicle.compensation != Compensation::Missing,
+            rpy: Rpy::from_matrix(&(to_w * vehicle.r_v)),
+        };
+        match primary.result {
+            Ok(mut e) => {
+                out.camera_rpy = Rpy::from_matrix(&(camera.transpose() * e.attitude.matrix));
+                e.attitude = Attitude::from_matrix(to_w * e.attitude.matrix);
+                let [x, y, z] = e.camera_position_m;
+                let c = to_w * nalgebra::Vector3::new(x, y, z);
+                e.camera_position_m = [c.x, c.y, c.z];
+                e.write(&mut out)
+            }
             Err(f) => out.failure = f,
         }
         out.valid = out.failure == AttitudeFailure::None;
         if let Some(kind) = self.secondary {
-            let second = self.run(kind, m);
+            let mut second = self.run(kind, m, &camera);
+            if let Ok(e) = &mut second.result {
+                e.attitude = Attitude::from_matrix(to_w * e.attitude.matrix);
+            }
             // The paper's ring ellipse is worth drawing whichever estimator leads.
             if let Ok(Estimate {
                 image_ellipse: Some(el),
@@ -140,7 +197,50 @@ impl EstimateStage {
         out
     }
 
-    fn run(&mut self, kind: EstimatorKind, m: &MarkerMessage) -> Outcome {
+    /// A vehicle attitude sample from the autopilot (kept for the frames to come).
+    pub fn observe_vehicle(&mut self, sample: &VehicleSample) {
+        if sample.link_up {
+            self.track.push(sample.time_ns, sample.quaternion);
+        }
+    }
+
+    /// The vehicle attitude at the frame's mid-exposure, as `[vehicle] attitude` says.
+    fn vehicle_for(&self, m: &MarkerMessage) -> VehicleForFrame {
+        let level = VehicleForFrame {
+            compensation: Compensation::Level,
+            r_v: RotationMatrix::identity(),
+            age_ms: f64::NAN,
+        };
+        match self.vehicle.attitude {
+            VehicleAttitudeSource::Level => level,
+            // A source without a vehicle (a recording without its columns) means level.
+            VehicleAttitudeSource::Frames if !m.context.vehicle.known => level,
+            VehicleAttitudeSource::Frames => VehicleForFrame {
+                compensation: Compensation::Frame,
+                r_v: m.context.vehicle.matrix(),
+                age_ms: 0.0,
+            },
+            // Mid-exposure: capture stamps it (the simulator renders an instant).
+            VehicleAttitudeSource::Autopilot => {
+                match self
+                    .track
+                    .at(m.stamp.times.captured_ns, self.vehicle.max_gap_ns())
+                {
+                    Ok(a) => VehicleForFrame {
+                        compensation: Compensation::Stream,
+                        r_v: a.quaternion.to_matrix(),
+                        age_ms: a.age_ns as f64 / 1e6,
+                    },
+                    Err(_) => VehicleForFrame {
+                        compensation: Compensation::Missing,
+                        ..level
+                    },
+                }
+            }
+        }
+    }
+
+    fn run(&mut self, kind: EstimatorKind, m: &MarkerMessage, camera_attitude: &RotationMatrix) -> Outcome {
         let fail = |failure| Outcome {
             kind,
             result: Err(failure),
@@ -166,9 +266,9 @@ impl EstimateStage {
         }
         let est = self.estimators.as_ref().expect("set above");
         let pixels = m.markers.pixels(deck.marker_count());
-        // The camera's vehicle: both estimators compensate its attitude (level when unknown).
-        let vehicle = m.context.vehicle.matrix();
-        let level = vehicle == deckwatch_common::RotationMatrix::identity();
+        // Both estimators take the camera's attitude out (`R_V R_M`; identity: level).
+        let vehicle = *camera_attitude;
+        let level = vehicle == RotationMatrix::identity();
         match paper_variant(kind) {
             Some(variant) => {
                 let paper = PaperEstimator::new(camera, deck, variant);
@@ -226,7 +326,15 @@ impl Stage for EstimateStage {
     type Output = AttitudeMessage;
 
     fn from_config(config: &PipelineConfig, joined_late: bool) -> Result<Self, ConfigError> {
-        Ok(Self::new(&config.estimate, joined_late))
+        Ok(Self::new(&config.estimate, &config.vehicle, joined_late))
+    }
+
+    fn wants_vehicle(&self) -> bool {
+        self.vehicle.attitude == VehicleAttitudeSource::Autopilot
+    }
+
+    fn vehicle_sample(&mut self, sample: &VehicleSample) {
+        self.observe_vehicle(sample)
     }
 
     fn step(&mut self, m: &MarkerMessage, received_ns: u64) -> AttitudeMessage {
@@ -239,8 +347,8 @@ impl Stage for EstimateStage {
 
     fn summary(&self) -> String {
         format!(
-            "{} marker sets, {} attitudes, {} dropped",
-            self.processed, self.estimated, self.dropped
+            "{} marker sets, {} attitudes, {} dropped, {} not compensated for the vehicle",
+            self.processed, self.estimated, self.dropped, self.uncompensated
         )
     }
 }
@@ -279,7 +387,7 @@ mod tests {
                 ..Default::default()
             };
         }
-        let mut s = EstimateStage::new(&EstimateConfig::default(), false);
+        let mut s = EstimateStage::new(&EstimateConfig::default(), &VehicleConfig::default(), false);
         let a = s.process(&m, 7);
         assert!(a.valid && a.estimator == EstimatorKind::FullPose);
         assert!(rpy_error_deg(&a.rpy, &truth).iter().all(|e| *e < 1e-8));
@@ -290,5 +398,73 @@ mod tests {
         let a = s.process(&m, 8);
         assert!(!a.valid && a.failure == AttitudeFailure::NoDeck);
         assert!(a.alternative.present && !a.alternative.valid);
+    }
+
+    /// With the autopilot's stream: samples around the capture instant are interpolated and the
+    /// tilt taken out; without one close enough the attitude is marked not compensated.
+    #[test]
+    fn autopilot_samples_are_interpolated_to_the_frame() {
+        use deckwatch_common::messages::VehicleSample;
+        use deckwatch_common::vehicle::{Compensation, VehicleAttitudeSource, VehicleConfig};
+        use deckwatch_common::Quaternion;
+        let camera = CameraModel::preset("rpi-v2").unwrap();
+        let deck = DeckLayout::paper();
+        let truth = Rpy::from_degrees(3.0, -2.0, 0.0);
+        // The vehicle rolls at 20 deg/s: 4 deg at the capture instant, between two samples.
+        let vehicle_at = |t_ms: f64| Rpy::from_degrees(0.02 * t_ms, -3.0, 0.0);
+        let scene = SceneGeometry {
+            attitude: truth.to_matrix(),
+            viewpoint: Viewpoint::level(0.0, 0.0, 5.0).with_vehicle_attitude(vehicle_at(200.0).to_matrix()),
+        };
+        let mut m = MarkerMessage::default();
+        m.context.camera = camera;
+        m.context.deck = deck;
+        m.stamp.times.captured_ns = 1_200_000_000;
+        m.markers = MarkerSet {
+            status: DetectionStatus::Ok,
+            perspective_corrected: true,
+            ..Default::default()
+        };
+        for (i, p) in scene.project_markers(&camera, &deck).iter().enumerate() {
+            let [u, v] = p.unwrap();
+            m.markers.markers[i] = Marker {
+                valid: true,
+                u,
+                v,
+                ..Default::default()
+            };
+        }
+        let vehicle = VehicleConfig {
+            attitude: VehicleAttitudeSource::Autopilot,
+            ..VehicleConfig::default()
+        };
+        let mut s = EstimateStage::new(&EstimateConfig::default(), &vehicle, false);
+        assert!(s.wants_vehicle());
+        let a = s.process(&m, 0);
+        assert_eq!(a.compensation, Compensation::Missing);
+        for t_ms in [190.0, 210.0] {
+            s.vehicle_sample(&VehicleSample {
+                time_ns: 1_000_000_000 + (t_ms * 1e6) as u64,
+                quaternion: Quaternion::from_matrix(&vehicle_at(t_ms).to_matrix()),
+                link_up: true,
+                ..Default::default()
+            });
+        }
+        let a = s.process(&m, 0);
+        assert_eq!(a.compensation, Compensation::Stream);
+        assert!((a.vehicle_age_ms - 10.0).abs() < 1e-9);
+        let e = rpy_error_deg(&a.rpy, &truth);
+        // Slerp of a constant-rate roll is exact.
+        assert!(e.iter().all(|v| *v < 1e-6), "{e:?}");
+        let [vr, _, _] = a.vehicle.rpy.to_degrees();
+        assert!((vr - 4.0).abs() < 1e-9);
+        // A sample from a link that is down is not used.
+        let mut t = EstimateStage::new(&EstimateConfig::default(), &vehicle, false);
+        t.vehicle_sample(&VehicleSample {
+            time_ns: 1_200_000_000,
+            link_up: false,
+            ..Default::default()
+        });
+        assert_eq!(t.process(&m, 0).compensation, Compensation::Missing);
     }
 }

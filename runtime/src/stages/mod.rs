@@ -5,6 +5,7 @@ pub mod capture;
 pub mod decide;
 pub mod detect;
 pub mod estimate;
+pub mod link;
 
 pub use decide::DecideStage;
 pub use detect::DetectStage;

@@ -1,0 +1,370 @@
+//! The vehicle that carries the camera (NOTES.md item 8): where its attitude comes from, how the
+//! camera is mounted on it, and how a stream of its attitude samples becomes the attitude at one
+//! frame's mid-exposure.
+//!
+//! `R_V` is body to world (body x forward, y left, z up); the camera looks along the mount
+//! `R_M` (body to "level-mounted camera", identity: straight down with image up = forward), so
+//! the estimators and the simulator use `R_V · R_M` wherever a level camera had the identity.
+
+use crate::error::InvalidField;
+use crate::rotation::{Quaternion, RotationMatrix, Rpy};
+#[cfg(feature = "shm")]
+use iceoryx2::prelude::ZeroCopySend;
+use std::collections::VecDeque;
+
+/// Where the estimate stage takes the vehicle's attitude from (`[vehicle] attitude`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum VehicleAttitudeSource {
+    /// From each frame: the simulator's vehicle, a recording's vehicle columns or `vehicle.csv`
+    /// (none: a level camera, as a recording without them means).
+    #[default]
+    Frames,
+    /// From the autopilot's attitude stream (the `link` process), interpolated to each frame's
+    /// mid-exposure; a frame with no sample close enough is not compensated and never cleared.
+    Autopilot,
+    /// None: the camera is level by construction (a gimbal).
+    Level,
+}
+
+/// `[vehicle]` of the pipeline configuration.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize, serde::Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct VehicleConfig {
+    pub attitude: VehicleAttitudeSource,
+    /// The farthest a frame's mid-exposure may be from the attitude sample(s) it is compensated
+    /// with (ms); the autopilot streams at 50-200 Hz, so a few periods.
+    pub max_gap_ms: f64,
+    /// The camera mount relative to the default (straight down, image up = body forward), as
+    /// roll, pitch, yaw in degrees (`R_M = Rx Ry Rz`).
+    pub mount_rpy_deg: [f64; 3],
+    /// Autopilot attitude only (north-referenced heading): the time constant (s) of the ship's
+    /// mean heading, which becomes W's x (NOTES.md item 8).
+    pub heading_time_constant_s: f64,
+}
+
+impl Default for VehicleConfig {
+    fn default() -> Self {
+        Self {
+            attitude: VehicleAttitudeSource::Frames,
+            max_gap_ms: 30.0,
+            mount_rpy_deg: [0.0; 3],
+            heading_time_constant_s: 30.0,
+        }
+    }
+}
+
+impl VehicleConfig {
+    pub fn validate(&self) -> Result<(), InvalidField> {
+        if !(self.max_gap_ms > 0.0 && self.max_gap_ms <= 1000.0) {
+            return Err(InvalidField::new(
+                "max_gap_ms",
+                format!("must be in (0, 1000], got {}", self.max_gap_ms),
+            ));
+        }
+        if !self
+            .mount_rpy_deg
+            .iter()
+            .all(|a| a.is_finite() && a.abs() <= 90.0)
+        {
+            return Err(InvalidField::new(
+                "mount_rpy_deg",
+                format!("each angle must be within +-90 deg, got {:?}", self.mount_rpy_deg),
+            ));
+        }
+        if !(self.heading_time_constant_s > 0.0 && self.heading_time_constant_s.is_finite()) {
+            return Err(InvalidField::new(
+                "heading_time_constant_s",
+                format!("must be positive, got {}", self.heading_time_constant_s),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The mount `R_M`.
+    pub fn mount(&self) -> RotationMatrix {
+        let [r, p, y] = self.mount_rpy_deg;
+        Rpy::from_degrees(r, p, y).to_matrix()
+    }
+
+    /// What the estimators and the renderer use in place of a level camera's identity:
+    /// `R_V · R_M`.
+    pub fn camera_attitude(&self, vehicle: &RotationMatrix) -> RotationMatrix {
+        vehicle * self.mount()
+    }
+
+    pub fn max_gap_ns(&self) -> u64 {
+        (self.max_gap_ms * 1e6) as u64
+    }
+}
+
+/// How a frame's attitude was compensated for the vehicle's.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.Compensation.v1"))]
+pub enum Compensation {
+    /// None needed: the camera is level (a gimbal, or a recording without a vehicle).
+    #[default]
+    Level = 0,
+    /// With the vehicle attitude the frame carries (simulator, recording).
+    Frame = 1,
+    /// With the autopilot's attitude stream, interpolated to mid-exposure.
+    Stream = 2,
+    /// Needed but not possible (no attitude sample close enough): the deck attitude is relative
+    /// to the camera only, and decide never clears on it.
+    Missing = 3,
+}
+
+impl Compensation {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Level => "level",
+            Self::Frame => "frame",
+            Self::Stream => "stream",
+            Self::Missing => "missing",
+        }
+    }
+}
+
+/// The vehicle's attitude at one instant, from a [`VehicleTrack`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackAttitude {
+    pub quaternion: Quaternion,
+    /// From the instant to the nearest sample used (ns).
+    pub age_ns: u64,
+}
+
+/// Why a [`VehicleTrack`] has no attitude for an instant.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum TrackMiss {
+    #[error("no vehicle attitude sample yet")]
+    Empty,
+    /// The nearest sample is farther than the allowed gap (ns).
+    #[error("the nearest vehicle attitude sample is {distance_ns} ns away")]
+    TooFar { distance_ns: u64 },
+}
+
+/// The newest vehicle attitude samples on one clock (ns), interpolated (slerp) to any instant
+/// between them.
+#[derive(Debug, Clone)]
+pub struct VehicleTrack {
+    samples: VecDeque<(u64, Quaternion)>,
+    capacity: usize,
+    /// Samples refused: not after the newest, or not a rotation.
+    pub rejected: u64,
+}
+
+impl VehicleTrack {
+    /// Keeps the newest `capacity` samples (at 200 Hz, 512 are 2.5 s: longer than any frame
+    /// takes through the pipeline).
+    pub fn new(capacity: usize) -> Self {
+        Self {
+            samples: VecDeque::with_capacity(capacity.max(2)),
+            capacity: capacity.max(2),
+            rejected: 0,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.samples.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.samples.is_empty()
+    }
+
+    /// The newest sample's time.
+    pub fn newest_ns(&self) -> Option<u64> {
+        self.samples.back().map(|s| s.0)
+    }
+
+    /// Adds a sample taken at `time_ns`; false (and counted) when it is not after the newest or
+    /// not a rotation.
+    pub fn push(&mut self, time_ns: u64, q: Quaternion) -> bool {
+        let ok = self.newest_ns().is_none_or(|t| time_ns > t) && (q.norm() - 1.0).abs() < 1e-3;
+        match q.normalized().filter(|_| ok) {
+            Some(q) => {
+                if self.samples.len() == self.capacity {
+                    self.samples.pop_front();
+                }
+                self.samples.push_back((time_ns, q));
+                true
+            }
+            None => {
+                self.rejected += 1;
+                false
+            }
+        }
+    }
+
+    /// The attitude at `t_ns`: slerp between the samples around it, or the nearest sample when
+    /// `t_ns` is outside them; none when the nearest sample used is more than `max_gap_ns` away.
+    pub fn at(&self, t_ns: u64, max_gap_ns: u64) -> Result<TrackAttitude, TrackMiss> {
+        let (first, last) = match (self.samples.front(), self.samples.back()) {
+            (Some(f), Some(l)) => (*f, *l),
+            _ => return Err(TrackMiss::Empty),
+        };
+        let hold = |(t, q): (u64, Quaternion)| {
+            let distance_ns = t.abs_diff(t_ns);
+            if distance_ns <= max_gap_ns {
+                Ok(TrackAttitude {
+                    quaternion: q,
+                    age_ns: distance_ns,
+                })
+            } else {
+                Err(TrackMiss::TooFar { distance_ns })
+            }
+        };
+        if t_ns >= last.0 {
+            return hold(last);
+        }
+        if t_ns <= first.0 {
+            return hold(first);
+        }
+        // The first sample after t_ns (samples are strictly increasing in time).
+        let i = self.samples.partition_point(|s| s.0 <= t_ns);
+        let (a, b) = (self.samples[i - 1], self.samples[i]);
+        let distance_ns = (t_ns - a.0).min(b.0 - t_ns);
+        if distance_ns > max_gap_ns {
+            return Err(TrackMiss::TooFar { distance_ns });
+        }
+        let s = (t_ns - a.0) as f64 / (b.0 - a.0) as f64;
+        Ok(TrackAttitude {
+            quaternion: a.1.slerp(&b.1, s),
+            age_ns: distance_ns,
+        })
+    }
+}
+
+/// The ship's mean heading from north (rad, counter-clockwise seen from above), a circular
+/// exponential average: with an autopilot's north-referenced attitude, W's x is this heading, so
+/// deck roll and pitch are about the ship's own axes whatever its course (NOTES.md item 8).
+#[derive(Debug, Clone, Default)]
+pub struct MeanHeading {
+    /// Unit vector of the mean and the time of the last update (s).
+    state: Option<([f64; 2], f64)>,
+}
+
+impl MeanHeading {
+    /// Adds the deck's heading at `t_s` and returns the mean; `time_constant_s` is how quickly
+    /// it follows a turn. Non-finite inputs leave it unchanged.
+    pub fn update(&mut self, t_s: f64, heading_rad: f64, time_constant_s: f64) -> Option<f64> {
+        if !(t_s.is_finite() && heading_rad.is_finite()) {
+            return self.value();
+        }
+        let h = [heading_rad.cos(), heading_rad.sin()];
+        let next = match self.state {
+            None => h,
+            Some((m, t0)) => {
+                let dt = (t_s - t0).max(0.0);
+                let a = 1.0 - (-dt / time_constant_s).exp();
+                [m[0] + a * (h[0] - m[0]), m[1] + a * (h[1] - m[1])]
+            }
+        };
+        self.state = Some((next, t_s));
+        self.value()
+    }
+
+    pub fn value(&self) -> Option<f64> {
+        self.state.map(|([c, s], _)| s.atan2(c)).filter(|v| v.is_finite())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rotation::rotation_angle_between;
+
+    fn q(roll_deg: f64, pitch_deg: f64, yaw_deg: f64) -> Quaternion {
+        Quaternion::from_matrix(&Rpy::from_degrees(roll_deg, pitch_deg, yaw_deg).to_matrix())
+    }
+
+    #[test]
+    fn slerp_is_uniform_along_the_arc() {
+        let (a, b) = (q(0.0, 0.0, 0.0), q(0.0, 0.0, 90.0));
+        let m = a.slerp(&b, 0.25).to_rpy().to_degrees();
+        assert!((m[2] - 22.5).abs() < 1e-9 && m[0].abs() < 1e-12, "{m:?}");
+        // The shorter arc even when the quaternions are on opposite hemispheres.
+        let minus_b = Quaternion::new(-b.w, -b.x, -b.y, -b.z);
+        let m2 = a.slerp(&minus_b, 0.25).to_rpy().to_degrees();
+        assert!((m2[2] - 22.5).abs() < 1e-9, "{m2:?}");
+        // Ends are the ends.
+        let e = rotation_angle_between(&a.slerp(&b, 1.0).to_matrix(), &b.to_matrix());
+        assert!(e < 1e-12);
+    }
+
+    #[test]
+    fn track_interpolates_holds_and_refuses() {
+        let mut t = VehicleTrack::new(4);
+        assert_eq!(t.at(0, 10), Err(TrackMiss::Empty));
+        // 100 Hz roll ramp of 1 deg per sample.
+        for k in 0..6u64 {
+            assert!(t.push(k * 10_000_000, q(k as f64, 0.0, 0.0)));
+        }
+        assert_eq!(t.len(), 4, "the oldest are dropped");
+        assert!(!t.push(50_000_000, q(0.0, 0.0, 0.0)), "not after the newest");
+        assert!(!t.push(60_000_000, Quaternion::new(2.0, 0.0, 0.0, 0.0)));
+        assert!(!t.push(70_000_000, Quaternion::new(f64::NAN, 0.0, 0.0, 0.0)));
+        assert_eq!(t.rejected, 3);
+        let a = t.at(32_500_000, 20_000_000).unwrap();
+        assert!((a.quaternion.to_rpy().to_degrees()[0] - 3.25).abs() < 1e-9);
+        assert_eq!(a.age_ns, 2_500_000);
+        // After the newest: held while close, refused beyond.
+        let h = t.at(55_000_000, 10_000_000).unwrap();
+        assert!((h.quaternion.to_rpy().to_degrees()[0] - 5.0).abs() < 1e-9 && h.age_ns == 5_000_000);
+        assert_eq!(
+            t.at(80_000_000, 10_000_000),
+            Err(TrackMiss::TooFar {
+                distance_ns: 30_000_000
+            })
+        );
+        // Before the oldest kept sample (20 ms).
+        assert!(t.at(5_000_000, 10_000_000).is_err());
+        // A hole in the stream wider than allowed.
+        let mut g = VehicleTrack::new(8);
+        g.push(0, q(0.0, 0.0, 0.0));
+        g.push(200_000_000, q(1.0, 0.0, 0.0));
+        assert_eq!(
+            g.at(100_000_000, 30_000_000),
+            Err(TrackMiss::TooFar {
+                distance_ns: 100_000_000
+            })
+        );
+    }
+
+    #[test]
+    fn mean_heading_averages_across_north() {
+        let mut h = MeanHeading::default();
+        assert_eq!(h.value(), None);
+        // Yawing +-10 deg about 179 deg: the mean stays near 179 across the +-180 seam.
+        let mut v = 0.0;
+        for k in 0..3000 {
+            let t = k as f64 * 0.1;
+            let psi = (179.0 + 10.0 * (0.5 * t).sin()).to_radians();
+            v = h.update(t, psi, 30.0).unwrap();
+        }
+        let d = crate::rotation::angle_difference(v, 179f64.to_radians()).to_degrees();
+        assert!(d.abs() < 0.5, "{d}");
+        assert_eq!(h.update(1e4, f64::NAN, 30.0), Some(v));
+    }
+
+    #[test]
+    fn config_checks_and_mount() {
+        let c = VehicleConfig::default();
+        c.validate().unwrap();
+        assert_eq!(
+            c.camera_attitude(&RotationMatrix::identity()),
+            RotationMatrix::identity()
+        );
+        let bad = VehicleConfig {
+            max_gap_ms: 0.0,
+            ..VehicleConfig::default()
+        };
+        assert_eq!(bad.validate().unwrap_err().field, "max_gap_ms");
+        let bad = VehicleConfig {
+            mount_rpy_deg: [0.0, f64::NAN, 0.0],
+            ..VehicleConfig::default()
+        };
+        assert_eq!(bad.validate().unwrap_err().field, "mount_rpy_deg");
+    }
+}

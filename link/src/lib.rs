@@ -1,0 +1,25 @@
+//! deckwatch's MAVLink link to the autopilot (PX4 or ArduPilot), as a pure library: what the
+//! link process (`deckwatch-link`, in the runtime crate) does with each message, without the
+//! socket or shared memory.
+//!
+//! - [`frames`]: MAVLink's NED/FRD frames against deckwatch's (NOTES.md item 8), one place.
+//! - [`clock`]: the autopilot's clock on this machine's `CLOCK_MONOTONIC` (TIMESYNC, or arrival
+//!   times when the autopilot does not answer).
+//! - [`incoming`]: HEARTBEAT, ATTITUDE_QUATERNION/ATTITUDE, TIMESYNC, DISTANCE_SENSOR and
+//!   LOCAL_POSITION_NED in; vehicle samples and TIMESYNC answers out; the link's health.
+//! - [`outgoing`]: a landing decision as LANDING_TARGET, NAMED_VALUE_FLOAT/INT and STATUSTEXT,
+//!   at the configured rates; our HEARTBEAT and TIMESYNC requests.
+//! - [`config`]: `[link]` of the pipeline configuration.
+
+pub mod clock;
+pub mod config;
+pub mod frames;
+pub mod incoming;
+pub mod outgoing;
+
+pub use config::LinkConfig;
+/// The MAVLink implementation (connections), for the process that opens the socket.
+pub use mavlink;
+/// The MAVLink messages deckwatch speaks (the common dialect, MAVLink 2).
+pub use mavlink::dialects::common::MavMessage;
+pub use mavlink::MavHeader;

@@ -1,0 +1,308 @@
+//! What deckwatch tells the autopilot and the ground station: its heartbeat, TIMESYNC requests,
+//! and each landing decision as LANDING_TARGET (for precision landing), NAMED_VALUE_FLOAT/INT
+//! (plotted by QGroundControl and Mission Planner) and STATUSTEXT (on every change).
+
+use crate::clock::ClockEstimate;
+use crate::config::LinkConfig;
+use crate::frames::body_target;
+use crate::incoming::LinkState;
+use deckwatch_common::messages::{DecisionState, LandingDecision};
+use deckwatch_common::vehicle::Compensation;
+use deckwatch_common::RotationMatrix;
+use mavlink::dialects::common::{
+    LandingTargetType, MavAutopilot, MavBool, MavFrame, MavMessage, MavModeFlag, MavSeverity, MavState,
+    MavType, HEARTBEAT_DATA, LANDING_TARGET_DATA, NAMED_VALUE_FLOAT_DATA, NAMED_VALUE_INT_DATA,
+    STATUSTEXT_DATA, TIMESYNC_DATA,
+};
+
+/// The names of the NAMED_VALUE_FLOAT/INT deckwatch sends (at most 10 characters each).
+pub mod names {
+    /// Deck roll and pitch in W (deg).
+    pub const ROLL: &str = "dw_roll";
+    pub const PITCH: &str = "dw_pitch";
+    /// Start and length of the next predicted calm window (s; -1: none).
+    pub const CALM_START: &str = "dw_calm_s";
+    pub const CALM_LENGTH: &str = "dw_calm_l";
+    /// `DecisionState` and `DecisionReason` as their numbers.
+    pub const STATE: &str = "dw_state";
+    pub const REASON: &str = "dw_reason";
+    /// `LinkState`: 0 waiting, 1 up, 2 no heartbeat, 3 no attitude.
+    pub const LINK: &str = "dw_link";
+}
+
+/// The state deckwatch reports: the decision's, except that ClearToLand never goes out while the
+/// link is not up (the attitude it rests on might be uncompensated).
+pub fn reported_state(d: &LandingDecision, link: LinkState) -> DecisionState {
+    if d.state == DecisionState::ClearToLand && link != LinkState::Up {
+        DecisionState::Hold
+    } else {
+        d.state
+    }
+}
+
+fn link_number(l: LinkState) -> i32 {
+    match l {
+        LinkState::Waiting => 0,
+        LinkState::Up => 1,
+        LinkState::NoHeartbeat => 2,
+        LinkState::NoAttitude => 3,
+    }
+}
+
+/// The sending side of the link: rates and what changed.
+#[derive(Debug, Clone)]
+pub struct Outgoing {
+    target_period_ns: u64,
+    telemetry_period_ns: u64,
+    mount: RotationMatrix,
+    last_target_ns: Option<u64>,
+    last_telemetry_ns: Option<u64>,
+    last_status: Option<(DecisionState, u8, LinkState)>,
+    pub landing_targets: u64,
+}
+
+fn period_ns(hz: f64) -> u64 {
+    if hz > 0.0 {
+        (1e9 / hz) as u64
+    } else {
+        0
+    }
+}
+
+impl Outgoing {
+    pub fn new(config: &LinkConfig, mount: RotationMatrix) -> Self {
+        Self {
+            target_period_ns: period_ns(config.landing_target_hz),
+            // 0 Hz: off.
+            telemetry_period_ns: if config.telemetry_hz > 0.0 {
+                period_ns(config.telemetry_hz)
+            } else {
+                u64::MAX
+            },
+            mount,
+            last_target_ns: None,
+            last_telemetry_ns: None,
+            last_status: None,
+            landing_targets: 0,
+        }
+    }
+
+    /// Our HEARTBEAT: an onboard controller, no autopilot of its own.
+    pub fn heartbeat(link: LinkState) -> MavMessage {
+        MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            custom_mode: 0,
+            mavtype: MavType::MAV_TYPE_ONBOARD_CONTROLLER,
+            autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+            base_mode: MavModeFlag::empty(),
+            system_status: if link == LinkState::Up {
+                MavState::MAV_STATE_ACTIVE
+            } else {
+                MavState::MAV_STATE_STANDBY
+            },
+            mavlink_version: 3,
+        })
+    }
+
+    /// A TIMESYNC request carrying our time `ts1` (ns).
+    pub fn timesync_request(ts1: i64, target: Option<(u32, u8)>) -> MavMessage {
+        let (system, target_component) = target.unwrap_or((0, 0));
+        let target_system = u8::try_from(system).unwrap_or(0);
+        MavMessage::TIMESYNC(TIMESYNC_DATA {
+            tc1: 0,
+            ts1,
+            target_system,
+            target_component,
+        })
+    }
+
+    /// A status line for the ground station.
+    pub fn status_text(severity: MavSeverity, text: &str) -> MavMessage {
+        // 50 bytes, no terminator needed when full.
+        let text: String = text.chars().take(50).collect();
+        MavMessage::STATUSTEXT(STATUSTEXT_DATA {
+            severity,
+            text: text.as_str().into(),
+            id: 0,
+            chunk_seq: 0,
+        })
+    }
+
+    /// The messages for one decision, made at `now_ns`; `clock` puts times on the autopilot's
+    /// clock, `boot_ms` is the autopilot's time now (ms) for the named values.
+    pub fn decision(
+        &mut self,
+        d: &LandingDecision,
+        link: LinkState,
+        clock: Option<&ClockEstimate>,
+        now_ns: u64,
+    ) -> Vec<MavMessage> {
+        let mut out = Vec::with_capacity(9);
+        let a = &d.attitude;
+        let remote = |local_ns: u64| clock.map(|c| c.to_remote_ns(local_ns as f64));
+        let boot_ms = remote(now_ns).map_or(0, |t| (t / 1e6).max(0.0) as u32);
+        let state = reported_state(d, link);
+        let status = (state, d.reason as u8, link);
+        // The target goes first: it is what the autopilot acts on soonest.
+        let mut status_text = None;
+        if self.last_status != Some(status) {
+            self.last_status = Some(status);
+            let severity = match state {
+                DecisionState::Abort => MavSeverity::MAV_SEVERITY_WARNING,
+                DecisionState::ClearToLand => MavSeverity::MAV_SEVERITY_NOTICE,
+                _ => MavSeverity::MAV_SEVERITY_INFO,
+            };
+            let mut text = format!("deckwatch {}: {}", state.name(), d.reason.name());
+            if link != LinkState::Up {
+                text = format!("deckwatch {}: link {}", state.name(), link.name());
+            }
+            status_text = Some(Self::status_text(severity, &text));
+        }
+        // The target only when the deck is where the full pose says, in a compensated frame.
+        let position = a.camera_position_m;
+        let usable = !d.watchdog
+            && a.valid
+            && a.compensation != Compensation::Missing
+            && position.iter().all(|v| v.is_finite());
+        let due = |last: Option<u64>, period: u64| last.is_none_or(|t| now_ns.saturating_sub(t) >= period);
+        if usable && due(self.last_target_ns, self.target_period_ns) {
+            self.last_target_ns = Some(now_ns);
+            self.landing_targets += 1;
+            let r_v = a.vehicle.matrix();
+            let t = body_target(position, &a.rpy.to_matrix(), &r_v, &self.mount);
+            // Mid-exposure on the autopilot's clock; our own clock until it is known.
+            let captured = d.stamp.times.captured_ns;
+            let time_usec = remote(captured).map_or(captured as f64, |r| r.max(0.0)) / 1e3;
+            let [x, y, z] = t.position_frd_m.map(|v| v as f32);
+            out.push(MavMessage::LANDING_TARGET(LANDING_TARGET_DATA {
+                time_usec: time_usec as u64,
+                angle_x: t.angle_rad[0] as f32,
+                angle_y: t.angle_rad[1] as f32,
+                distance: t.distance_m as f32,
+                size_x: 0.0,
+                size_y: 0.0,
+                target_num: 0,
+                frame: MavFrame::MAV_FRAME_BODY_FRD,
+                x,
+                y,
+                z,
+                q: t.orientation_frd.map(|v| v as f32),
+                mavtype: LandingTargetType::LANDING_TARGET_TYPE_VISION_FIDUCIAL,
+                position_valid: MavBool::MAV_BOOL_TRUE,
+            }));
+        }
+        let changed = status_text.is_some();
+        out.extend(status_text);
+        if due(self.last_telemetry_ns, self.telemetry_period_ns) || changed {
+            self.last_telemetry_ns = Some(now_ns);
+            let [roll, pitch, _] = if a.valid {
+                a.rpy.to_degrees()
+            } else {
+                [f64::NAN; 3]
+            };
+            let calm = |v: f64| if v.is_finite() { v } else { -1.0 };
+            for (name, value) in [
+                (names::ROLL, roll),
+                (names::PITCH, pitch),
+                (names::CALM_START, calm(d.calm_window_start_s)),
+                (names::CALM_LENGTH, calm(d.calm_window_length_s)),
+            ] {
+                out.push(MavMessage::NAMED_VALUE_FLOAT(NAMED_VALUE_FLOAT_DATA {
+                    time_boot_ms: boot_ms,
+                    value: value as f32,
+                    name: name.into(),
+                }));
+            }
+            for (name, value) in [
+                (names::STATE, state as i32),
+                (names::REASON, d.reason as i32),
+                (names::LINK, link_number(link)),
+            ] {
+                out.push(MavMessage::NAMED_VALUE_INT(NAMED_VALUE_INT_DATA {
+                    time_boot_ms: boot_ms,
+                    value,
+                    name: name.into(),
+                }));
+            }
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use deckwatch_common::messages::DecisionReason;
+    use deckwatch_common::Rpy;
+
+    fn decision(state: DecisionState) -> LandingDecision {
+        let mut d = LandingDecision {
+            state,
+            reason: DecisionReason::WithinCapacity,
+            calm_window_start_s: f64::NAN,
+            calm_window_length_s: f64::NAN,
+            ..Default::default()
+        };
+        d.attitude.valid = true;
+        d.attitude.rpy = Rpy::from_degrees(2.0, -1.0, 0.0);
+        d.attitude.camera_position_m = [0.0, 0.0, 5.0];
+        d.attitude.compensation = Compensation::Frame;
+        d.stamp.times.captured_ns = 1_000_000;
+        d
+    }
+
+    fn kinds(m: &[MavMessage]) -> Vec<&'static str> {
+        m.iter()
+            .map(|m| match m {
+                MavMessage::LANDING_TARGET(_) => "target",
+                MavMessage::NAMED_VALUE_FLOAT(_) => "float",
+                MavMessage::NAMED_VALUE_INT(_) => "int",
+                MavMessage::STATUSTEXT(_) => "text",
+                _ => "other",
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_decision_becomes_target_values_and_a_status_on_change() {
+        let mut o = Outgoing::new(&LinkConfig::default(), RotationMatrix::identity());
+        let d = decision(DecisionState::ClearToLand);
+        let m = o.decision(&d, LinkState::Up, None, 10);
+        assert_eq!(
+            kinds(&m),
+            ["target", "text", "float", "float", "float", "float", "int", "int", "int"]
+        );
+        match &m[1] {
+            MavMessage::STATUSTEXT(s) => {
+                assert_eq!(s.text.to_str().unwrap(), "deckwatch CLEAR: within-capacity")
+            }
+            _ => unreachable!(),
+        }
+        match &m[0] {
+            MavMessage::LANDING_TARGET(t) => {
+                assert_eq!(t.frame, MavFrame::MAV_FRAME_BODY_FRD);
+                assert_eq!(t.position_valid, MavBool::MAV_BOOL_TRUE);
+                assert!((t.z - 5.0).abs() < 1e-6 && t.time_usec == 1_000);
+            }
+            _ => unreachable!(),
+        }
+        // 1 ms later: a target (every frame) but no telemetry (5 Hz) and no status (no change).
+        let m = o.decision(&d, LinkState::Up, None, 1_000_010);
+        assert_eq!(kinds(&m), ["target"]);
+        // The link goes down: CLEAR is not reported, and the change is said at once.
+        let m = o.decision(&d, LinkState::NoAttitude, None, 2_000_010);
+        assert_eq!(kinds(&m)[..2], ["target", "text"]);
+        match &m[1] {
+            MavMessage::STATUSTEXT(s) => {
+                assert_eq!(s.text.to_str().unwrap(), "deckwatch HOLD: link no-attitude")
+            }
+            _ => unreachable!(),
+        }
+        assert!(m.iter().any(|x| matches!(x, MavMessage::NAMED_VALUE_INT(v)
+            if v.name.to_str().unwrap() == names::STATE && v.value == DecisionState::Hold as i32)));
+        // Not compensated: no target.
+        let mut u = decision(DecisionState::Hold);
+        u.attitude.compensation = Compensation::Missing;
+        let m = o.decision(&u, LinkState::Up, None, 3_000_010);
+        assert!(!kinds(&m).contains(&"target"));
+    }
+}

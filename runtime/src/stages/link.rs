@@ -1,0 +1,252 @@
+//! The link process: MAVLink to the autopilot (`deckwatch_link` does the protocol).
+//!
+//! Two threads: one blocks on the MAVLink connection and publishes each attitude as a
+//! [`VehicleSample`] (for estimate) the moment it arrives, answering TIMESYNC requests; the
+//! other sleeps on the decisions and sends each one out at once (LANDING_TARGET, named values,
+//! STATUSTEXT), and on a tick sends our HEARTBEAT and TIMESYNC requests and watches the link.
+//! Not a [`crate::stage::Stage`]: it has two inputs (the bus and a socket) and no output on the
+//! bus but the vehicle samples.
+
+use crate::bus::{event_loop, Bus, BusError, Flow, Wake};
+use crate::stage::{checked_config, exit_code, setup, RunError, StageArgs};
+use deckwatch_common::messages::{monotonic_ns, LandingDecision, VehicleSample};
+use deckwatch_common::stats::Percentiles;
+use deckwatch_link::incoming::{Incoming, LinkState};
+use deckwatch_link::mavlink;
+use deckwatch_link::outgoing::Outgoing;
+use deckwatch_link::{LinkConfig, MavHeader, MavMessage};
+use mavlink::error::MessageReadError;
+use mavlink::{ConnectionAddress, MavConnection, MavlinkVersion};
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+/// The process's name: its node, its binary (`deckwatch-link`), its log lines.
+pub const NAME: &str = "link";
+
+type Connection = mavlink::Connection<MavMessage>;
+
+/// The connection, MAVLink 2, with a read timeout so the receiving thread notices a stop.
+fn open(address: &str) -> Result<Connection, RunError> {
+    let fail = |e: std::io::Error| RunError::Publish(format!("link.address `{address}`: {e}"));
+    let parsed = ConnectionAddress::parse_address(address).map_err(fail)?;
+    let parsed = match parsed {
+        ConnectionAddress::Udp(u) => ConnectionAddress::Udp(u.read_timeout(Duration::from_millis(100))),
+        other => other,
+    };
+    let mut c = mavlink::Connectable::connect::<MavMessage>(&parsed).map_err(fail)?;
+    c.set_protocol_version(MavlinkVersion::V2);
+    Ok(c)
+}
+
+/// Who we are on the link, shared by both threads (0 = the autopilot's system, once known).
+struct Identity {
+    system_id: AtomicU64,
+    component_id: u8,
+    sequence: AtomicU64,
+}
+
+impl Identity {
+    fn header(&self) -> MavHeader {
+        MavHeader {
+            system_id: self.system_id.load(Ordering::Relaxed) as u32,
+            component_id: self.component_id,
+            sequence: self.sequence.fetch_add(1, Ordering::Relaxed) as u8,
+        }
+    }
+}
+
+/// Sends, counting what could not go (no peer yet on `udpin`, a full socket): a lost message is
+/// not a reason to stop.
+fn send(conn: &Connection, id: &Identity, m: &MavMessage, failed: &AtomicU64) {
+    if conn.send(&id.header(), m).is_err() {
+        failed.fetch_add(1, Ordering::Relaxed);
+    }
+}
+
+/// The receiving thread: until the process ends.
+fn receive(
+    conn: Arc<Connection>,
+    id: Arc<Identity>,
+    incoming: Arc<Mutex<Incoming>>,
+    bus: Bus,
+    failed: Arc<AtomicU64>,
+    configured_system: u8,
+) -> Result<(), BusError> {
+    let samples = bus.publisher::<VehicleSample>()?;
+    loop {
+        let (header, message) = match conn.recv() {
+            Ok(m) => m,
+            // Timeouts, and frames that are not MAVLink 2 of the common dialect: skip.
+            Err(MessageReadError::Io(e))
+                if e.kind() != std::io::ErrorKind::WouldBlock && e.kind() != std::io::ErrorKind::TimedOut =>
+            {
+                std::thread::sleep(Duration::from_millis(10));
+                continue;
+            }
+            Err(_) => continue,
+        };
+        let now = monotonic_ns();
+        let handled = {
+            let mut i = incoming.lock().unwrap_or_else(|p| p.into_inner());
+            let h = i.handle(&header, &message, now);
+            if configured_system == 0 {
+                if let Some((system, _)) = i.autopilot {
+                    id.system_id.store(u64::from(system), Ordering::Relaxed);
+                }
+            }
+            h
+        };
+        if let Some(s) = handled.sample {
+            samples.send(&s)?;
+        }
+        if let Some(r) = handled.reply {
+            send(&conn, &id, &r, &failed);
+        }
+    }
+}
+
+/// Runs the link process until SIGINT/SIGTERM.
+pub fn run(args: &StageArgs) -> Result<String, RunError> {
+    let config = checked_config(args)?;
+    let lc: LinkConfig = config.link.clone();
+    let (logger, bus) = setup(NAME, &config, 1)?;
+    let conn = Arc::new(open(&lc.address)?);
+    let id = Arc::new(Identity {
+        system_id: AtomicU64::new(u64::from(lc.system_id.max(1))),
+        component_id: lc.component_id,
+        sequence: AtomicU64::new(0),
+    });
+    if lc.system_id != 0 {
+        id.system_id.store(u64::from(lc.system_id), Ordering::Relaxed);
+    }
+    let incoming = Arc::new(Mutex::new(Incoming::new(&lc)));
+    let failed = Arc::new(AtomicU64::new(0));
+    {
+        let (conn, id, incoming, failed) = (conn.clone(), id.clone(), incoming.clone(), failed.clone());
+        let settings = bus.settings().clone();
+        let system = lc.system_id;
+        std::thread::Builder::new()
+            .name("link-rx".into())
+            .spawn(move || {
+                let result = Bus::join(&settings, "link-rx")
+                    .and_then(|b| receive(conn, id, incoming, b, failed, system));
+                if let Err(e) = result {
+                    eprintln!("deckwatch-{NAME}: receiving stopped: {e}");
+                }
+            })
+            .map_err(|e| RunError::Publish(format!("starting the receiving thread: {e}")))?;
+    }
+    let decisions = bus.subscriber::<LandingDecision>()?;
+    let mut outgoing = Outgoing::new(&lc, config.vehicle.mount());
+    let period = |hz: f64| (hz > 0.0).then(|| (1e9 / hz) as u64);
+    let heartbeat_period = period(lc.heartbeat_hz);
+    let timesync_period = period(lc.timesync_hz);
+    let (mut next_heartbeat, mut next_timesync) = (0u64, 0u64);
+    let mut last_state = LinkState::Waiting;
+    // Decision made -> received here, -> its first message (LANDING_TARGET when there is one) on
+    // the socket, -> all its messages on the socket.
+    let (mut hop_ns, mut first_ns, mut all_ns) = (Vec::new(), Vec::new(), Vec::new());
+    let mut sent_decisions = 0u64;
+    let mut last_logged_seq = u64::MAX;
+    let tick = Duration::from_millis(50);
+    event_loop(&[decisions.listener()], Some(tick), |wake| {
+        let now = monotonic_ns();
+        let (state, clock, autopilot, newest) = {
+            let i = incoming.lock().unwrap_or_else(|p| p.into_inner());
+            (i.state(now), i.clock.estimate(), i.autopilot, i.newest_sample())
+        };
+        if state != last_state {
+            eprintln!(
+                "deckwatch-{NAME}: autopilot link {} (was {})",
+                state.name(),
+                last_state.name()
+            );
+            last_state = state;
+        }
+        if wake == Wake::Tick {
+            if heartbeat_period.is_some_and(|_| now >= next_heartbeat) {
+                next_heartbeat = now + heartbeat_period.unwrap_or(u64::MAX);
+                send(&conn, &id, &Outgoing::heartbeat(state), &failed);
+            }
+            if let Some(p) = timesync_period.filter(|_| autopilot.is_some() && now >= next_timesync) {
+                next_timesync = now + p;
+                let ts1 = incoming
+                    .lock()
+                    .unwrap_or_else(|p| p.into_inner())
+                    .clock
+                    .request(monotonic_ns() as i64);
+                send(&conn, &id, &Outgoing::timesync_request(ts1, autopilot), &failed);
+            }
+            if let (Some(l), Some(s)) = (&logger, newest) {
+                if s.seq != last_logged_seq {
+                    last_logged_seq = s.seq;
+                    deckwatch_viz::entities::vehicle_items(&s)
+                        .into_iter()
+                        .for_each(|i| l.log(i));
+                }
+            }
+        }
+        while let Some(d) = decisions.receive()? {
+            let received = monotonic_ns();
+            let mut first = None;
+            for m in outgoing.decision(&d, state, clock.as_ref(), received) {
+                send(&conn, &id, &m, &failed);
+                first.get_or_insert_with(monotonic_ns);
+            }
+            sent_decisions += 1;
+            let made = d.stamp.times.decide_finished_ns;
+            if made != 0 && !d.watchdog {
+                let since = |t: u64| t.saturating_sub(made) as f64;
+                hop_ns.push(since(received));
+                first_ns.push(since(first.unwrap_or(received)));
+                all_ns.push(since(monotonic_ns()));
+            }
+        }
+        Ok::<Flow, BusError>(Flow::Continue)
+    })?;
+    let i = incoming.lock().unwrap_or_else(|p| p.into_inner());
+    let c = i.counts;
+    let clock = i.clock.estimate().map_or("no clock".to_string(), |e| {
+        format!(
+            "clock offset {:.3} ms ({:?}, drift {:.1} ppm, rtt {} us)",
+            e.offset_ns / 1e6,
+            e.method,
+            e.drift_ppm,
+            e.rtt_ns / 1000
+        )
+    });
+    let pct = |v: &mut Vec<f64>| {
+        Percentiles::of(v).map_or("-".to_string(), |p| {
+            format!(
+                "p50 {:.0} p99 {:.0} max {:.0} us",
+                p.p50 / 1e3,
+                p.p99 / 1e3,
+                p.max / 1e3
+            )
+        })
+    };
+    let latency = format!(
+        "decision -> link {}; -> first message sent {}; -> all sent {}",
+        pct(&mut hop_ns),
+        pct(&mut first_ns),
+        pct(&mut all_ns)
+    );
+    Ok(format!(
+        "{} heartbeats, {} attitudes ({} refused), {} timesyncs, {} heights in; {sent_decisions} decisions, {} landing targets out ({} sends failed); {latency}; {clock}",
+        c.heartbeats,
+        c.attitudes,
+        c.refused,
+        c.timesyncs,
+        c.heights,
+        outgoing.landing_targets,
+        failed.load(Ordering::Relaxed)
+    ))
+}
+
+/// The `deckwatch-link` binary.
+pub fn main() -> ExitCode {
+    let args = <StageArgs as clap::Parser>::parse();
+    exit_code(NAME, run(&args))
+}

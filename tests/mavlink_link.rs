@@ -1,0 +1,286 @@
+//! The link to the autopilot against a MAVLink implementation nobody here wrote: pymavlink
+//! (tests/peers/autopilot.py) plays a PX4 autopilot that holds a constant tilt, streams its
+//! attitude at 100 Hz on a clock 1234.5 s ahead of ours and answers TIMESYNC, then stops its
+//! stream. The whole pipeline runs as processes (`deckwatch run` with the link) on the
+//! simulator, rendered through the tilted camera. Checked: LANDING_TARGET at the frame rate in
+//! BODY_FRD with the deck centre where the simulator put it, stamped on the autopilot's clock;
+//! the deck attitude compensated for the tilt; the decision and status messages; no CLEAR once
+//! the stream stopped; and a telemetry log that pymavlink's own `mavlogdump.py` decodes.
+//!
+//! Needs python3 with pymavlink (`ci/peers.sh` installs it; `DECKWATCH_PYTHON` names the
+//! interpreter).
+
+use deckwatch_common::Rpy;
+use deckwatch_runtime::bus::domain_prefix;
+use deckwatch_tests::workspace_binary;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+const TILT_DEG: [f64; 3] = [4.0, -3.0, 0.0];
+const CLOCK_OFFSET_S: f64 = 1234.5;
+const RATE_HZ: f64 = 10.0;
+
+/// The interpreter with pymavlink: `DECKWATCH_PYTHON`, the venv `ci/peers.sh` makes, or python3.
+fn python() -> PathBuf {
+    let candidates = [
+        std::env::var_os("DECKWATCH_PYTHON").map(PathBuf::from),
+        std::env::var_os("HOME").map(|h| Path::new(&h).join(".cache/deckwatch-venv/bin/python3")),
+        Some(PathBuf::from("python3")),
+    ];
+    for p in candidates.into_iter().flatten() {
+        let ok = Command::new(&p)
+            .args(["-c", "import pymavlink"])
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success());
+        if ok {
+            return p;
+        }
+    }
+    panic!("no python3 with pymavlink: run ci/peers.sh (or set DECKWATCH_PYTHON)");
+}
+
+fn free_udp_port() -> u16 {
+    std::net::UdpSocket::bind("127.0.0.1:0")
+        .and_then(|s| s.local_addr())
+        .expect("a free UDP port")
+        .port()
+}
+
+fn read_csv(path: &Path) -> Vec<HashMap<String, String>> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<String> = lines.next().unwrap().split(',').map(str::to_string).collect();
+    lines
+        .map(|l| {
+            header
+                .iter()
+                .cloned()
+                .zip(l.split(',').map(str::to_string))
+                .collect()
+        })
+        .collect()
+}
+
+/// The deck's tilt from the vertical (deg): the same whatever W's heading reference.
+fn tilt_deg(roll_deg: f64, pitch_deg: f64) -> f64 {
+    let r = Rpy::from_degrees(roll_deg, pitch_deg, 0.0).to_matrix();
+    r[(2, 2)].clamp(-1.0, 1.0).acos().to_degrees()
+}
+
+#[test]
+fn pymavlink_autopilot_and_ground_station() {
+    let python = python();
+    let deckwatch = workspace_binary("deckwatch");
+    let dir = tempfile::tempdir().unwrap();
+    let port = free_udp_port();
+    let domain = format!("t{}-mav", std::process::id());
+    let config = dir.path().join("p.toml");
+    let [r, p, y] = TILT_DEG;
+    std::fs::write(
+        &config,
+        format!(
+            "[bus]\ndomain = \"{domain}\"\n\
+             [sim]\nvehicle = \"tilted\"\nvehicle_tilt_deg = [{r}, {p}, {y}]\nframes = 170\nrate = {RATE_HZ}\n\
+             [vehicle]\nattitude = \"autopilot\"\n\
+             [link]\nenabled = true\naddress = \"udpin:127.0.0.1:{port}\"\n\
+             [rerun]\nsink = \"off\"\n"
+        ),
+    )
+    .unwrap();
+    let tlog = dir.path().join("session.tlog");
+    let peer = Command::new(&python)
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/autopilot.py"))
+        .args(["--port", &port.to_string(), "--tilt-deg"])
+        .args(TILT_DEG.map(|a| a.to_string()))
+        .args(["--clock-offset-s", &CLOCK_OFFSET_S.to_string()])
+        .args(["--stop-after-s", "12", "--linger-s", "4", "--tlog"])
+        .arg(&tlog)
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("start the pymavlink autopilot");
+    let decisions = dir.path().join("decisions.csv");
+    let run = Command::new(&deckwatch)
+        .args(["run", "--quiet", "--config"])
+        .arg(&config)
+        .arg("--decisions")
+        .arg(&decisions)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "deckwatch run failed:\n{stderr}");
+    let peer = peer.wait_with_output().unwrap();
+    assert!(peer.status.success(), "the pymavlink autopilot failed");
+    let seen: serde_json::Value = serde_json::from_slice(&peer.stdout).expect("its JSON summary");
+    let stop_ns = seen["stop_monotonic_ns"].as_u64().unwrap();
+
+    // Our heartbeat: an onboard controller (MAV_TYPE 18) as component 191 of the autopilot's
+    // system, and TIMESYNC requests the autopilot answered.
+    let hb = seen["heartbeats_from"].as_array().unwrap();
+    assert!(
+        !hb.is_empty() && hb.iter().all(|h| h == &serde_json::json!([1, 191, 18])),
+        "{hb:?}"
+    );
+    assert!(seen["timesync_answered"].as_u64().unwrap() >= 5);
+    assert!(
+        stderr.contains("Timesync"),
+        "the link's clock came from TIMESYNC:\n{stderr}"
+    );
+
+    // LANDING_TARGET: one per frame while the stream flows, BODY_FRD, position valid, the deck
+    // centre 5 m below the level hover point seen from the tilted body.
+    let targets = seen["landing_targets"].as_array().unwrap();
+    let while_up: Vec<_> = targets
+        .iter()
+        .filter(|t| t["recv_ns"].as_u64().unwrap() < stop_ns)
+        .collect();
+    let first = *while_up.first().expect("landing targets");
+    let first_target_ns = first["recv_ns"].as_u64().unwrap();
+    let span_s = (while_up.last().unwrap()["recv_ns"].as_u64().unwrap() - first["recv_ns"].as_u64().unwrap())
+        as f64
+        / 1e9;
+    let rate = (while_up.len() - 1) as f64 / span_s;
+    assert!((rate - RATE_HZ).abs() < 1.5, "{rate} LANDING_TARGET per s");
+    let r_v = Rpy::from_degrees(r, p, y).to_matrix();
+    // R_V^T (0, 0, -5): the deck centre 5 m below, in body FLU; then FRD.
+    let flu = [0, 1, 2].map(|k| -5.0 * r_v[(2, k)]);
+    let expected = [flu[0], -flu[1], -flu[2]];
+    for t in &while_up {
+        assert_eq!(t["frame"], 12, "MAV_FRAME_BODY_FRD");
+        assert_eq!(t["position_valid"], 1);
+        let xyz: Vec<f64> = t["xyz"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        for k in 0..3 {
+            assert!(
+                (xyz[k] - expected[k]).abs() < 0.02,
+                "target {xyz:?}, truth {expected:?}"
+            );
+        }
+        // Stamped at capture on the autopilot's clock: before its arrival, by the pipeline's
+        // latency (rendering a frame takes tens of ms here), not by the 1234.5 s offset.
+        let age_ms = (t["recv_autopilot_us"].as_f64().unwrap() - t["time_usec"].as_f64().unwrap()) / 1e3;
+        assert!(
+            (0.0..250.0).contains(&age_ms),
+            "LANDING_TARGET {age_ms} ms old on the autopilot's clock"
+        );
+    }
+    // None once the stream stopped (beyond the frames already in flight).
+    assert!(targets
+        .iter()
+        .all(|t| t["recv_ns"].as_u64().unwrap() < stop_ns + 300_000_000));
+
+    // The deck attitude, compensated for the 5 deg tilt: the deck's own tilt from gravity matches
+    // the simulator's truth (uncompensated, it would be off by degrees).
+    let rows = read_csv(&decisions);
+    let rows: Vec<_> = rows.iter().filter(|r| r["watchdog"] == "0").collect();
+    let num = |r: &HashMap<String, String>, k: &str| r[k].parse::<f64>().unwrap();
+    let compensated: Vec<_> = rows
+        .iter()
+        .filter(|r| r["valid"] == "1" && r["reason"] != "no-vehicle-attitude")
+        .collect();
+    assert!(
+        compensated.len() > 100,
+        "{} compensated frames",
+        compensated.len()
+    );
+    let worst = compensated
+        .iter()
+        .map(|r| {
+            (tilt_deg(num(r, "roll_deg"), num(r, "pitch_deg"))
+                - tilt_deg(num(r, "truth_roll_deg"), num(r, "truth_pitch_deg")))
+            .abs()
+        })
+        .fold(0.0, f64::max);
+    assert!(worst < 0.1, "deck tilt error up to {worst} deg");
+    // The ground station's deck roll/pitch are the decisions' (float32).
+    let rolls = seen["floats"]["dw_roll"].as_array().unwrap();
+    assert!(rolls.len() > 20);
+    for v in rolls.iter().filter_map(|v| v.as_f64()).filter(|v| v.is_finite()) {
+        assert!(
+            rows.iter().any(|r| (num(r, "roll_deg") - v).abs() < 1e-4),
+            "dw_roll {v} is no decision's roll"
+        );
+    }
+
+    // Decisions: while the stream flows no frame lacks the vehicle attitude; after it stops,
+    // every frame whose mid-exposure is past the last sample + [vehicle] max_gap_ms is held for
+    // want of it, and the ground station never hears CLEAR again (that such a frame also ends a
+    // committed CLEAR is the decide stage's unit test).
+    let captured = |r: &HashMap<String, String>| r["captured_ns"].parse::<u64>().unwrap();
+    assert!(rows
+        .iter()
+        .filter(|r| captured(r) < stop_ns - 100_000_000 && captured(r) > first_target_ns)
+        .all(|r| r["reason"] != "no-vehicle-attitude"));
+    let after: Vec<_> = rows
+        .iter()
+        .filter(|r| captured(r) > stop_ns + 30_000_000)
+        .collect();
+    assert!(after.len() > 20);
+    assert!(after
+        .iter()
+        .all(|r| r["state"] != "CLEAR" && r["reason"] == "no-vehicle-attitude"));
+    let states = seen["states"].as_array().unwrap();
+    let late = states
+        .iter()
+        .filter(|s| s[0].as_u64().unwrap() > stop_ns + 300_000_000);
+    assert!(
+        late.clone().count() > 5 && late.clone().all(|s| s[1] != 2),
+        "{states:?}"
+    );
+    let texts: Vec<String> = seen["texts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t[2].as_str().unwrap().to_string())
+        .collect();
+    assert!(
+        texts.iter().any(|t| t.starts_with("deckwatch HOLD: warmup")),
+        "{texts:?}"
+    );
+    assert!(
+        texts
+            .iter()
+            .any(|t| t.contains("no-vehicle-attitude") || t.contains("link no-")),
+        "{texts:?}"
+    );
+
+    // What a user does with a telemetry log: pymavlink's mavlogdump.py decodes every kind of
+    // message deckwatch sent.
+    let dump = Command::new(&python)
+        .args(["-m", "pymavlink.tools.mavlogdump", "--no-timestamps"])
+        .arg(&tlog)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&dump.stdout);
+    assert!(dump.status.success(), "{}", String::from_utf8_lossy(&dump.stderr));
+    for kind in [
+        "HEARTBEAT",
+        "LANDING_TARGET",
+        "NAMED_VALUE_FLOAT",
+        "NAMED_VALUE_INT",
+        "STATUSTEXT",
+        "TIMESYNC",
+    ] {
+        let n = text
+            .lines()
+            .filter(|l| l.contains(&format!(": {kind} {{")))
+            .count();
+        assert!(n > 0, "mavlogdump found no {kind}");
+    }
+    assert!(text.contains("name : dw_state") && text.contains("frame : 12"));
+    // The pipeline left nothing in shared memory.
+    let prefix = domain_prefix(&domain);
+    let left = std::fs::read_dir("/dev/shm")
+        .map(|d| {
+            d.flatten()
+                .filter(|e| e.file_name().to_string_lossy().starts_with(&prefix))
+                .count()
+        })
+        .unwrap_or(0);
+    assert_eq!(left, 0);
+}

@@ -254,6 +254,9 @@ pub enum RunError {
     /// Publishing a frame failed for another reason than a full queue or a bad frame.
     #[error("{0}")]
     Publish(String),
+    /// The MAVLink connection to the autopilot could not be set up.
+    #[error("{0}")]
+    Link(String),
 }
 
 /// Runs the stage binary: parse the command line, run, report; the exit code says how it went.

@@ -29,7 +29,7 @@ type Connection = mavlink::Connection<MavMessage>;
 
 /// The connection, MAVLink 2, with a read timeout so the receiving thread notices a stop.
 fn open(address: &str) -> Result<Connection, RunError> {
-    let fail = |e: std::io::Error| RunError::Publish(format!("link.address `{address}`: {e}"));
+    let fail = |e: std::io::Error| RunError::Link(format!("link.address `{address}`: {e}"));
     let parsed = ConnectionAddress::parse_address(address).map_err(fail)?;
     let parsed = match parsed {
         ConnectionAddress::Udp(u) => ConnectionAddress::Udp(u.read_timeout(Duration::from_millis(100))),
@@ -113,14 +113,12 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
     let lc: LinkConfig = config.link.clone();
     let (logger, bus) = setup(NAME, &config, 1)?;
     let conn = Arc::new(open(&lc.address)?);
+    // System 1 until the autopilot's is known (with `system_id = 0`).
     let id = Arc::new(Identity {
         system_id: AtomicU64::new(u64::from(lc.system_id.max(1))),
         component_id: lc.component_id,
         sequence: AtomicU64::new(0),
     });
-    if lc.system_id != 0 {
-        id.system_id.store(u64::from(lc.system_id), Ordering::Relaxed);
-    }
     let incoming = Arc::new(Mutex::new(Incoming::new(&lc)));
     let failed = Arc::new(AtomicU64::new(0));
     {
@@ -136,7 +134,7 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
                     eprintln!("deckwatch-{NAME}: receiving stopped: {e}");
                 }
             })
-            .map_err(|e| RunError::Publish(format!("starting the receiving thread: {e}")))?;
+            .map_err(|e| RunError::Link(format!("starting the receiving thread: {e}")))?;
     }
     let decisions = bus.subscriber::<LandingDecision>()?;
     let mut outgoing = Outgoing::new(&lc, config.vehicle.mount());

@@ -112,26 +112,54 @@ fn a_recording_of_a_swaying_vehicle_is_compensated_end_to_end() {
         .collect();
     assert!(tilts.iter().cloned().fold(0.0, f64::max) > 3.0, "{tilts:?}");
 
-    let out = Command::new(workspace_binary("deckwatch"))
-        .arg("eval")
-        .arg(&rec)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let text = String::from_utf8(out.stdout).unwrap();
-    println!("{text}");
-    for est in ["full-pose", "paper-atan2"] {
-        let row: Vec<String> = text
-            .lines()
-            .find(|l| l.starts_with("sway") && l.split_whitespace().nth(1) == Some(est))
-            .unwrap_or_else(|| panic!("{est} in\n{text}"))
-            .split_whitespace()
-            .map(str::to_string)
-            .collect();
-        // Columns: recording estimator frames estim missed nodeck rmse(3) max(3) ...
-        assert_eq!(row[4], "0", "{est}: no misses: {row:?}");
-        let rmse: Vec<f64> = row[6..9].iter().map(|v| v.parse().unwrap()).collect();
+    // `sim record` wrote the autopilot's stream too (exact by default, 100 Hz).
+    let samples = recording.vehicle_samples.clone().expect("vehicle.csv");
+    assert!(samples.len() >= 20 * 10, "{} samples", samples.len());
+
+    let eval = || {
+        let out = Command::new(workspace_binary("deckwatch"))
+            .arg("eval")
+            .arg(&rec)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let text = String::from_utf8(out.stdout).unwrap();
+        println!("{text}");
+        ["full-pose", "paper-atan2"].map(|est| {
+            let row: Vec<String> = text
+                .lines()
+                .find(|l| l.starts_with("sway") && l.split_whitespace().nth(1) == Some(est))
+                .unwrap_or_else(|| panic!("{est} in\n{text}"))
+                .split_whitespace()
+                .map(str::to_string)
+                .collect();
+            // Columns: recording estimator frames estim missed nodeck rmse(3) max(3) ...
+            let missed: usize = row[4].parse().unwrap();
+            let rmse: Vec<f64> = row[6..9].iter().map(|v| v.parse().unwrap()).collect();
+            (missed, rmse)
+        })
+    };
+    for (missed, rmse) in eval() {
+        assert_eq!(missed, 0);
         // Without the vehicle's attitude the error is the sway itself (degrees).
-        assert!(rmse.iter().all(|e| *e < 0.2), "{est}: {rmse:?}\n{text}");
+        assert!(rmse.iter().all(|e| *e < 0.2), "{rmse:?}");
     }
+    // Replay prefers vehicle.csv to the columns: an autopilot whose roll is 2 deg off shows up
+    // one for one in the deck's roll.
+    let biased: Vec<_> = samples
+        .iter()
+        .map(|&(t, q)| {
+            let r = q.to_matrix() * deckwatch_common::Rpy::from_degrees(2.0, 0.0, 0.0).to_matrix();
+            (t, deckwatch_common::Quaternion::from_matrix(&r))
+        })
+        .collect();
+    deckwatch_common::recording::write_vehicle_csv(&rec, &biased).unwrap();
+    let [(_, pose), _] = eval();
+    assert!((pose[0] - 2.0).abs() < 0.3 && pose[1] < 0.3, "{pose:?}");
+    // A stream that ends halfway: the frames after it are not compensated, so not estimated.
+    let half = samples.len() / 2;
+    deckwatch_common::recording::write_vehicle_csv(&rec, &samples[..half]).unwrap();
+    let [(missed, rmse), _] = eval();
+    assert!((8..=11).contains(&missed), "{missed} frames missed");
+    assert!(rmse.iter().all(|e| *e < 0.2), "{rmse:?}");
 }

@@ -3,6 +3,7 @@
 //! random generator) and the replay of recordings, behind one [`source::CaptureSource`] that the
 //! capture stage (`src/main.rs`) publishes from.
 
+pub mod autopilot;
 pub mod camera;
 pub mod motion;
 pub mod render;

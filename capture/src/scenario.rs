@@ -88,9 +88,13 @@ pub struct SimulationArgs {
     /// wind leans into it).
     #[cfg_attr(
         feature = "cli",
-        arg(long, num_args = 3, value_delimiter = ',', allow_negative_numbers = true, default_values_t = [0.0, 0.0, 0.0])
+        arg(long, value_delimiter = ',', allow_negative_numbers = true, default_values_t = [0.0, 0.0, 0.0])
     )]
     pub vehicle_tilt_deg: Vec<f64>,
+    /// The autopilot's attitude stream of a non-level vehicle (`sim record` writes it as
+    /// `vehicle.csv`).
+    #[cfg_attr(feature = "cli", command(flatten))]
+    pub autopilot: crate::autopilot::AutopilotArgs,
     /// Seed of the sea's phases, the textures and the noise.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = 1))]
     pub seed: u64,
@@ -106,6 +110,7 @@ impl Default for SimulationArgs {
             camera: None,
             vehicle: VehicleMotion::Level,
             vehicle_tilt_deg: vec![0.0; 3],
+            autopilot: crate::autopilot::AutopilotArgs::default(),
             seed: 1,
         }
     }
@@ -152,6 +157,7 @@ impl SimulationArgs {
         if self.frames == 0 {
             return Err("--frames: must be at least 1".into());
         }
+        self.autopilot.validate()?;
         let tilt_ok = self.vehicle_tilt_deg.len() == 3
             && self
                 .vehicle_tilt_deg

@@ -7,7 +7,8 @@ use crate::camera::CameraConfig;
 use crate::scenario::SimulationArgs;
 use crate::sim::ImageArgs;
 use crate::{FrameSimulator, Renderer};
-use deckwatch_common::messages::FrameSource;
+use deckwatch_common::messages::{FrameSource, VehicleAttitude};
+use deckwatch_common::vehicle::{VehicleConfig, VehicleTrack};
 use deckwatch_common::{CameraModel, DeckLayout, GrayViewMut, GroundTruth, Recording, RecordingError};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -100,6 +101,8 @@ pub struct CaptureConfig {
     pub image: ImageArgs,
     pub replay: ReplayConfig,
     pub libcamera: CameraConfig,
+    /// How far replay may interpolate a recording's `vehicle.csv` (`[vehicle] max_gap_ms`).
+    pub vehicle: VehicleConfig,
 }
 
 impl CaptureConfig {
@@ -255,12 +258,21 @@ impl CaptureConfig {
         } else {
             None
         };
+        let vehicle = rec.vehicle_samples.as_ref().map(|samples| {
+            let mut track = VehicleTrack::new(samples.len());
+            for &(t, q) in samples {
+                track.push(t, q);
+            }
+            track
+        });
         Ok(CaptureSource {
             camera: rec.camera,
             deck: rec.deck,
             altimeter: self.source.altimeter,
             inner: Inner::Replay {
                 truth_known: rec.has_attitude_truth(),
+                vehicle,
+                max_gap_ns: self.vehicle.max_gap_ns(),
                 rec: Box::new(rec),
                 preloaded,
                 pace,
@@ -312,6 +324,8 @@ pub struct CapturedFrame {
     pub truth_known: bool,
     /// The altimeter reading when the source has one.
     pub altitude_m: Option<f64>,
+    /// The attitude of the camera's vehicle, and how the source knows it.
+    pub vehicle: VehicleAttitude,
     /// When the frame was taken (CLOCK_MONOTONIC ns), when the source knows (a camera's sensor
     /// timestamp); None: the time it was captured into shared memory.
     pub captured_ns: Option<u64>,
@@ -332,6 +346,9 @@ enum Inner {
         loops: u32,
         max_frames: u64,
         truth_known: bool,
+        /// `vehicle.csv`, preferred to the vehicle columns.
+        vehicle: Option<VehicleTrack>,
+        max_gap_ns: u64,
     },
     #[cfg(feature = "libcamera")]
     Camera {
@@ -461,6 +478,7 @@ impl CaptureSource {
                     source_index: k,
                     source_timestamp_ns: t.timestamp_ns,
                     altitude_m: if altimeter { truth.alt_m } else { None },
+                    vehicle: VehicleAttitude::from_rpy(truth.vehicle_attitude()),
                     truth,
                     truth_known: true,
                     captured_ns: None,
@@ -471,6 +489,8 @@ impl CaptureSource {
                 rec,
                 preloaded,
                 truth_known,
+                vehicle,
+                max_gap_ns,
                 ..
             } => {
                 let j = (k % rec.frames.len() as u64) as usize;
@@ -496,6 +516,11 @@ impl CaptureSource {
                     truth: f.truth,
                     truth_known: *truth_known,
                     altitude_m: if altimeter { f.truth.alt_m } else { None },
+                    // At the frame's own time on the recording's clock (not the looped one).
+                    vehicle: match vehicle {
+                        Some(track) => track.vehicle_attitude_at(f.timestamp_ns, *max_gap_ns),
+                        None => VehicleAttitude::from_rpy(f.truth.vehicle_attitude()),
+                    },
                     captured_ns: None,
                     dropped_before: 0,
                 })
@@ -510,6 +535,7 @@ impl CaptureSource {
                     truth: GroundTruth::default(),
                     truth_known: false,
                     altitude_m: None,
+                    vehicle: VehicleAttitude::LEVEL,
                     captured_ns: Some(f.timestamp_ns),
                     dropped_before: f.dropped_before,
                 })

@@ -3,7 +3,7 @@
 //! rule. Measurements are the truth plus Gaussian noise, dropped frames and outliers, as the
 //! estimate stage delivers them.
 
-use deckwatch_capture::motion::{MotionProfile, ShipMotion};
+use deckwatch_capture::motion::{MotionProfile, ShipMotion, VehicleSway};
 use deckwatch_capture::rng::SplitMix64;
 use deckwatch_decide::decision::DecisionConfig;
 use deckwatch_decide::eval::{evaluate, Measured, RuleOutcome};
@@ -38,6 +38,28 @@ pub struct DecideEvalArgs {
     /// Capture -> decision latency (ms).
     #[arg(long, default_value_t = 5.0)]
     latency_ms: f64,
+    /// The camera's vehicle: `level`, or `sway` (a hovering quadrotor's sway, which the
+    /// estimate stage compensates with the autopilot's attitude: its errors below land in the
+    /// deck attitude).
+    #[arg(long, default_value = "level")]
+    vehicle: String,
+    /// Noise of the autopilot's attitude (deg, per angle).
+    #[arg(long, default_value_t = 0.0)]
+    vehicle_noise_deg: f64,
+    /// Bias of the autopilot's roll and pitch (deg).
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true, default_values_t = [0.0, 0.0])]
+    vehicle_bias_deg: Vec<f64>,
+    /// Timing error of the autopilot's samples against the frames (ms): with a swaying vehicle
+    /// the compensation is off by the sway over this time.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    vehicle_time_error_ms: f64,
+    /// Outages of the autopilot's attitude stream per minute (frames in them are not
+    /// compensated).
+    #[arg(long, default_value_t = 0.0)]
+    vehicle_outages_per_min: f64,
+    /// Length of each outage (s).
+    #[arg(long, default_value_t = 1.0)]
+    vehicle_outage_s: f64,
     /// Pipeline configuration whose `[decide]` section to use (default: built-in).
     #[arg(long)]
     config: Option<std::path::PathBuf>,
@@ -75,10 +97,27 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
         return Err("--rate and --minutes must be positive".into());
     }
     let n = (a.minutes * 60.0 * a.rate) as usize;
+    let sway = match a.vehicle.as_str() {
+        "level" => false,
+        "sway" => true,
+        other => return Err(format!("--vehicle: unknown `{other}` (level, sway)")),
+    };
+    let bias = match a.vehicle_bias_deg[..] {
+        [r, p] if r.is_finite() && p.is_finite() => [r, p],
+        _ => return Err("--vehicle-bias-deg: two finite angles (roll, pitch)".into()),
+    };
+    if !(a.vehicle_noise_deg >= 0.0
+        && a.vehicle_outages_per_min >= 0.0
+        && a.vehicle_outage_s > 0.0
+        && a.vehicle_time_error_ms.is_finite())
+    {
+        return Err("--vehicle-*: noise and outages must not be negative, outages must last".into());
+    }
     if !a.json {
         println!(
-            "{} min at {} Hz per series, {} motion, noise {} deg, dropout {}, outliers {}; capacity roll/pitch {}/{} deg, rates {}/{} deg/s, touchdown {} s",
-            a.minutes, a.rate, a.motion, a.noise_deg, a.dropout, a.outliers, config.max_abs_roll_deg,
+            "{} min at {} Hz per series, {} motion, noise {} deg, dropout {}, outliers {}; vehicle {} (autopilot noise {} deg, bias {:?} deg, timing {} ms, {} outages/min of {} s); capacity roll/pitch {}/{} deg, rates {}/{} deg/s, touchdown {} s",
+            a.minutes, a.rate, a.motion, a.noise_deg, a.dropout, a.outliers, a.vehicle, a.vehicle_noise_deg,
+            a.vehicle_bias_deg, a.vehicle_time_error_ms, a.vehicle_outages_per_min, a.vehicle_outage_s, config.max_abs_roll_deg,
             config.max_abs_pitch_deg, config.max_abs_roll_rate_dps, config.max_abs_pitch_rate_dps, config.touchdown_s
         );
         println!(
@@ -100,10 +139,28 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
                 [r, p]
             };
             let mut rng = SplitMix64::new(seed.wrapping_mul(0x9E37_79B9) ^ ss as u64);
+            // What compensating with the autopilot's attitude leaves in the deck's roll and
+            // pitch: the sway over the timing error, the autopilot's bias and noise.
+            let hover = VehicleSway::hover(seed, 1.0);
+            let dt = a.vehicle_time_error_ms / 1e3;
+            let vehicle_error = |t: f64, rng: &mut SplitMix64| {
+                let [r1, p1, _] = hover.attitude(t).to_degrees();
+                let [r0, p0, _] = hover.attitude(t - dt).to_degrees();
+                let timing = if sway { [r1 - r0, p1 - p0] } else { [0.0; 2] };
+                [0, 1].map(|i| timing[i] + bias[i] + a.vehicle_noise_deg * rng.next_gaussian())
+            };
+            // Outages: a Poisson process of starts, each `vehicle_outage_s` long.
+            let mut outage_until = f64::NEG_INFINITY;
+            let p_start = a.vehicle_outages_per_min / 60.0 / a.rate;
             let stream: Vec<Measured> = (0..n)
                 .map(|k| {
                     let t = k as f64 / a.rate;
                     let [r, p] = truth(t);
+                    if rng.next_f64() < p_start {
+                        outage_until = outage_until.max(t + a.vehicle_outage_s);
+                    }
+                    let [er, ep] = vehicle_error(t, &mut rng);
+                    let (r, p) = (r + er, p + ep);
                     let attitude = if rng.next_f64() < a.dropout {
                         None
                     } else {
@@ -122,6 +179,7 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
                         t,
                         attitude,
                         now: t + a.latency_ms / 1e3,
+                        vehicle_missing: t < outage_until,
                     }
                 })
                 .collect();

@@ -8,6 +8,7 @@ use deckwatch_capture::source::ReplayConfig;
 use deckwatch_common::messages::{EstimatorKind, FrameSource};
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::{ErrorStats, Percentiles};
+use deckwatch_common::vehicle::Compensation;
 use deckwatch_estimate::EstimateConfig;
 use deckwatch_runtime::chain::StageChain;
 use deckwatch_runtime::config::PipelineConfig;
@@ -125,7 +126,9 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
                 }
                 let mut err = [f64::NAN; 3];
                 let [x, y, z] = a.camera_position_m;
-                match (a.valid, truth) {
+                // An attitude not compensated for the vehicle is not the deck's: a miss.
+                let usable = a.valid && a.vehicle.compensation != Compensation::Missing;
+                match (usable, truth) {
                     (true, Some(tr)) => {
                         t.estimated += 1;
                         err = rpy_error_deg(&a.rpy, &tr);

@@ -51,7 +51,7 @@ enum Command {
     /// Replay a recording through the four processes and report per-stage latency and drops.
     Latency(pipeline::LatencyArgs),
     /// The stages in one process, frame by frame (no IPC): per-stage cost and accuracy.
-    Inproc(inproc::RunArgs),
+    Inproc(Box<inproc::RunArgs>),
     /// Detection and every estimator on recordings, against their ground truth: RMSE and max
     /// error of the angles (and altitude/offset), misses, attitudes without a deck, cost.
     Eval(eval::EvalArgs),
@@ -61,7 +61,7 @@ enum Command {
     /// Run the paper's estimator on a marker table (CSV), one attitude row per frame.
     EstimateTable(tables::EstimateTableArgs),
     /// Simulate a scenario (exact marker pixels, optional noise) and compare the estimator variants.
-    Sweep(SweepArgs),
+    Sweep(Box<SweepArgs>),
     /// The simulator of the paper's scene.
     Sim {
         #[command(subcommand)]
@@ -102,7 +102,7 @@ enum SimCommand {
     /// 8-bit grayscale PNGs).
     Record(Box<RecordArgs>),
     /// Write a scenario's exact (or noisy) marker pixels with ground truth as a marker table.
-    Markers(tables::MarkersArgs),
+    Markers(Box<tables::MarkersArgs>),
 }
 
 #[derive(clap::Args)]
@@ -168,6 +168,26 @@ fn record(a: RecordArgs) -> Result<(), String> {
         bar.inc(1);
     }
     bar.finish_and_clear();
+    // The autopilot's view of a vehicle that is not level, over the frames' span and a period
+    // beyond (interpolation needs a sample after the last frame).
+    if a.sim.vehicle != deckwatch_capture::scenario::VehicleMotion::Level {
+        let end_s = a.sim.frames as f64 / a.sim.rate + 0.1;
+        let samples = a
+            .sim
+            .autopilot
+            .samples(a.sim.profile().as_ref(), end_s, a.sim.seed);
+        if !samples.is_empty() {
+            deckwatch_common::recording::write_vehicle_csv(&a.out, &samples).map_err(|e| e.to_string())?;
+            eprintln!(
+                "vehicle.csv: {} autopilot samples at {} Hz (noise {} deg, bias {:?} deg, time error {} ms)",
+                samples.len(),
+                a.sim.autopilot.rate_hz,
+                a.sim.autopilot.noise_deg,
+                a.sim.autopilot.bias_deg,
+                a.sim.autopilot.time_error_ms
+            );
+        }
+    }
     let n = writer.finish().map_err(|e| e.to_string())?;
     eprintln!(
         "wrote {n} frames ({}x{}, {} without deck) to {} in {:.1} s; rendering {:.1} ms/frame",
@@ -355,7 +375,7 @@ fn main() -> ExitCode {
     let result = match Cli::parse().command {
         Command::Run(a) => pipeline::run(a),
         Command::Latency(a) => pipeline::latency(a),
-        Command::Inproc(a) => inproc::run(a),
+        Command::Inproc(a) => inproc::run(*a),
         Command::DecideEval(a) => decide_eval::run(a),
         Command::Eval(a) => eval::run(a),
         Command::EstimateTable(a) => match tables::estimate_table(a) {
@@ -365,8 +385,8 @@ fn main() -> ExitCode {
         },
         Command::Sim {
             command: SimCommand::Markers(a),
-        } => tables::markers(a),
-        Command::Sweep(a) => sweep(a),
+        } => tables::markers(*a),
+        Command::Sweep(a) => sweep(*a),
         Command::Sim {
             command: SimCommand::Record(a),
         } => record(*a),

@@ -293,32 +293,68 @@ impl Truth {
 }
 
 /// The attitude of the vehicle that carried the camera when the frame was taken (`R_V`, body
-/// to world; NOTES.md item 8).
+/// to world; NOTES.md item 8), and how it is known.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
-    type_name("deckwatch.VehicleAttitude.v1")
+    type_name("deckwatch.VehicleAttitude.v2")
 )]
 pub struct VehicleAttitude {
-    /// Whether the source knows it (the simulator, recordings with vehicle columns); false: the
-    /// camera is taken to be level, as the paper assumes.
-    pub known: bool,
+    /// `Level`: none (the camera is level, as the paper assumes, or the source has no vehicle);
+    /// `Frame`: the frame's own (simulator, recording columns); `Stream`: interpolated from a
+    /// stream of samples (`vehicle.csv`, the autopilot); `Missing`: a stream with no sample close
+    /// enough.
+    pub compensation: Compensation,
     pub rpy: Rpy,
+    /// From the frame's instant to the nearest sample used (ms): 0 for the frame's own, NaN when
+    /// there is none.
+    pub age_ms: f64,
+}
+
+impl Default for VehicleAttitude {
+    fn default() -> Self {
+        Self::LEVEL
+    }
 }
 
 impl VehicleAttitude {
+    pub const LEVEL: Self = Self {
+        compensation: Compensation::Level,
+        rpy: Rpy {
+            roll: 0.0,
+            pitch: 0.0,
+            yaw: 0.0,
+        },
+        age_ms: f64::NAN,
+    };
+
+    pub const MISSING: Self = Self {
+        compensation: Compensation::Missing,
+        ..Self::LEVEL
+    };
+
+    /// The frame's own attitude when there is one, else level.
     pub fn from_rpy(rpy: Option<Rpy>) -> Self {
-        Self {
-            known: rpy.is_some(),
-            rpy: rpy.unwrap_or_default(),
+        match rpy {
+            Some(rpy) => Self {
+                compensation: Compensation::Frame,
+                rpy,
+                age_ms: 0.0,
+            },
+            None => Self::LEVEL,
         }
+    }
+
+    /// Whether there is an attitude to compensate with (`Frame` or `Stream`).
+    pub fn known(&self) -> bool {
+        matches!(self.compensation, Compensation::Frame | Compensation::Stream)
     }
 
     /// `R_V` when known, else the identity (a level camera).
     pub fn matrix(&self) -> crate::RotationMatrix {
-        if self.known {
+        if self.known() {
             self.rpy.to_matrix()
         } else {
             crate::RotationMatrix::identity()
@@ -329,7 +365,7 @@ impl VehicleAttitude {
 /// What a frame's pixels mean, carried from capture to decide with every message.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.FrameContext.v2"))]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.FrameContext.v3"))]
 pub struct FrameContext {
     pub source: FrameSource,
     /// Index of the frame at its source: recording frame index, camera sequence, simulator
@@ -349,7 +385,7 @@ pub struct FrameContext {
 /// The user header of a frame sample; the payload is the `[u8]` pixel buffer itself.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.FrameHeader.v2"))]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.FrameHeader.v3"))]
 pub struct FrameHeader {
     pub stamp: FrameStamp,
     pub context: FrameContext,
@@ -376,7 +412,7 @@ impl FrameHeader {
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
-    type_name("deckwatch.MarkerMessage.v2")
+    type_name("deckwatch.MarkerMessage.v3")
 )]
 pub struct MarkerMessage {
     pub stamp: FrameStamp,
@@ -454,7 +490,7 @@ pub enum AttitudeFailure {
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
-    type_name("deckwatch.AttitudeMessage.v3")
+    type_name("deckwatch.AttitudeMessage.v4")
 )]
 pub struct AttitudeMessage {
     pub stamp: FrameStamp,
@@ -483,15 +519,10 @@ pub struct AttitudeMessage {
     pub camera_position_m: [f64; 3],
     /// The other estimator's result on the same markers, for comparison (when enabled).
     pub alternative: AlternativeAttitude,
-    /// How the vehicle's attitude was taken out of `rpy`; `Missing`: `rpy` is relative to the
-    /// camera and decide never clears on it.
-    pub compensation: Compensation,
-    /// The vehicle attitude used (`R_V`, body to world; W's x is the ship's mean heading when it
-    /// came from the autopilot).
+    /// The vehicle attitude taken out of `rpy` (`R_V`, body to world; W's x is the ship's mean
+    /// heading when it came from the autopilot) and how: `Missing` means `rpy` is relative to
+    /// the camera and decide never clears on it.
     pub vehicle: VehicleAttitude,
-    /// From mid-exposure to the nearest vehicle sample used (ms; 0 for the frame's own, NaN
-    /// when none).
-    pub vehicle_age_ms: f64,
     /// The deck relative to the body-level camera (`(R_V R_M)^T R_D`): what the camera alone
     /// sees.
     pub camera_rpy: Rpy,
@@ -648,7 +679,7 @@ pub struct VehicleSample {
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
-    type_name("deckwatch.LandingDecision.v3")
+    type_name("deckwatch.LandingDecision.v4")
 )]
 pub struct LandingDecision {
     pub stamp: FrameStamp,

@@ -7,14 +7,18 @@
 //!   `vehicle_roll_deg,vehicle_pitch_deg,vehicle_yaw_deg` (the camera's vehicle), in any
 //!   column order, further columns ignored; `nan` (or an empty field) where a value is unknown,
 //!   e.g. the attitude when no deck is in view;
-//! - 8-bit grayscale PNG images at the relative paths named in `file`.
+//! - 8-bit grayscale PNG images at the relative paths named in `file`;
+//! - optionally `vehicle.csv`: the vehicle's attitude at the autopilot's rate, a header row then
+//!   `timestamp_ns,qw,qx,qy,qz` (`R_V` body to world as a unit quaternion, on the frames'
+//!   clock), increasing in time; replay and eval interpolate it (slerp) to each frame and prefer
+//!   it to the frames' vehicle columns.
 //!
 //! Every error names the file and, where it applies, the line and the field.
 
 use crate::camera::{CameraModel, Distortion};
 use crate::deck::DeckLayout;
 use crate::image::{GrayImage, GrayView};
-use crate::rotation::Rpy;
+use crate::rotation::{Quaternion, Rpy};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::fs::File;
@@ -23,6 +27,9 @@ use std::path::{Component, Path, PathBuf};
 
 pub const CAMERA_FILE: &str = "camera.json";
 pub const FRAMES_FILE: &str = "frames.csv";
+pub const VEHICLE_FILE: &str = "vehicle.csv";
+/// The header of `vehicle.csv`.
+pub const VEHICLE_COLUMNS: [&str; 5] = ["timestamp_ns", "qw", "qx", "qy", "qz"];
 /// Folder (inside the recording) the writer puts images in.
 pub const IMAGES_DIR: &str = "frames";
 
@@ -321,6 +328,8 @@ pub struct Recording {
     pub frames: Vec<FrameRecord>,
     /// Which optional ground-truth columns the recording has (in [`TRUTH_COLUMNS`] order).
     pub truth_columns: TruthColumns,
+    /// `vehicle.csv`, when the recording has one: (timestamp ns, `R_V`).
+    pub vehicle_samples: Option<Vec<(u64, Quaternion)>>,
 }
 
 impl Recording {
@@ -338,12 +347,19 @@ impl Recording {
         let path = dir.join(FRAMES_FILE);
         let file = File::open(&path).map_err(|e| RecordingError::new(&path, format!("cannot read: {e}")))?;
         let (frames, truth_columns) = parse_frames_csv(&path, BufReader::new(file))?;
+        let vehicle_path = dir.join(VEHICLE_FILE);
+        let vehicle_samples = if vehicle_path.exists() {
+            Some(read_vehicle_csv(&vehicle_path)?)
+        } else {
+            None
+        };
         Ok(Self {
             dir,
             camera,
             deck,
             frames,
             truth_columns,
+            vehicle_samples,
         })
     }
 
@@ -377,6 +393,82 @@ impl Recording {
         self.read_image_into(frame, &mut img.data)?;
         Ok(img)
     }
+}
+
+/// Reads `vehicle.csv`: every row a timestamp after the previous one and a unit quaternion; an
+/// error names the file, the line and the column.
+pub fn read_vehicle_csv(path: &Path) -> Result<Vec<(u64, Quaternion)>, RecordingError> {
+    let file = File::open(path).map_err(|e| RecordingError::new(path, format!("cannot read: {e}")))?;
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .from_reader(BufReader::new(file));
+    let header = reader
+        .headers()
+        .map_err(|e| RecordingError::new(path, format!("header: {e}")))?
+        .clone();
+    let column = |name: &str| {
+        header.iter().position(|h| h.trim() == name).ok_or_else(|| {
+            RecordingError::new(
+                path,
+                format!("no `{name}` column (needs {})", VEHICLE_COLUMNS.join(",")),
+            )
+            .at_line(1)
+        })
+    };
+    let columns = VEHICLE_COLUMNS.map(column);
+    let mut idx = [0usize; 5];
+    for (i, c) in columns.into_iter().enumerate() {
+        idx[i] = c?;
+    }
+    let mut out: Vec<(u64, Quaternion)> = Vec::new();
+    for (k, record) in reader.records().enumerate() {
+        let line = k as u64 + 2;
+        let record = record.map_err(|e| RecordingError::new(path, e.to_string()).at_line(line))?;
+        let get = |i: usize| record.get(idx[i]).unwrap_or("").trim();
+        let t: u64 = get(0).parse().map_err(|_| {
+            RecordingError::new(path, format!("`{}` is not a time in ns", get(0)))
+                .at_line(line)
+                .field("timestamp_ns")
+        })?;
+        if out.last().is_some_and(|&(prev, _)| t <= prev) {
+            return Err(RecordingError::new(path, "not after the previous sample")
+                .at_line(line)
+                .field("timestamp_ns"));
+        }
+        let mut q = [0.0; 4];
+        for (j, v) in q.iter_mut().enumerate() {
+            *v = parse_optional_number(path, Some(line), VEHICLE_COLUMNS[j + 1], get(j + 1))?.ok_or_else(
+                || {
+                    RecordingError::new(path, "a sample needs all four components")
+                        .at_line(line)
+                        .field(VEHICLE_COLUMNS[j + 1])
+                },
+            )?;
+        }
+        let q = Quaternion::new(q[0], q[1], q[2], q[3]);
+        if (q.norm() - 1.0).abs() > 1e-3 {
+            return Err(
+                RecordingError::new(path, format!("not a unit quaternion (norm {})", q.norm()))
+                    .at_line(line)
+                    .field("qw"),
+            );
+        }
+        out.push((t, q.normalized().unwrap_or(q)));
+    }
+    Ok(out)
+}
+
+/// Writes `vehicle.csv` into a recording folder.
+pub fn write_vehicle_csv(dir: &Path, samples: &[(u64, Quaternion)]) -> Result<(), RecordingError> {
+    let path = dir.join(VEHICLE_FILE);
+    let fail = |e: std::io::Error| RecordingError::new(&path, format!("cannot write: {e}"));
+    let mut w = BufWriter::new(File::create(&path).map_err(fail)?);
+    writeln!(w, "{}", VEHICLE_COLUMNS.join(",")).map_err(fail)?;
+    for (t, q) in samples {
+        // Rust's shortest round-trip form: the quaternion reads back bit for bit.
+        writeln!(w, "{t},{},{},{},{}", q.w, q.x, q.y, q.z).map_err(fail)?;
+    }
+    w.flush().map_err(fail)
 }
 
 /// A number that may be unknown: `nan` or an empty field give None; anything else must be a
@@ -797,6 +889,32 @@ mod tests {
         assert_eq!(frames[1].truth.yaw_deg, Some(2.5));
         assert_eq!(frames[0].truth.yaw_deg, None);
         assert_eq!(frames[1].line, 3);
+    }
+
+    #[test]
+    fn vehicle_csv_round_trips_and_errors_name_line_and_column() {
+        let dir = tempfile::tempdir().unwrap();
+        let q = Quaternion::from_matrix(&Rpy::from_degrees(3.0, -2.0, 17.0).to_matrix());
+        let samples = vec![(0, Quaternion::IDENTITY), (10_000_000, q)];
+        write_vehicle_csv(dir.path(), &samples).unwrap();
+        let path = dir.path().join(VEHICLE_FILE);
+        assert_eq!(read_vehicle_csv(&path).unwrap(), samples);
+        for (text, line, column) in [
+            ("timestamp_ns,qw,qx,qy\n", 1, None),
+            (
+                "timestamp_ns,qw,qx,qy,qz\n5,1,0,0,0\n5,1,0,0,0\n",
+                3,
+                Some("timestamp_ns"),
+            ),
+            ("timestamp_ns,qw,qx,qy,qz\nx,1,0,0,0\n", 2, Some("timestamp_ns")),
+            ("timestamp_ns,qw,qx,qy,qz\n5,2,0,0,0\n", 2, Some("qw")),
+            ("timestamp_ns,qw,qx,qy,qz\n5,1,0,nan,0\n", 2, Some("qy")),
+        ] {
+            std::fs::write(&path, text).unwrap();
+            let e = read_vehicle_csv(&path).unwrap_err();
+            assert_eq!((e.line, e.field.as_deref()), (Some(line), column), "{text}: {e}");
+            assert!(e.to_string().contains(VEHICLE_FILE), "{e}");
+        }
     }
 
     #[test]

@@ -197,6 +197,19 @@ impl VehicleTrack {
         }
     }
 
+    /// The vehicle's attitude for a frame at `t_ns`, as a frame carries it: `Stream` with the
+    /// interpolated attitude, or `Missing`.
+    pub fn vehicle_attitude_at(&self, t_ns: u64, max_gap_ns: u64) -> crate::messages::VehicleAttitude {
+        match self.at(t_ns, max_gap_ns) {
+            Ok(a) => crate::messages::VehicleAttitude {
+                compensation: Compensation::Stream,
+                rpy: a.quaternion.to_rpy(),
+                age_ms: a.age_ns as f64 / 1e6,
+            },
+            Err(_) => crate::messages::VehicleAttitude::MISSING,
+        }
+    }
+
     /// The attitude at `t_ns`: slerp between the samples around it, or the nearest sample when
     /// `t_ns` is outside them; none when the nearest sample used is more than `max_gap_ns` away.
     pub fn at(&self, t_ns: u64, max_gap_ns: u64) -> Result<TrackAttitude, TrackMiss> {

@@ -335,12 +335,12 @@ impl LandingDecider {
         self.decide(t, attitude, age_s, t)
     }
 
-    /// Refuses the input of a frame captured at `t` for `reason` (say, its attitude could not
-    /// be compensated for the vehicle's): never clear on it, abort a committed landing.
-    pub fn refuse_at_capture(&mut self, t: f64, reason: DecisionReason) -> Decision {
-        let now = if t.is_finite() {
-            self.last_input = Some(t);
-            t
+    /// Refuses a frame's input for `reason` (say, its attitude could not be compensated for the
+    /// vehicle's), deciding at `now`: never clear on it, abort a committed landing.
+    pub fn refuse(&mut self, now: f64, reason: DecisionReason) -> Decision {
+        let now = if now.is_finite() {
+            self.last_input = Some(now);
+            now
         } else {
             self.last_input.unwrap_or(f64::NEG_INFINITY)
         };

@@ -4,7 +4,7 @@
 //! true motion and the measured attitude stream (with its noise, dropouts and outliers).
 
 use crate::decision::{DecisionConfig, LandingDecider};
-use deckwatch_common::messages::DecisionState;
+use deckwatch_common::messages::{DecisionReason, DecisionState};
 
 /// One measured frame: capture time, measured roll/pitch (None: no valid attitude), decision time.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -12,6 +12,9 @@ pub struct Measured {
     pub t: f64,
     pub attitude: Option<[f64; 2]>,
     pub now: f64,
+    /// The vehicle's attitude was missing for this frame (the autopilot's stream was out): the
+    /// attitude is not compensated and is refused.
+    pub vehicle_missing: bool,
 }
 
 /// Outcome of one rule over one series.
@@ -139,7 +142,11 @@ pub fn evaluate(
     let mut cost_us = Vec::with_capacity(stream.len());
     for m in stream {
         let clock = std::time::Instant::now();
-        let d = decider.update(m.t, m.attitude, m.now);
+        let d = if m.vehicle_missing {
+            decider.refuse(m.now, DecisionReason::NoVehicleAttitude)
+        } else {
+            decider.update(m.t, m.attitude, m.now)
+        };
         cost_us.push(clock.elapsed().as_secs_f64() * 1e6);
         *smart
             .decisions
@@ -158,7 +165,7 @@ pub fn evaluate(
         previous = d.state;
         // The naive rule commits whenever the current angles are within the limits and no
         // touchdown of its own is under way.
-        if let Some([r, p]) = m.attitude {
+        if let Some([r, p]) = m.attitude.filter(|_| !m.vehicle_missing) {
             if m.now >= naive_until && config.naive_within(r, p) {
                 naive_commits.push(m.now);
                 naive_until = m.now + config.touchdown_s;
@@ -190,6 +197,7 @@ mod tests {
                     t,
                     attitude: Some(calm(t)),
                     now: t + 0.005,
+                    vehicle_missing: false,
                 }
             })
             .collect();
@@ -198,6 +206,25 @@ mod tests {
         assert_eq!(smart.calm_windows, 1, "always calm: one long window");
         assert_eq!(smart.calm_windows_used, 1);
         assert_eq!(naive.unsafe_commits, 0);
+        // The vehicle's attitude missing from 60 s on: nothing is cleared after that.
+        let outage: Vec<Measured> = stream
+            .iter()
+            .map(|m| Measured {
+                vehicle_missing: m.t >= 60.0,
+                ..*m
+            })
+            .collect();
+        let (smart, _) = evaluate(&calm, &c, &outage).unwrap();
+        let refused: u64 = smart
+            .decisions
+            .iter()
+            .filter(|(k, _)| k.ends_with("no-vehicle-attitude"))
+            .map(|(k, v)| {
+                assert!(!k.starts_with("CLEAR"), "{k}");
+                *v
+            })
+            .sum();
+        assert_eq!(refused, 600, "every frame of the outage: {:?}", smart.decisions);
         // Rough: angles pass through the limits fast; the naive rule commits on the way out.
         let rough = |t: f64| [9.0 * (TAU * t / 9.0).sin(), 0.5 * (TAU * t / 6.0).sin()];
         let stream: Vec<Measured> = stream

@@ -161,7 +161,7 @@ impl Outgoing {
         let position = a.camera_position_m;
         let usable = !d.watchdog
             && a.valid
-            && a.compensation != Compensation::Missing
+            && a.vehicle.compensation != Compensation::Missing
             && position.iter().all(|v| v.is_finite());
         let due = |last: Option<u64>, period: u64| last.is_none_or(|t| now_ns.saturating_sub(t) >= period);
         if usable && due(self.last_target_ns, self.target_period_ns) {
@@ -245,7 +245,7 @@ mod tests {
         d.attitude.valid = true;
         d.attitude.rpy = Rpy::from_degrees(2.0, -1.0, 0.0);
         d.attitude.camera_position_m = [0.0, 0.0, 5.0];
-        d.attitude.compensation = Compensation::Frame;
+        d.attitude.vehicle.compensation = Compensation::Frame;
         d.stamp.times.captured_ns = 1_000_000;
         d
     }
@@ -301,7 +301,7 @@ mod tests {
             if v.name.to_str().unwrap() == names::STATE && v.value == DecisionState::Hold as i32)));
         // Not compensated: no target.
         let mut u = decision(DecisionState::Hold);
-        u.attitude.compensation = Compensation::Missing;
+        u.attitude.vehicle.compensation = Compensation::Missing;
         let m = o.decision(&u, LinkState::Up, None, 3_000_010);
         assert!(!kinds(&m).contains(&"target"));
     }

@@ -187,6 +187,7 @@ impl PipelineConfig {
             image: self.image.clone(),
             replay: self.replay.clone(),
             libcamera: self.libcamera.clone(),
+            vehicle: self.vehicle.clone(),
         }
     }
 }

@@ -13,7 +13,6 @@ use crate::stage::{checked_config, exit_code, setup, RunError, StageArgs};
 use deckwatch_capture::source::{CaptureSource, CapturedFrame, SourceError};
 use deckwatch_common::messages::{
     monotonic_ns, DropCounts, FrameContext, FrameHeader, FrameStamp, PixelFormat, StageTimes, Truth,
-    VehicleAttitude,
 };
 use std::process::ExitCode;
 use std::time::Duration;
@@ -59,7 +58,7 @@ pub fn complete_header(h: &mut FrameHeader, f: &CapturedFrame) {
     h.context.source_timestamp_ns = f.source_timestamp_ns;
     h.context.altitude_m = f.altitude_m.unwrap_or(f64::NAN);
     h.context.truth = Truth::from_ground_truth(&f.truth, f.truth_known);
-    h.context.vehicle = VehicleAttitude::from_rpy(f.truth.vehicle_attitude());
+    h.context.vehicle = f.vehicle;
 }
 
 /// Runs the capture binary.

@@ -75,10 +75,9 @@ impl DecideStage {
             received_ns as f64 / 1e9 - seconds(captured)
         };
         let t = frame_time_s(a);
-        let d = if a.valid && a.compensation == Compensation::Missing {
+        let d = if a.valid && a.vehicle.compensation == Compensation::Missing {
             // The deck relative to a tilted camera is not the deck.
-            self.decider
-                .refuse_at_capture(t, DecisionReason::NoVehicleAttitude)
+            self.decider.refuse(t, DecisionReason::NoVehicleAttitude)
         } else {
             self.decider.update_at_capture(t, attitude, age_s)
         };
@@ -164,6 +163,7 @@ impl Stage for DecideStage {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use deckwatch_common::messages::VehicleAttitude;
     use deckwatch_common::Rpy;
 
     #[test]
@@ -210,7 +210,10 @@ mod tests {
         let mut s = DecideStage::new(DecisionConfig::default(), false).unwrap();
         let mut a = AttitudeMessage {
             valid: true,
-            compensation: Compensation::Stream,
+            vehicle: VehicleAttitude {
+                compensation: Compensation::Stream,
+                ..Default::default()
+            },
             ..Default::default()
         };
         let mut cleared_at = None;
@@ -226,7 +229,7 @@ mod tests {
             }
         }
         let k = cleared_at.expect("a calm sea clears");
-        a.compensation = Compensation::Missing;
+        a.vehicle.compensation = Compensation::Missing;
         a.stamp.seq = k + 1;
         a.context.source_timestamp_ns = (k + 1) * 100_000_000;
         a.stamp.times.captured_ns += 100_000_000;

@@ -77,14 +77,6 @@ struct Estimators {
     pose: PoseEstimator,
 }
 
-/// The vehicle attitude a frame is compensated with.
-struct VehicleForFrame {
-    compensation: Compensation,
-    /// `R_V` (north-west-up for the autopilot's).
-    r_v: RotationMatrix,
-    age_ms: f64,
-}
-
 /// State of the estimate stage across frames.
 pub struct EstimateStage {
     primary: EstimatorKind,
@@ -136,15 +128,14 @@ impl EstimateStage {
         out.stamp.drops.estimate = self.dropped;
         out.stamp.times.estimate_received_ns = received_ns;
         let vehicle = self.vehicle_for(m);
-        let camera = self.vehicle.camera_attitude(&vehicle.r_v);
-        out.compensation = vehicle.compensation;
-        out.vehicle_age_ms = vehicle.age_ms;
+        let r_v = vehicle.matrix();
+        let camera = self.vehicle.camera_attitude(&r_v);
         self.uncompensated += (vehicle.compensation == Compensation::Missing) as u64;
         // With the autopilot's north-referenced attitude, W's x is the ship's mean heading.
         let mut to_w = RotationMatrix::identity();
         let primary = self.run(self.primary, m, &camera);
         if let Ok(e) = &primary.result {
-            if vehicle.compensation == Compensation::Stream {
+            if self.vehicle.attitude == VehicleAttitudeSource::Autopilot && vehicle.known() {
                 let t_s = m.context.source_timestamp_ns as f64 / 1e9;
                 let deck_heading = e.attitude.rpy.yaw;
                 if let Some(h) = self
@@ -156,8 +147,8 @@ impl EstimateStage {
             }
         }
         out.vehicle = VehicleAttitude {
-            known: vehicle.compensation != Compensation::Missing,
-            rpy: Rpy::from_matrix(&(to_w * vehicle.r_v)),
+            rpy: Rpy::from_matrix(&(to_w * r_v)),
+            ..vehicle
         };
         match primary.result {
             Ok(mut e) => {
@@ -205,38 +196,15 @@ impl EstimateStage {
     }
 
     /// The vehicle attitude at the frame's mid-exposure, as `[vehicle] attitude` says.
-    fn vehicle_for(&self, m: &MarkerMessage) -> VehicleForFrame {
-        let level = VehicleForFrame {
-            compensation: Compensation::Level,
-            r_v: RotationMatrix::identity(),
-            age_ms: f64::NAN,
-        };
+    fn vehicle_for(&self, m: &MarkerMessage) -> VehicleAttitude {
         match self.vehicle.attitude {
-            VehicleAttitudeSource::Level => level,
-            // A source without a vehicle (a recording without its columns) means level.
-            VehicleAttitudeSource::Frames if !m.context.vehicle.known => level,
-            VehicleAttitudeSource::Frames => VehicleForFrame {
-                compensation: Compensation::Frame,
-                r_v: m.context.vehicle.matrix(),
-                age_ms: 0.0,
-            },
+            VehicleAttitudeSource::Level => VehicleAttitude::LEVEL,
+            // What the source says (a recording without a vehicle: level).
+            VehicleAttitudeSource::Frames => m.context.vehicle,
             // Mid-exposure: capture stamps it (the simulator renders an instant).
-            VehicleAttitudeSource::Autopilot => {
-                match self
-                    .track
-                    .at(m.stamp.times.captured_ns, self.vehicle.max_gap_ns())
-                {
-                    Ok(a) => VehicleForFrame {
-                        compensation: Compensation::Stream,
-                        r_v: a.quaternion.to_matrix(),
-                        age_ms: a.age_ns as f64 / 1e6,
-                    },
-                    Err(_) => VehicleForFrame {
-                        compensation: Compensation::Missing,
-                        ..level
-                    },
-                }
-            }
+            VehicleAttitudeSource::Autopilot => self
+                .track
+                .vehicle_attitude_at(m.stamp.times.captured_ns, self.vehicle.max_gap_ns()),
         }
     }
 
@@ -360,19 +328,11 @@ mod tests {
     use deckwatch_common::rotation::rpy_error_deg;
     use deckwatch_common::{CameraModel, DeckLayout, Rpy, SceneGeometry, Viewpoint};
 
-    #[test]
-    fn both_estimators_on_exact_markers_and_no_deck_gives_none() {
-        let camera = CameraModel::preset("rpi-v2").unwrap();
-        let deck = DeckLayout::paper();
-        let truth = Rpy::from_degrees(3.0, -2.0, 10.0);
-        let scene = SceneGeometry {
-            attitude: truth.to_matrix(),
-            viewpoint: Viewpoint::level(0.1, 0.0, 5.0),
-        };
+    /// The marker message of a scene's exact projections.
+    fn exact_markers(scene: &SceneGeometry, camera: CameraModel, deck: DeckLayout) -> MarkerMessage {
         let mut m = MarkerMessage::default();
         m.context.camera = camera;
         m.context.deck = deck;
-        m.context.altitude_m = 5.0;
         m.markers = MarkerSet {
             status: DetectionStatus::Ok,
             perspective_corrected: true,
@@ -387,6 +347,20 @@ mod tests {
                 ..Default::default()
             };
         }
+        m
+    }
+
+    #[test]
+    fn both_estimators_on_exact_markers_and_no_deck_gives_none() {
+        let camera = CameraModel::preset("rpi-v2").unwrap();
+        let deck = DeckLayout::paper();
+        let truth = Rpy::from_degrees(3.0, -2.0, 10.0);
+        let scene = SceneGeometry {
+            attitude: truth.to_matrix(),
+            viewpoint: Viewpoint::level(0.1, 0.0, 5.0),
+        };
+        let mut m = exact_markers(&scene, camera, deck);
+        m.context.altitude_m = 5.0;
         let mut s = EstimateStage::new(&EstimateConfig::default(), &VehicleConfig::default(), false);
         let a = s.process(&m, 7);
         assert!(a.valid && a.estimator == EstimatorKind::FullPose);
@@ -416,24 +390,8 @@ mod tests {
             attitude: truth.to_matrix(),
             viewpoint: Viewpoint::level(0.0, 0.0, 5.0).with_vehicle_attitude(vehicle_at(200.0).to_matrix()),
         };
-        let mut m = MarkerMessage::default();
-        m.context.camera = camera;
-        m.context.deck = deck;
+        let mut m = exact_markers(&scene, camera, deck);
         m.stamp.times.captured_ns = 1_200_000_000;
-        m.markers = MarkerSet {
-            status: DetectionStatus::Ok,
-            perspective_corrected: true,
-            ..Default::default()
-        };
-        for (i, p) in scene.project_markers(&camera, &deck).iter().enumerate() {
-            let [u, v] = p.unwrap();
-            m.markers.markers[i] = Marker {
-                valid: true,
-                u,
-                v,
-                ..Default::default()
-            };
-        }
         let vehicle = VehicleConfig {
             attitude: VehicleAttitudeSource::Autopilot,
             ..VehicleConfig::default()
@@ -441,7 +399,7 @@ mod tests {
         let mut s = EstimateStage::new(&EstimateConfig::default(), &vehicle, false);
         assert!(s.wants_vehicle());
         let a = s.process(&m, 0);
-        assert_eq!(a.compensation, Compensation::Missing);
+        assert_eq!(a.vehicle.compensation, Compensation::Missing);
         for t_ms in [190.0, 210.0] {
             s.vehicle_sample(&VehicleSample {
                 time_ns: 1_000_000_000 + (t_ms * 1e6) as u64,
@@ -451,8 +409,8 @@ mod tests {
             });
         }
         let a = s.process(&m, 0);
-        assert_eq!(a.compensation, Compensation::Stream);
-        assert!((a.vehicle_age_ms - 10.0).abs() < 1e-9);
+        assert_eq!(a.vehicle.compensation, Compensation::Stream);
+        assert!((a.vehicle.age_ms - 10.0).abs() < 1e-9);
         let e = rpy_error_deg(&a.rpy, &truth);
         // Slerp of a constant-rate roll is exact.
         assert!(e.iter().all(|v| *v < 1e-6), "{e:?}");
@@ -465,6 +423,6 @@ mod tests {
             link_up: false,
             ..Default::default()
         });
-        assert_eq!(t.process(&m, 0).compensation, Compensation::Missing);
+        assert_eq!(t.process(&m, 0).vehicle.compensation, Compensation::Missing);
     }
 }

@@ -76,7 +76,8 @@ fn virtual_camera_frames_give_the_rendered_attitudes() {
     std::fs::write(
         &config,
         format!(
-            "[bus]\ndomain = \"t{}-lcam\"\n[source]\nkind = \"libcamera\"\n\
+            // The virtual camera plays frames of a level camera: no vehicle to compensate.
+            "[bus]\ndomain = \"t{}-lcam\"\n[source]\nkind = \"libcamera\"\n[vehicle]\nattitude = \"level\"\n\
              [libcamera]\ncamera = \"{CAMERA_ID}\"\ncalibration = \"{}\"\nframes = {frames}\nframe_rate = 10\n",
             std::process::id(),
             rec_dir.join("camera.json").display()

@@ -13,7 +13,7 @@ use crate::bus::{
     MessageSubscriber, Wake,
 };
 use crate::config::{ConfigError, PipelineConfig, DEFAULTS};
-use deckwatch_common::messages::{monotonic_ns, FrameHeader, VehicleSample};
+use deckwatch_common::messages::{monotonic_ns, FrameHeader, LandingDecision, VehicleSample};
 use deckwatch_viz::{Item, Logger};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -161,36 +161,43 @@ impl<M: Message> InputPort<M> for MessageSubscriber<M> {
 }
 
 /// A stage the launcher runs: its name and the service it listens on once it is up (None: the
-/// source, which listens on nothing).
+/// source, which listens on nothing), with the subscriber count that says so.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct StageInfo {
     pub name: &'static str,
     pub ready_service: Option<&'static str>,
+    pub ready_subscribers: usize,
 }
 
 /// The stages in start order: each one's input service has a subscriber before the stage
 /// upstream of it starts, so no frame is published into the void. The link comes first: the
 /// vehicle's attitude must flow before the first frame needs it.
 pub const STAGES: [StageInfo; 5] = [
+    // The link listens to the decisions, which the launcher follows too: it is up at two.
     StageInfo {
         name: crate::stages::link::NAME,
-        ready_service: None,
+        ready_service: Some(<LandingDecision as crate::bus::Message>::SERVICE),
+        ready_subscribers: 2,
     },
     StageInfo {
         name: crate::stages::DecideStage::NAME,
         ready_service: Some(<<crate::stages::DecideStage as Stage>::Input as Input>::SERVICE),
+        ready_subscribers: 1,
     },
     StageInfo {
         name: crate::stages::EstimateStage::NAME,
         ready_service: Some(<<crate::stages::EstimateStage as Stage>::Input as Input>::SERVICE),
+        ready_subscribers: 1,
     },
     StageInfo {
         name: crate::stages::DetectStage::NAME,
         ready_service: Some(<<crate::stages::DetectStage as Stage>::Input as Input>::SERVICE),
+        ready_subscribers: 1,
     },
     StageInfo {
         name: crate::stages::capture::NAME,
         ready_service: None,
+        ready_subscribers: 1,
     },
 ];
 

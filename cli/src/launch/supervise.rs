@@ -128,7 +128,7 @@ pub fn supervise(
             continue;
         };
         let deadline = Instant::now() + Duration::from_millis(sup.ready_timeout_ms);
-        while bus.subscriber_count(service).map_err(|e| e.to_string())? == 0 {
+        while bus.subscriber_count(service).map_err(|e| e.to_string())? < info.ready_subscribers {
             if let Poll::Exited(status) = s.process.poll() {
                 return Err(format!("{} exited at start ({})", info.name, describe(status)));
             }

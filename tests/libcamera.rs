@@ -76,8 +76,10 @@ fn virtual_camera_frames_give_the_rendered_attitudes() {
     std::fs::write(
         &config,
         format!(
-            // The virtual camera plays frames of a level camera: no vehicle to compensate.
+            // The virtual camera plays frames of a level camera: no vehicle to compensate, and no
+            // vehicle height for the deck's heave.
             "[bus]\ndomain = \"t{}-lcam\"\n[source]\nkind = \"libcamera\"\n[vehicle]\nattitude = \"level\"\n\
+             [decide]\nheave = \"off\"\n\
              [libcamera]\ncamera = \"{CAMERA_ID}\"\ncalibration = \"{}\"\nframes = {frames}\nframe_rate = 10\n",
             std::process::id(),
             rec_dir.join("camera.json").display()

@@ -197,6 +197,15 @@ fn pymavlink_autopilot_and_ground_station() {
         })
         .fold(0.0, f64::max);
     assert!(worst < 0.1, "deck tilt error up to {worst} deg");
+    // The deck's height from the autopilot's LOCAL_POSITION_NED (5 m, holding) less the camera's
+    // height over the deck from the full pose: the deck's heave, 0 here (the simulated deck does
+    // not heave), and its rate.
+    for r in &compensated {
+        let (h, truth) = (num(r, "deck_height_m"), num(r, "truth_heave_m"));
+        assert!((h - truth).abs() < 0.05, "deck height {h} m, truth {truth} m");
+    }
+    let heaves = seen["floats"]["dw_heave"].as_array().unwrap();
+    assert!(heaves.iter().filter_map(|v| v.as_f64()).any(|v| v.abs() < 0.05));
     // The ground station's deck roll/pitch are the decisions' (float32).
     let rolls = seen["floats"]["dw_roll"].as_array().unwrap();
     assert!(rolls.len() > 20);

@@ -90,6 +90,7 @@ fn a_recording_of_a_swaying_vehicle_is_compensated_end_to_end() {
             "ship",
             "--vehicle",
             "sway",
+            "--heave",
             "--frames",
             "20",
         ])
@@ -133,24 +134,43 @@ fn a_recording_of_a_swaying_vehicle_is_compensated_end_to_end() {
                 .split_whitespace()
                 .map(str::to_string)
                 .collect();
-            // Columns: recording estimator frames estim missed nodeck rmse(3) max(3) ...
+            // Columns: recording estimator frames estim missed nodeck rmse(3) max(3) alt off
+            // heave cost.
             let missed: usize = row[4].parse().unwrap();
-            let rmse: Vec<f64> = row[6..9].iter().map(|v| v.parse().unwrap()).collect();
+            let mut rmse: Vec<f64> = row[6..9].iter().map(|v| v.parse().unwrap()).collect();
+            // The full pose's deck height error (m) as a fourth.
+            rmse.extend(row.get(14).and_then(|v| v.parse::<f64>().ok()));
             (missed, rmse)
         })
     };
-    for (missed, rmse) in eval() {
-        assert_eq!(missed, 0);
+    let both = eval();
+    for (missed, rmse) in &both {
+        assert_eq!(*missed, 0);
         // Without the vehicle's attitude the error is the sway itself (degrees).
         assert!(rmse.iter().all(|e| *e < 0.2), "{rmse:?}");
     }
+    // The deck heaves (up to 1.2 m) under a vehicle holding its height: the full pose and the
+    // autopilot's height (vehicle.csv) give the heave to centimetres.
+    let heave_rmse_m = both[0].1[3];
+    assert!(heave_rmse_m < 0.03, "deck height RMSE {heave_rmse_m} m");
+    let heaves: Vec<f64> = recording
+        .frames
+        .iter()
+        .map(|f| f.truth.deck_heave_m.unwrap())
+        .collect();
+    let span =
+        heaves.iter().cloned().fold(f64::MIN, f64::max) - heaves.iter().cloned().fold(f64::MAX, f64::min);
+    assert!(span > 0.2, "the deck heaved {span} m");
     // Replay prefers vehicle.csv to the columns: an autopilot whose roll is 2 deg off shows up
     // one for one in the deck's roll.
     let biased: Vec<_> = samples
         .iter()
-        .map(|&(t, q)| {
-            let r = q.to_matrix() * deckwatch_common::Rpy::from_degrees(2.0, 0.0, 0.0).to_matrix();
-            (t, deckwatch_common::Quaternion::from_matrix(&r))
+        .map(|s| {
+            let r = s.quaternion.to_matrix() * deckwatch_common::Rpy::from_degrees(2.0, 0.0, 0.0).to_matrix();
+            deckwatch_common::vehicle::VehicleStateSample {
+                quaternion: deckwatch_common::Quaternion::from_matrix(&r),
+                ..*s
+            }
         })
         .collect();
     deckwatch_common::recording::write_vehicle_csv(&rec, &biased).unwrap();

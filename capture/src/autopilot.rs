@@ -7,6 +7,7 @@
 
 use crate::motion::MotionProfile;
 use crate::rng::SplitMix64;
+use deckwatch_common::vehicle::VehicleStateSample;
 use deckwatch_common::{Quaternion, Rpy};
 use serde::{Deserialize, Serialize};
 
@@ -80,9 +81,10 @@ impl AutopilotArgs {
         Ok(())
     }
 
-    /// The stream over `[0, end_s]` of the vehicle in `profile`: (timestamp ns on the frames'
-    /// clock, measured `R_V`), increasing in time. Empty at rate 0.
-    pub fn samples(&self, profile: &dyn MotionProfile, end_s: f64, seed: u64) -> Vec<(u64, Quaternion)> {
+    /// The stream over `[0, end_s]` of the vehicle in `profile`: timestamp on the frames' clock,
+    /// measured `R_V` and the vehicle's height in W (exact: an autopilot's height is good to
+    /// centimetres over a landing), increasing in time. Empty at rate 0.
+    pub fn samples(&self, profile: &dyn MotionProfile, end_s: f64, seed: u64) -> Vec<VehicleStateSample> {
         if !(self.rate_hz > 0.0) {
             return Vec::new();
         }
@@ -98,12 +100,17 @@ impl AutopilotArgs {
             let t = j as f64 / self.rate_hz;
             let noise = [0; 3].map(|_| self.noise_deg * rng.next_gaussian());
             let error = Rpy::from_degrees(bias[0] + noise[0], bias[1] + noise[1], bias[2] + noise[2]);
-            let measured = profile.sample(t).viewpoint.vehicle_attitude * error.to_matrix();
+            let truth = profile.sample(t);
+            let measured = truth.viewpoint.vehicle_attitude * error.to_matrix();
             let stamp_s = t + offset_s;
             if stamp_s < 0.0 {
                 continue;
             }
-            out.push(((stamp_s * 1e9).round() as u64, Quaternion::from_matrix(&measured)));
+            out.push(VehicleStateSample {
+                time_ns: (stamp_s * 1e9).round() as u64,
+                quaternion: Quaternion::from_matrix(&measured),
+                height_m: Some(truth.vehicle_height_m()),
+            });
         }
         out
     }
@@ -123,9 +130,11 @@ mod tests {
         };
         let exact = AutopilotArgs::default().samples(&profile, 2.0, 1);
         assert_eq!(exact.len(), 201);
-        for &(t, q) in &exact {
-            let truth = profile.sample(t as f64 / 1e9).viewpoint.vehicle_attitude;
-            assert!(rotation_angle_between(&q.to_matrix(), &truth) < 1e-9);
+        for s in &exact {
+            let truth = profile.sample(s.time_ns as f64 / 1e9);
+            let q = s.quaternion;
+            assert!(rotation_angle_between(&q.to_matrix(), &truth.viewpoint.vehicle_attitude) < 1e-9);
+            assert_eq!(s.height_m, Some(truth.vehicle_height_m()));
         }
         let noisy = AutopilotArgs {
             noise_deg: 0.3,
@@ -134,13 +143,16 @@ mod tests {
             ..AutopilotArgs::default()
         };
         let s = noisy.samples(&profile, 20.0, 1);
-        assert_eq!(s[0].0, 5_000_000, "stamped 5 ms late");
+        assert_eq!(s[0].time_ns, 5_000_000, "stamped 5 ms late");
         // The roll error about the body's x: mean = bias, spread = noise.
         let errors: Vec<f64> = s
             .iter()
-            .map(|&(t, q)| {
-                let truth = profile.sample(t as f64 / 1e9 - 0.005).viewpoint.vehicle_attitude;
-                Rpy::from_matrix(&(truth.transpose() * q.to_matrix()))
+            .map(|s| {
+                let truth = profile
+                    .sample(s.time_ns as f64 / 1e9 - 0.005)
+                    .viewpoint
+                    .vehicle_attitude;
+                Rpy::from_matrix(&(truth.transpose() * s.quaternion.to_matrix()))
                     .roll
                     .to_degrees()
             })

@@ -13,7 +13,10 @@ pub mod sim;
 pub mod source;
 pub mod virtual_camera;
 
-pub use motion::{Case1Sweep, MotionProfile, MotionSample, ShipMotion, Swaying, TrackingError, VehicleSway};
+pub use motion::{
+    Case1Sweep, DeckHeave, Heaving, MotionProfile, MotionSample, ShipMotion, Swaying, TrackingError,
+    VehicleSway,
+};
 pub use render::{RenderOptions, Renderer};
 pub use scenario::{MarkerSimulator, Scenario};
 pub use sim::{FrameSimulator, FrameTruth};

@@ -13,6 +13,16 @@ pub struct MotionSample {
     pub attitude: Rpy,
     /// True camera position over the deck.
     pub viewpoint: Viewpoint,
+    /// The deck centre's height in W (m, z up; 0: its mean): the heave. The viewpoint is
+    /// relative to the deck, so the vehicle's height in W is the two added.
+    pub deck_heave_m: f64,
+}
+
+impl MotionSample {
+    /// The vehicle's (camera's) height in W (m).
+    pub fn vehicle_height_m(&self) -> f64 {
+        self.viewpoint.altitude_m + self.deck_heave_m
+    }
 }
 
 /// A deck-and-camera trajectory.
@@ -58,6 +68,7 @@ impl MotionProfile for Case1Sweep {
             t_s,
             attitude: Rpy::from_degrees(lerp(-20.0, 20.0), lerp(-10.0, 10.0), lerp(-5.0, 5.0)),
             viewpoint: self.tracking.at(t_s),
+            deck_heave_m: 0.0,
         }
     }
 }
@@ -183,6 +194,7 @@ impl MotionProfile for ShipMotion {
                 sum(&self.yaw_deg, t_s),
             ),
             viewpoint: self.tracking.at(t_s),
+            deck_heave_m: 0.0,
         }
     }
 }
@@ -310,6 +322,57 @@ impl<P: MotionProfile> MotionProfile for Swaying<P> {
         s.viewpoint = s
             .viewpoint
             .with_vehicle_attitude(self.sway.attitude(t_s).to_matrix());
+        s
+    }
+}
+
+/// (amplitude m, period s) of the deck's heave at sea state 6 for a frigate-size ship: periods
+/// near the roll's waves (7-13 s), amplitudes summing to 1.2 m; the largest vertical speed
+/// (amplitude x 2 pi / period, summed) is 0.84 m/s. Ship-helicopter operating limits put the
+/// touchdown heave rate at about 1 m/s.
+pub const SEA_STATE_6_HEAVE: [(f64, f64); 3] = [(0.8, 9.5), (0.3, 7.2), (0.1, 12.8)];
+
+/// The deck's heave as a sum of sinusoids (m).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DeckHeave {
+    pub heave_m: Vec<Sinusoid>,
+}
+
+impl DeckHeave {
+    /// [`SEA_STATE_6_HEAVE`] with amplitudes times `scale`, phases from the seed.
+    pub fn sea_state_6(seed: u64, scale: f64) -> Self {
+        let mut rng = SplitMix64::new(seed ^ 0x4EA7_E000);
+        Self {
+            heave_m: sinusoids(&mut rng, &SEA_STATE_6_HEAVE, scale),
+        }
+    }
+
+    pub fn at(&self, t_s: f64) -> f64 {
+        sum(&self.heave_m, t_s)
+    }
+
+    /// The vertical speed (m/s).
+    pub fn rate(&self, t_s: f64) -> f64 {
+        self.heave_m
+            .iter()
+            .map(|c| c.amplitude * TAU / c.period_s * (TAU * t_s / c.period_s + c.phase).cos())
+            .sum()
+    }
+}
+
+/// A motion profile whose deck heaves while the vehicle holds its height in W: the camera's
+/// height over the deck is the inner profile's less the heave.
+pub struct Heaving<P> {
+    pub inner: P,
+    pub heave: DeckHeave,
+}
+
+impl<P: MotionProfile> MotionProfile for Heaving<P> {
+    fn sample(&self, t_s: f64) -> MotionSample {
+        let mut s = self.inner.sample(t_s);
+        let h = self.heave.at(t_s);
+        s.deck_heave_m += h;
+        s.viewpoint.altitude_m -= h;
         s
     }
 }

@@ -91,6 +91,10 @@ pub struct SimulationArgs {
         arg(long, value_delimiter = ',', allow_negative_numbers = true, default_values_t = [0.0, 0.0, 0.0])
     )]
     pub vehicle_tilt_deg: Vec<f64>,
+    /// The deck heaves (sea-state-6 heave, `DeckHeave`, 1.2 m, up to 0.84 m/s) while the vehicle
+    /// holds its height in W.
+    #[cfg_attr(feature = "cli", arg(long))]
+    pub heave: bool,
     /// The autopilot's attitude stream of a non-level vehicle (`sim record` writes it as
     /// `vehicle.csv`).
     #[cfg_attr(feature = "cli", command(flatten))]
@@ -110,6 +114,7 @@ impl Default for SimulationArgs {
             camera: None,
             vehicle: VehicleMotion::Level,
             vehicle_tilt_deg: vec![0.0; 3],
+            heave: false,
             autopilot: crate::autopilot::AutopilotArgs::default(),
             seed: 1,
         }
@@ -177,9 +182,18 @@ impl SimulationArgs {
         })
     }
 
-    /// The run's motion: the scenario's deck and camera position, on the configured vehicle.
+    /// The run's motion: the scenario's deck (heaving with `heave`) and camera position, on the
+    /// configured vehicle.
     pub fn profile(&self) -> Box<dyn MotionProfile + Send + Sync> {
         let scenario = self.scenario.profile(self.seed);
+        let scenario: Box<dyn MotionProfile + Send + Sync> = if self.heave {
+            Box::new(crate::Heaving {
+                inner: scenario,
+                heave: crate::DeckHeave::sea_state_6(self.seed, 1.0),
+            })
+        } else {
+            scenario
+        };
         let tilt = match self.vehicle_tilt_deg[..] {
             [r, p, y] => [r, p, y],
             _ => [0.0; 3], // refused by `resolve`
@@ -195,12 +209,14 @@ impl SimulationArgs {
         })
     }
 
-    /// The ground-truth columns a recording of this simulation has: the vehicle's only when it
-    /// is not level.
+    /// The ground-truth columns a recording of this simulation has: the vehicle's attitude only
+    /// when it is not level, its height and the heave when it is not level or the deck heaves.
     pub fn truth_columns(&self) -> deckwatch_common::recording::TruthColumns {
+        use deckwatch_common::recording::{with_heave_truth, ALL_TRUTH, LEVEL_TRUTH};
         match self.vehicle {
-            VehicleMotion::Level => deckwatch_common::recording::LEVEL_TRUTH,
-            VehicleMotion::Tilted | VehicleMotion::Sway => deckwatch_common::recording::ALL_TRUTH,
+            VehicleMotion::Level if self.heave => with_heave_truth(LEVEL_TRUTH),
+            VehicleMotion::Level => LEVEL_TRUTH,
+            VehicleMotion::Tilted | VehicleMotion::Sway => ALL_TRUTH,
         }
     }
 

@@ -38,6 +38,8 @@ impl FrameTruth {
             vehicle_roll_deg: Some(vehicle[0]),
             vehicle_pitch_deg: Some(vehicle[1]),
             vehicle_yaw_deg: Some(vehicle[2]),
+            vehicle_height_m: Some(self.sample.vehicle_height_m()),
+            deck_heave_m: Some(self.sample.deck_heave_m),
         }
     }
 }

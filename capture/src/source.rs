@@ -260,8 +260,8 @@ impl CaptureConfig {
         };
         let vehicle = rec.vehicle_samples.as_ref().map(|samples| {
             let mut track = VehicleTrack::new(samples.len());
-            for &(t, q) in samples {
-                track.push(t, q);
+            for &s in samples {
+                track.push(s);
             }
             track
         });
@@ -478,7 +478,8 @@ impl CaptureSource {
                     source_index: k,
                     source_timestamp_ns: t.timestamp_ns,
                     altitude_m: if altimeter { truth.alt_m } else { None },
-                    vehicle: VehicleAttitude::from_rpy(truth.vehicle_attitude()),
+                    vehicle: VehicleAttitude::from_rpy(truth.vehicle_attitude())
+                        .with_height(truth.vehicle_height_m.unwrap_or(f64::NAN)),
                     truth,
                     truth_known: true,
                     captured_ns: None,
@@ -517,9 +518,16 @@ impl CaptureSource {
                     truth_known: *truth_known,
                     altitude_m: if altimeter { f.truth.alt_m } else { None },
                     // At the frame's own time on the recording's clock (not the looped one).
-                    vehicle: match vehicle {
-                        Some(track) => track.vehicle_attitude_at(f.timestamp_ns, *max_gap_ns),
-                        None => VehicleAttitude::from_rpy(f.truth.vehicle_attitude()),
+                    vehicle: {
+                        let v = match vehicle {
+                            Some(track) => track.vehicle_attitude_at(f.timestamp_ns, *max_gap_ns),
+                            None => VehicleAttitude::from_rpy(f.truth.vehicle_attitude()),
+                        };
+                        // The stream's height first, else the frame's column.
+                        match f.truth.vehicle_height_m {
+                            Some(h) if !v.height_m.is_finite() => v.with_height(h),
+                            _ => v,
+                        }
                     },
                     captured_ns: None,
                     dropped_before: 0,

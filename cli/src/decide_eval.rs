@@ -3,9 +3,9 @@
 //! rule. Measurements are the truth plus Gaussian noise, dropped frames and outliers, as the
 //! estimate stage delivers them.
 
-use deckwatch_capture::motion::{MotionProfile, ShipMotion, VehicleSway};
+use deckwatch_capture::motion::{DeckHeave, MotionProfile, ShipMotion, VehicleSway};
 use deckwatch_capture::rng::SplitMix64;
-use deckwatch_decide::decision::DecisionConfig;
+use deckwatch_decide::decision::{DecisionConfig, DeckObservation};
 use deckwatch_decide::eval::{evaluate, Measured, RuleOutcome};
 use std::time::Instant;
 
@@ -35,6 +35,14 @@ pub struct DecideEvalArgs {
     /// Share of frames with a gross error (5-15 deg on one angle).
     #[arg(long, default_value_t = 0.002)]
     outliers: f64,
+    /// Noise of the measured deck height (m, standard deviation): the full pose's altitude and
+    /// the autopilot's height. The deck heaves as the sea state's `DeckHeave`.
+    #[arg(long, default_value_t = 0.02)]
+    heave_noise_m: f64,
+    /// The heave's amplitude relative to the sea state's (a swell from ahead heaves the ship
+    /// more than it rolls it).
+    #[arg(long, default_value_t = 1.0)]
+    heave_scale: f64,
     /// Capture -> decision latency (ms).
     #[arg(long, default_value_t = 5.0)]
     latency_ms: f64,
@@ -109,16 +117,19 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
     if !(a.vehicle_noise_deg >= 0.0
         && a.vehicle_outages_per_min >= 0.0
         && a.vehicle_outage_s > 0.0
-        && a.vehicle_time_error_ms.is_finite())
+        && a.vehicle_time_error_ms.is_finite()
+        && a.heave_noise_m >= 0.0
+        && a.heave_scale >= 0.0)
     {
         return Err("--vehicle-*: noise and outages must not be negative, outages must last".into());
     }
     if !a.json {
         println!(
-            "{} min at {} Hz per series, {} motion, noise {} deg, dropout {}, outliers {}; vehicle {} (autopilot noise {} deg, bias {:?} deg, timing {} ms, {} outages/min of {} s); capacity roll/pitch {}/{} deg, rates {}/{} deg/s, touchdown {} s",
-            a.minutes, a.rate, a.motion, a.noise_deg, a.dropout, a.outliers, a.vehicle, a.vehicle_noise_deg,
+            "{} min at {} Hz per series, {} motion, noise {} deg, heave noise {} m x{}, dropout {}, outliers {}; vehicle {} (autopilot noise {} deg, bias {:?} deg, timing {} ms, {} outages/min of {} s); capacity roll/pitch {}/{} deg, rates {}/{} deg/s, heave {:?} rate {} m/s, touchdown {} s",
+            a.minutes, a.rate, a.motion, a.noise_deg, a.heave_noise_m, a.heave_scale, a.dropout, a.outliers, a.vehicle, a.vehicle_noise_deg,
             a.vehicle_bias_deg, a.vehicle_time_error_ms, a.vehicle_outages_per_min, a.vehicle_outage_s, config.max_abs_roll_deg,
-            config.max_abs_pitch_deg, config.max_abs_roll_rate_dps, config.max_abs_pitch_rate_dps, config.touchdown_s
+            config.max_abs_pitch_deg, config.max_abs_roll_rate_dps, config.max_abs_pitch_rate_dps, config.heave,
+            config.max_abs_heave_rate_mps, config.touchdown_s
         );
         println!(
             "{:<10} {:<14} {:>8} {:>8} {:>7} {:>8} {:>6} {:>9}",
@@ -134,9 +145,10 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
                 "regular" => ShipMotion::scaled(seed, scale),
                 other => return Err(format!("--motion: unknown `{other}` (irregular, regular)")),
             };
+            let heave = DeckHeave::sea_state_6(seed, scale * a.heave_scale);
             let truth = |t: f64| {
                 let [r, p, _] = motion.sample(t).attitude.to_degrees();
-                [r, p]
+                [r, p, heave.at(t)]
             };
             let mut rng = SplitMix64::new(seed.wrapping_mul(0x9E37_79B9) ^ ss as u64);
             // What compensating with the autopilot's attitude leaves in the deck's roll and
@@ -155,29 +167,30 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
             let stream: Vec<Measured> = (0..n)
                 .map(|k| {
                     let t = k as f64 / a.rate;
-                    let [r, p] = truth(t);
+                    let [r, p, h] = truth(t);
                     if rng.next_f64() < p_start {
                         outage_until = outage_until.max(t + a.vehicle_outage_s);
                     }
                     let [er, ep] = vehicle_error(t, &mut rng);
                     let (r, p) = (r + er, p + ep);
-                    let attitude = if rng.next_f64() < a.dropout {
+                    let deck = if rng.next_f64() < a.dropout {
                         None
                     } else {
                         let mut m = [
                             r + a.noise_deg * rng.next_gaussian(),
                             p + a.noise_deg * rng.next_gaussian(),
                         ];
+                        let height = h + a.heave_noise_m * rng.next_gaussian();
                         if rng.next_f64() < a.outliers {
                             let i = (rng.next_u64() % 2) as usize;
                             m[i] +=
                                 (5.0 + 10.0 * rng.next_f64()) * if rng.next_f64() < 0.5 { -1.0 } else { 1.0 };
                         }
-                        Some(m)
+                        Some(DeckObservation::new(m[0], m[1], height))
                     };
                     Measured {
                         t,
-                        attitude,
+                        deck,
                         now: t + a.latency_ms / 1e3,
                         vehicle_missing: t < outage_until,
                     }

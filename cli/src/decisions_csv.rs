@@ -9,7 +9,8 @@ use std::path::{Path, PathBuf};
 pub const HEADER: &str = "seq,source_index,captured_ns,published_ns,detect_received_ns,detect_finished_ns,\
 estimate_received_ns,estimate_finished_ns,decide_received_ns,decide_finished_ns,state,reason,valid,\
 roll_deg,pitch_deg,yaw_deg,truth_roll_deg,truth_pitch_deg,truth_yaw_deg,markers,\
-drops_capture,drops_bad,drops_detect,drops_estimate,drops_decide,calm_start_s,calm_length_s,watchdog";
+drops_capture,drops_bad,drops_detect,drops_estimate,drops_decide,calm_start_s,calm_length_s,watchdog,\
+deck_height_m,truth_heave_m,heave_rate_mps";
 
 /// A decisions CSV being written.
 pub struct DecisionsCsv {
@@ -38,7 +39,7 @@ impl DecisionsCsv {
         };
         writeln!(
             self.out,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{r},{p},{y},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{r},{p},{y},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             d.stamp.seq,
             d.context.source_index,
             t.captured_ns,
@@ -63,7 +64,10 @@ impl DecisionsCsv {
             dr.decide,
             d.calm_window_start_s,
             d.calm_window_length_s,
-            d.watchdog as u8
+            d.watchdog as u8,
+            if a.valid { a.deck_height_m } else { f64::NAN },
+            tr.deck_heave_m,
+            d.heave_rate_mps
         )
         .and_then(|_| self.out.flush())
         .map_err(|e| format!("{}: {e}", self.path.display()))

@@ -41,6 +41,8 @@ struct Tally {
     angles: ErrorStats,
     /// Altitude error and horizontal offset error (m), full pose only.
     position: ErrorStats,
+    /// Deck height (heave) error (m): where the recording has the vehicle's height.
+    heave: ErrorStats,
     cost_us: Vec<f64>,
 }
 
@@ -56,7 +58,7 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
             );
             writeln!(
                 w,
-                "recording,index,estimator,valid,roll_deg,pitch_deg,yaw_deg,err_roll_deg,err_pitch_deg,err_yaw_deg,altitude_m,offset_x_m,offset_y_m,std_roll_deg,std_pitch_deg,std_yaw_deg,cost_us"
+                "recording,index,estimator,valid,roll_deg,pitch_deg,yaw_deg,err_roll_deg,err_pitch_deg,err_yaw_deg,altitude_m,offset_x_m,offset_y_m,deck_height_m,truth_heave_m,std_roll_deg,std_pitch_deg,std_yaw_deg,cost_us"
             )
             .map_err(|e| e.to_string())?;
             Some(w)
@@ -64,7 +66,7 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
         None => None,
     };
     println!(
-        "{:<28} {:<12} {:>6} {:>6} {:>6} {:>6} {:>26} {:>26} {:>16} {:>14}",
+        "{:<28} {:<12} {:>6} {:>6} {:>6} {:>6} {:>26} {:>26} {:>22} {:>14}",
         "recording",
         "estimator",
         "frames",
@@ -73,7 +75,7 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
         "nodeck",
         "RMSE roll pitch yaw (deg)",
         "max roll pitch yaw (deg)",
-        "RMSE alt off (m)",
+        "RMSE alt off heave (m)",
         "cost p50/p99 us"
     );
     for dir in &a.recordings {
@@ -138,6 +140,9 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
                             let off = (x - tr.offset_x_m).hypot(y - tr.offset_y_m);
                             t.position.add([z - tr.altitude_m, off, 0.0]);
                         }
+                        if a.deck_height_m.is_finite() && tr.deck_heave_m.is_finite() {
+                            t.heave.add([a.deck_height_m - tr.deck_heave_m, 0.0, 0.0]);
+                        }
                     }
                     (true, None) => {
                         t.estimated += 1;
@@ -156,7 +161,7 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
                     };
                     writeln!(
                         w,
-                        "{name},{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{z:.5},{x:.5},{y:.5},{:.6},{:.6},{:.6},{cost:.1}",
+                        "{name},{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{z:.5},{x:.5},{y:.5},{:.5},{:.5},{:.6},{:.6},{:.6},{cost:.1}",
                         f.source_index,
                         est.name(),
                         a.valid as u8,
@@ -166,6 +171,8 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
                         err[0],
                         err[1],
                         err[2],
+                        a.deck_height_m,
+                        f.truth.deck_heave_m,
                         sd[0],
                         sd[1],
                         sd[2]
@@ -182,14 +189,19 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
             };
             let pos = if t.position.n > 0 {
                 let r = t.position.rmse();
-                format!("{:.4} {:.4}", r[0], r[1])
+                let heave = if t.heave.n > 0 {
+                    format!("{:.4}", t.heave.rmse()[0])
+                } else {
+                    "-".into()
+                };
+                format!("{:.4} {:.4} {heave}", r[0], r[1])
             } else {
                 "-".into()
             };
             let cost =
                 Percentiles::of(&mut t.cost_us).map_or("-".into(), |p| format!("{:.1}/{:.1}", p.p50, p.p99));
             println!(
-                "{:<28} {:<12} {:>6} {:>6} {:>6} {:>6} {:>26} {:>26} {:>16} {:>14}",
+                "{:<28} {:<12} {:>6} {:>6} {:>6} {:>6} {:>26} {:>26} {:>22} {:>14}",
                 name, est, t.frames, t.estimated, t.missed, t.false_attitudes, rmse, max, pos, cost
             );
         }

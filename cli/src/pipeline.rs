@@ -50,6 +50,24 @@ pub struct RunArgs {
     /// Where the vehicle's attitude comes from: `frames`, `autopilot` (the link) or `level`.
     #[arg(long, value_name = "SOURCE")]
     vehicle_attitude: Option<String>,
+    /// Whether the deck's heave is part of the landing capacity: `required` (default) or
+    /// `off` (roll and pitch alone: no vehicle height, or the paper's method alone); sets
+    /// `[decide] heave`.
+    #[arg(long, value_name = "USE")]
+    heave: Option<String>,
+}
+
+/// Applies `--heave required|off`.
+pub fn apply_heave(c: &mut PipelineConfig, heave: Option<&str>) -> Result<(), String> {
+    use deckwatch_decide::HeaveUse;
+    if let Some(h) = heave {
+        c.decide.heave = match h {
+            "required" => HeaveUse::Required,
+            "off" => HeaveUse::Off,
+            other => return Err(format!("--heave: unknown `{other}` (required, off)")),
+        };
+    }
+    Ok(())
 }
 
 /// Applies `--link ADDRESS` and `--vehicle-attitude SOURCE`.
@@ -173,6 +191,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
     }
     apply_rerun(&mut c, &a.rerun)?;
     apply_link(&mut c, a.link, a.vehicle_attitude.as_deref())?;
+    apply_heave(&mut c, a.heave.as_deref())?;
     if a.print_config {
         c.validate(&file).map_err(|e| e.to_string())?;
         print!("{}", c.to_toml());

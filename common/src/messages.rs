@@ -235,7 +235,7 @@ pub enum PixelFormat {
 /// true means "not known"; `deck_in_view` false means the frame shows no deck.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.Truth.v1"))]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.Truth.v2"))]
 pub struct Truth {
     /// Whether the source knows the truth at all (simulator, recordings with truth columns).
     pub known: bool,
@@ -245,6 +245,8 @@ pub struct Truth {
     pub altitude_m: f64,
     pub offset_x_m: f64,
     pub offset_y_m: f64,
+    /// The deck centre's height in W (m, z up; 0 = its mean): the heave.
+    pub deck_heave_m: f64,
 }
 
 impl Default for Truth {
@@ -262,6 +264,7 @@ impl Truth {
         altitude_m: f64::NAN,
         offset_x_m: f64::NAN,
         offset_y_m: f64::NAN,
+        deck_heave_m: f64::NAN,
     };
 
     /// From a recording's or the simulator's truth; `known` says whether the source has truth
@@ -276,6 +279,7 @@ impl Truth {
             altitude_m: f(t.alt_m),
             offset_x_m: f(t.offset_x_m),
             offset_y_m: f(t.offset_y_m),
+            deck_heave_m: f(t.deck_heave_m),
         }
     }
 
@@ -299,7 +303,7 @@ impl Truth {
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
-    type_name("deckwatch.VehicleAttitude.v2")
+    type_name("deckwatch.VehicleAttitude.v3")
 )]
 pub struct VehicleAttitude {
     /// `Level`: none (the camera is level, as the paper assumes, or the source has no vehicle);
@@ -311,6 +315,10 @@ pub struct VehicleAttitude {
     /// From the frame's instant to the nearest sample used (ms): 0 for the frame's own, NaN when
     /// there is none.
     pub age_ms: f64,
+    /// The vehicle's height in W (m, z up, from a fixed origin: the autopilot's local position,
+    /// the simulator's deck mean), NaN when unknown. With the full pose it gives the deck's
+    /// heave (`AttitudeMessage::deck_height_m`).
+    pub height_m: f64,
 }
 
 impl Default for VehicleAttitude {
@@ -328,6 +336,7 @@ impl VehicleAttitude {
             yaw: 0.0,
         },
         age_ms: f64::NAN,
+        height_m: f64::NAN,
     };
 
     pub const MISSING: Self = Self {
@@ -342,9 +351,15 @@ impl VehicleAttitude {
                 compensation: Compensation::Frame,
                 rpy,
                 age_ms: 0.0,
+                height_m: f64::NAN,
             },
             None => Self::LEVEL,
         }
+    }
+
+    /// The same with the vehicle's height in W (NaN: unknown).
+    pub fn with_height(self, height_m: f64) -> Self {
+        Self { height_m, ..self }
     }
 
     /// Whether there is an attitude to compensate with (`Frame` or `Stream`).
@@ -365,7 +380,7 @@ impl VehicleAttitude {
 /// What a frame's pixels mean, carried from capture to decide with every message.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.FrameContext.v3"))]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.FrameContext.v4"))]
 pub struct FrameContext {
     pub source: FrameSource,
     /// Index of the frame at its source: recording frame index, camera sequence, simulator
@@ -385,7 +400,7 @@ pub struct FrameContext {
 /// The user header of a frame sample; the payload is the `[u8]` pixel buffer itself.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.FrameHeader.v3"))]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.FrameHeader.v4"))]
 pub struct FrameHeader {
     pub stamp: FrameStamp,
     pub context: FrameContext,
@@ -412,7 +427,7 @@ impl FrameHeader {
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
-    type_name("deckwatch.MarkerMessage.v3")
+    type_name("deckwatch.MarkerMessage.v4")
 )]
 pub struct MarkerMessage {
     pub stamp: FrameStamp,
@@ -486,11 +501,11 @@ pub enum AttitudeFailure {
 
 /// Estimate's output for one frame.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
-    type_name("deckwatch.AttitudeMessage.v4")
+    type_name("deckwatch.AttitudeMessage.v5")
 )]
 pub struct AttitudeMessage {
     pub stamp: FrameStamp,
@@ -526,6 +541,36 @@ pub struct AttitudeMessage {
     /// The deck relative to the body-level camera (`(R_V R_M)^T R_D`): what the camera alone
     /// sees.
     pub camera_rpy: Rpy,
+    /// The deck centre's height in W (m, z up; the heave, on the vehicle height's origin): the
+    /// vehicle's height less the camera's height over the deck centre from the full pose. NaN
+    /// when either is unknown.
+    pub deck_height_m: f64,
+}
+
+impl Default for AttitudeMessage {
+    /// No attitude: not valid, and every measured quantity unknown (NaN), not zero.
+    fn default() -> Self {
+        Self {
+            stamp: FrameStamp::default(),
+            context: FrameContext::default(),
+            estimator: EstimatorKind::default(),
+            valid: false,
+            failure: AttitudeFailure::default(),
+            rpy: Rpy::default(),
+            quaternion: Quaternion::default(),
+            euler313: Euler313::default(),
+            has_image_ellipse: false,
+            image_ellipse: Ellipse::default(),
+            residual: f64::NAN,
+            markers_used: 0,
+            rpy_std_deg: [f64::NAN; 3],
+            camera_position_m: [f64::NAN; 3],
+            alternative: AlternativeAttitude::default(),
+            vehicle: VehicleAttitude::default(),
+            camera_rpy: Rpy::default(),
+            deck_height_m: f64::NAN,
+        }
+    }
 }
 
 /// A second estimator's attitude for the same frame.
@@ -584,7 +629,7 @@ impl DecisionState {
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
-    type_name("deckwatch.DecisionReason.v1")
+    type_name("deckwatch.DecisionReason.v2")
 )]
 pub enum DecisionReason {
     /// Within capacity (ClearToLand).
@@ -609,6 +654,9 @@ pub enum DecisionReason {
     /// The vehicle's attitude was needed but missing (the autopilot's stream stopped or lags):
     /// the attitude is the deck relative to a tilted camera.
     NoVehicleAttitude = 9,
+    /// The deck's heave is part of the capacity (`[decide] heave = "required"`) but this frame
+    /// has no deck height (no vehicle height, or no full pose).
+    NoDeckHeave = 10,
 }
 
 impl DecisionReason {
@@ -624,6 +672,7 @@ impl DecisionReason {
             Self::PredictionUnreliable => "prediction-unreliable",
             Self::PredictedOutside => "predicted-outside",
             Self::NoVehicleAttitude => "no-vehicle-attitude",
+            Self::NoDeckHeave => "no-deck-heave",
         }
     }
 }
@@ -649,7 +698,7 @@ pub enum ClockMethod {
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
-    type_name("deckwatch.VehicleSample.v1")
+    type_name("deckwatch.VehicleSample.v2")
 )]
 pub struct VehicleSample {
     /// The link's count of samples, from 0.
@@ -662,8 +711,11 @@ pub struct VehicleSample {
     pub received_ns: u64,
     /// `R_V`: body (x forward, y left, z up) to north-west-up.
     pub quaternion: Quaternion,
-    /// Height above the ground or deck (m; DISTANCE_SENSOR or LOCAL_POSITION_NED), NaN unknown.
+    /// Range to what is below (m; DISTANCE_SENSOR), NaN unknown.
     pub altitude_m: f64,
+    /// The vehicle's height in the autopilot's local frame (m, z up; LOCAL_POSITION_NED's -z,
+    /// interpolated to `time_ns`), NaN unknown.
+    pub height_m: f64,
     /// autopilot time - monotonic time (ns), and how it was estimated.
     pub clock_offset_ns: i64,
     pub clock_method: ClockMethod,
@@ -679,7 +731,7 @@ pub struct VehicleSample {
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
-    type_name("deckwatch.LandingDecision.v4")
+    type_name("deckwatch.LandingDecision.v5")
 )]
 pub struct LandingDecision {
     pub stamp: FrameStamp,
@@ -692,6 +744,9 @@ pub struct LandingDecision {
     /// none is predicted.
     pub calm_window_start_s: f64,
     pub calm_window_length_s: f64,
+    /// The deck's vertical speed by the heave model (m/s, up; `attitude.deck_height_m` is its
+    /// height); NaN when heave is not part of the capacity or not yet predicted.
+    pub heave_rate_mps: f64,
     /// Issued by decide's watchdog because no attitude arrived in time (the stamp and attitude
     /// are the last ones received), not in answer to a frame.
     pub watchdog: bool,

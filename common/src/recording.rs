@@ -4,14 +4,16 @@
 //!   unknown extra keys are ignored;
 //! - `frames.csv`: a header row, then `index,timestamp_ns,file` and optionally
 //!   `roll_deg,pitch_deg,yaw_deg,alt_m,offset_x_m,offset_y_m` (ground truth / altimeter) and
-//!   `vehicle_roll_deg,vehicle_pitch_deg,vehicle_yaw_deg` (the camera's vehicle), in any
+//!   `vehicle_roll_deg,vehicle_pitch_deg,vehicle_yaw_deg` (the camera's vehicle),
+//!   `vehicle_height_m` (the vehicle's height in W) and `deck_heave_m` (the true heave), in any
 //!   column order, further columns ignored; `nan` (or an empty field) where a value is unknown,
 //!   e.g. the attitude when no deck is in view;
 //! - 8-bit grayscale PNG images at the relative paths named in `file`;
 //! - optionally `vehicle.csv`: the vehicle's attitude at the autopilot's rate, a header row then
 //!   `timestamp_ns,qw,qx,qy,qz` (`R_V` body to world as a unit quaternion, on the frames'
-//!   clock), increasing in time; replay and eval interpolate it (slerp) to each frame and prefer
-//!   it to the frames' vehicle columns.
+//!   clock) and optionally `height_m` (the vehicle's height in W), increasing in time; replay
+//!   and eval interpolate it (slerp; height linearly) to each frame and prefer it to the frames'
+//!   vehicle columns.
 //!
 //! Every error names the file and, where it applies, the line and the field.
 
@@ -19,6 +21,7 @@ use crate::camera::{CameraModel, Distortion};
 use crate::deck::DeckLayout;
 use crate::image::{GrayImage, GrayView};
 use crate::rotation::{Quaternion, Rpy};
+pub use crate::vehicle::VehicleStateSample;
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::fs::File;
@@ -28,8 +31,9 @@ use std::path::{Component, Path, PathBuf};
 pub const CAMERA_FILE: &str = "camera.json";
 pub const FRAMES_FILE: &str = "frames.csv";
 pub const VEHICLE_FILE: &str = "vehicle.csv";
-/// The header of `vehicle.csv`.
+/// The header of `vehicle.csv` (then optionally [`VEHICLE_HEIGHT_COLUMN`]).
 pub const VEHICLE_COLUMNS: [&str; 5] = ["timestamp_ns", "qw", "qx", "qy", "qz"];
+pub const VEHICLE_HEIGHT_COLUMN: &str = "height_m";
 /// Folder (inside the recording) the writer puts images in.
 pub const IMAGES_DIR: &str = "frames";
 
@@ -237,6 +241,11 @@ pub struct GroundTruth {
     pub vehicle_roll_deg: Option<f64>,
     pub vehicle_pitch_deg: Option<f64>,
     pub vehicle_yaw_deg: Option<f64>,
+    /// The vehicle's height in W (m, z up; the simulator's origin is the deck centre's mean):
+    /// with the full pose it gives the deck's heave.
+    pub vehicle_height_m: Option<f64>,
+    /// The deck centre's true height in W (m): the heave.
+    pub deck_heave_m: Option<f64>,
 }
 
 impl GroundTruth {
@@ -265,6 +274,8 @@ impl GroundTruth {
             self.vehicle_roll_deg,
             self.vehicle_pitch_deg,
             self.vehicle_yaw_deg,
+            self.vehicle_height_m,
+            self.deck_heave_m,
         ]
     }
 
@@ -279,13 +290,15 @@ impl GroundTruth {
             5 => self.offset_y_m = v,
             6 => self.vehicle_roll_deg = v,
             7 => self.vehicle_pitch_deg = v,
-            _ => self.vehicle_yaw_deg = v,
+            8 => self.vehicle_yaw_deg = v,
+            9 => self.vehicle_height_m = v,
+            _ => self.deck_heave_m = v,
         }
     }
 }
 
 /// Names of the optional ground-truth columns, in [`GroundTruth`] order.
-pub const TRUTH_COLUMNS: [&str; 9] = [
+pub const TRUTH_COLUMNS: [&str; 11] = [
     "roll_deg",
     "pitch_deg",
     "yaw_deg",
@@ -295,13 +308,23 @@ pub const TRUTH_COLUMNS: [&str; 9] = [
     "vehicle_roll_deg",
     "vehicle_pitch_deg",
     "vehicle_yaw_deg",
+    "vehicle_height_m",
+    "deck_heave_m",
 ];
 
 /// Which columns of [`TRUTH_COLUMNS`] a recording has or a writer writes.
 pub type TruthColumns = [bool; TRUTH_COLUMNS.len()];
 
-/// Every ground-truth column but the vehicle's (a level camera).
-pub const LEVEL_TRUTH: TruthColumns = [true, true, true, true, true, true, false, false, false];
+/// Every ground-truth column but the vehicle's (a level camera) and the heave's.
+pub const LEVEL_TRUTH: TruthColumns = [
+    true, true, true, true, true, true, false, false, false, false, false,
+];
+/// The vehicle's height in W and the deck's heave (columns 9 and 10), added to a set.
+pub const fn with_heave_truth(mut columns: TruthColumns) -> TruthColumns {
+    columns[9] = true;
+    columns[10] = true;
+    columns
+}
 /// Every ground-truth column.
 pub const ALL_TRUTH: TruthColumns = [true; TRUTH_COLUMNS.len()];
 /// No ground-truth column (a real camera).
@@ -328,8 +351,8 @@ pub struct Recording {
     pub frames: Vec<FrameRecord>,
     /// Which optional ground-truth columns the recording has (in [`TRUTH_COLUMNS`] order).
     pub truth_columns: TruthColumns,
-    /// `vehicle.csv`, when the recording has one: (timestamp ns, `R_V`).
-    pub vehicle_samples: Option<Vec<(u64, Quaternion)>>,
+    /// `vehicle.csv`, when the recording has one.
+    pub vehicle_samples: Option<Vec<VehicleStateSample>>,
 }
 
 impl Recording {
@@ -397,7 +420,7 @@ impl Recording {
 
 /// Reads `vehicle.csv`: every row a timestamp after the previous one and a unit quaternion; an
 /// error names the file, the line and the column.
-pub fn read_vehicle_csv(path: &Path) -> Result<Vec<(u64, Quaternion)>, RecordingError> {
+pub fn read_vehicle_csv(path: &Path) -> Result<Vec<VehicleStateSample>, RecordingError> {
     let file = File::open(path).map_err(|e| RecordingError::new(path, format!("cannot read: {e}")))?;
     let mut reader = csv::ReaderBuilder::new()
         .has_headers(true)
@@ -420,7 +443,8 @@ pub fn read_vehicle_csv(path: &Path) -> Result<Vec<(u64, Quaternion)>, Recording
     for (i, c) in columns.into_iter().enumerate() {
         idx[i] = c?;
     }
-    let mut out: Vec<(u64, Quaternion)> = Vec::new();
+    let height = header.iter().position(|h| h.trim() == VEHICLE_HEIGHT_COLUMN);
+    let mut out: Vec<VehicleStateSample> = Vec::new();
     for (k, record) in reader.records().enumerate() {
         let line = k as u64 + 2;
         let record = record.map_err(|e| RecordingError::new(path, e.to_string()).at_line(line))?;
@@ -430,7 +454,7 @@ pub fn read_vehicle_csv(path: &Path) -> Result<Vec<(u64, Quaternion)>, Recording
                 .at_line(line)
                 .field("timestamp_ns")
         })?;
-        if out.last().is_some_and(|&(prev, _)| t <= prev) {
+        if out.last().is_some_and(|prev| t <= prev.time_ns) {
             return Err(RecordingError::new(path, "not after the previous sample")
                 .at_line(line)
                 .field("timestamp_ns"));
@@ -453,20 +477,48 @@ pub fn read_vehicle_csv(path: &Path) -> Result<Vec<(u64, Quaternion)>, Recording
                     .field("qw"),
             );
         }
-        out.push((t, q.normalized().unwrap_or(q)));
+        let height_m = match height {
+            Some(i) => parse_optional_number(
+                path,
+                Some(line),
+                VEHICLE_HEIGHT_COLUMN,
+                record.get(i).unwrap_or("").trim(),
+            )?,
+            None => None,
+        };
+        out.push(VehicleStateSample {
+            time_ns: t,
+            quaternion: q.normalized().unwrap_or(q),
+            height_m,
+        });
     }
     Ok(out)
 }
 
-/// Writes `vehicle.csv` into a recording folder.
-pub fn write_vehicle_csv(dir: &Path, samples: &[(u64, Quaternion)]) -> Result<(), RecordingError> {
+/// Writes `vehicle.csv` into a recording folder (with the height column when any sample has a
+/// height).
+pub fn write_vehicle_csv(dir: &Path, samples: &[VehicleStateSample]) -> Result<(), RecordingError> {
     let path = dir.join(VEHICLE_FILE);
     let fail = |e: std::io::Error| RecordingError::new(&path, format!("cannot write: {e}"));
     let mut w = BufWriter::new(File::create(&path).map_err(fail)?);
-    writeln!(w, "{}", VEHICLE_COLUMNS.join(",")).map_err(fail)?;
-    for (t, q) in samples {
+    let heights = samples.iter().any(|s| s.height_m.is_some());
+    write!(w, "{}", VEHICLE_COLUMNS.join(",")).map_err(fail)?;
+    if heights {
+        write!(w, ",{VEHICLE_HEIGHT_COLUMN}").map_err(fail)?;
+    }
+    writeln!(w).map_err(fail)?;
+    for s in samples {
+        let (t, q) = (s.time_ns, s.quaternion);
         // Rust's shortest round-trip form: the quaternion reads back bit for bit.
-        writeln!(w, "{t},{},{},{},{}", q.w, q.x, q.y, q.z).map_err(fail)?;
+        write!(w, "{t},{},{},{},{}", q.w, q.x, q.y, q.z).map_err(fail)?;
+        if heights {
+            match s.height_m {
+                Some(h) => write!(w, ",{h}"),
+                None => write!(w, ",nan"),
+            }
+            .map_err(fail)?;
+        }
+        writeln!(w).map_err(fail)?;
     }
     w.flush().map_err(fail)
 }
@@ -833,6 +885,8 @@ mod tests {
             vehicle_roll_deg: Some(4.5),
             vehicle_pitch_deg: Some(-1.0 / 3.0),
             vehicle_yaw_deg: Some(170.0),
+            vehicle_height_m: Some(6.25),
+            deck_heave_m: Some(-0.75),
         };
         let t1 = GroundTruth {
             alt_m: Some(5.5),
@@ -883,7 +937,7 @@ mod tests {
             parse("file,comment,timestamp_ns,index,yaw_deg\na.png,hi,10,0,nan\nb.png,,20,1,2.5\n").unwrap();
         assert_eq!(
             cols,
-            [false, false, true, false, false, false, false, false, false]
+            [false, false, true, false, false, false, false, false, false, false, false]
         );
         assert_eq!(frames[1].file, "b.png");
         assert_eq!(frames[1].truth.yaw_deg, Some(2.5));
@@ -895,9 +949,19 @@ mod tests {
     fn vehicle_csv_round_trips_and_errors_name_line_and_column() {
         let dir = tempfile::tempdir().unwrap();
         let q = Quaternion::from_matrix(&Rpy::from_degrees(3.0, -2.0, 17.0).to_matrix());
-        let samples = vec![(0, Quaternion::IDENTITY), (10_000_000, q)];
+        let mut samples = vec![
+            VehicleStateSample::attitude(0, Quaternion::IDENTITY),
+            VehicleStateSample::attitude(10_000_000, q),
+        ];
         write_vehicle_csv(dir.path(), &samples).unwrap();
         let path = dir.path().join(VEHICLE_FILE);
+        assert_eq!(read_vehicle_csv(&path).unwrap(), samples);
+        // With heights: the column is written, an unknown one as `nan`.
+        samples[1].height_m = Some(-12.125);
+        write_vehicle_csv(dir.path(), &samples).unwrap();
+        assert!(std::fs::read_to_string(&path)
+            .unwrap()
+            .contains(",height_m\n0,1,0,0,0,nan\n"));
         assert_eq!(read_vehicle_csv(&path).unwrap(), samples);
         for (text, line, column) in [
             ("timestamp_ns,qw,qx,qy\n", 1, None),
@@ -909,6 +973,11 @@ mod tests {
             ("timestamp_ns,qw,qx,qy,qz\nx,1,0,0,0\n", 2, Some("timestamp_ns")),
             ("timestamp_ns,qw,qx,qy,qz\n5,2,0,0,0\n", 2, Some("qw")),
             ("timestamp_ns,qw,qx,qy,qz\n5,1,0,nan,0\n", 2, Some("qy")),
+            (
+                "timestamp_ns,qw,qx,qy,qz,height_m\n5,1,0,0,0,up\n",
+                2,
+                Some("height_m"),
+            ),
         ] {
             std::fs::write(&path, text).unwrap();
             let e = read_vehicle_csv(&path).unwrap_err();

@@ -126,10 +126,33 @@ impl Compensation {
     }
 }
 
+/// One sample of the vehicle's state on one clock: its attitude `R_V` and, when known, its
+/// height in W (a row of `vehicle.csv`; what the autopilot streams).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VehicleStateSample {
+    pub time_ns: u64,
+    pub quaternion: Quaternion,
+    /// m, z up, from a fixed origin (the autopilot's local frame).
+    pub height_m: Option<f64>,
+}
+
+impl VehicleStateSample {
+    /// An attitude without a height.
+    pub fn attitude(time_ns: u64, quaternion: Quaternion) -> Self {
+        Self {
+            time_ns,
+            quaternion,
+            height_m: None,
+        }
+    }
+}
+
 /// The vehicle's attitude at one instant, from a [`VehicleTrack`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrackAttitude {
     pub quaternion: Quaternion,
+    /// The height, linear between two samples that have one.
+    pub height_m: Option<f64>,
     /// From the instant to the nearest sample used (ns).
     pub age_ns: u64,
 }
@@ -148,7 +171,7 @@ pub enum TrackMiss {
 /// between them.
 #[derive(Debug, Clone)]
 pub struct VehicleTrack {
-    samples: VecDeque<(u64, Quaternion)>,
+    samples: VecDeque<VehicleStateSample>,
     capacity: usize,
     /// Samples refused: not after the newest, or not a rotation.
     pub rejected: u64,
@@ -175,19 +198,24 @@ impl VehicleTrack {
 
     /// The newest sample's time.
     pub fn newest_ns(&self) -> Option<u64> {
-        self.samples.back().map(|s| s.0)
+        self.samples.back().map(|s| s.time_ns)
     }
 
-    /// Adds a sample taken at `time_ns`; false (and counted) when it is not after the newest or
-    /// not a rotation.
-    pub fn push(&mut self, time_ns: u64, q: Quaternion) -> bool {
-        let ok = self.newest_ns().is_none_or(|t| time_ns > t) && (q.norm() - 1.0).abs() < 1e-3;
+    /// Adds a sample; false (and counted) when it is not after the newest or not a rotation. A
+    /// height that is not finite is dropped (the attitude is kept).
+    pub fn push(&mut self, sample: VehicleStateSample) -> bool {
+        let q = sample.quaternion;
+        let ok = self.newest_ns().is_none_or(|t| sample.time_ns > t) && (q.norm() - 1.0).abs() < 1e-3;
         match q.normalized().filter(|_| ok) {
-            Some(q) => {
+            Some(quaternion) => {
                 if self.samples.len() == self.capacity {
                     self.samples.pop_front();
                 }
-                self.samples.push_back((time_ns, q));
+                self.samples.push_back(VehicleStateSample {
+                    quaternion,
+                    height_m: sample.height_m.filter(|h| h.is_finite()),
+                    ..sample
+                });
                 true
             }
             None => {
@@ -205,6 +233,7 @@ impl VehicleTrack {
                 compensation: Compensation::Stream,
                 rpy: a.quaternion.to_rpy(),
                 age_ms: a.age_ns as f64 / 1e6,
+                height_m: a.height_m.unwrap_or(f64::NAN),
             },
             Err(_) => crate::messages::VehicleAttitude::MISSING,
         }
@@ -217,33 +246,35 @@ impl VehicleTrack {
             (Some(f), Some(l)) => (*f, *l),
             _ => return Err(TrackMiss::Empty),
         };
-        let hold = |(t, q): (u64, Quaternion)| {
-            let distance_ns = t.abs_diff(t_ns);
+        let hold = |s: VehicleStateSample| {
+            let distance_ns = s.time_ns.abs_diff(t_ns);
             if distance_ns <= max_gap_ns {
                 Ok(TrackAttitude {
-                    quaternion: q,
+                    quaternion: s.quaternion,
+                    height_m: s.height_m,
                     age_ns: distance_ns,
                 })
             } else {
                 Err(TrackMiss::TooFar { distance_ns })
             }
         };
-        if t_ns >= last.0 {
+        if t_ns >= last.time_ns {
             return hold(last);
         }
-        if t_ns <= first.0 {
+        if t_ns <= first.time_ns {
             return hold(first);
         }
         // The first sample after t_ns (samples are strictly increasing in time).
-        let i = self.samples.partition_point(|s| s.0 <= t_ns);
+        let i = self.samples.partition_point(|s| s.time_ns <= t_ns);
         let (a, b) = (self.samples[i - 1], self.samples[i]);
-        let distance_ns = (t_ns - a.0).min(b.0 - t_ns);
+        let distance_ns = (t_ns - a.time_ns).min(b.time_ns - t_ns);
         if distance_ns > max_gap_ns {
             return Err(TrackMiss::TooFar { distance_ns });
         }
-        let s = (t_ns - a.0) as f64 / (b.0 - a.0) as f64;
+        let s = (t_ns - a.time_ns) as f64 / (b.time_ns - a.time_ns) as f64;
         Ok(TrackAttitude {
-            quaternion: a.1.slerp(&b.1, s),
+            quaternion: a.quaternion.slerp(&b.quaternion, s),
+            height_m: a.height_m.zip(b.height_m).map(|(ha, hb)| ha + s * (hb - ha)),
             age_ns: distance_ns,
         })
     }
@@ -312,15 +343,28 @@ mod tests {
         assert_eq!(t.at(0, 10), Err(TrackMiss::Empty));
         // 100 Hz roll ramp of 1 deg per sample.
         for k in 0..6u64 {
-            assert!(t.push(k * 10_000_000, q(k as f64, 0.0, 0.0)));
+            assert!(t.push(VehicleStateSample {
+                time_ns: k * 10_000_000,
+                quaternion: q(k as f64, 0.0, 0.0),
+                height_m: Some(10.0 + k as f64),
+            }));
         }
         assert_eq!(t.len(), 4, "the oldest are dropped");
-        assert!(!t.push(50_000_000, q(0.0, 0.0, 0.0)), "not after the newest");
-        assert!(!t.push(60_000_000, Quaternion::new(2.0, 0.0, 0.0, 0.0)));
-        assert!(!t.push(70_000_000, Quaternion::new(f64::NAN, 0.0, 0.0, 0.0)));
+        let push = |t: &mut VehicleTrack, ns, q| t.push(VehicleStateSample::attitude(ns, q));
+        assert!(
+            !push(&mut t, 50_000_000, q(0.0, 0.0, 0.0)),
+            "not after the newest"
+        );
+        assert!(!push(&mut t, 60_000_000, Quaternion::new(2.0, 0.0, 0.0, 0.0)));
+        assert!(!push(
+            &mut t,
+            70_000_000,
+            Quaternion::new(f64::NAN, 0.0, 0.0, 0.0)
+        ));
         assert_eq!(t.rejected, 3);
         let a = t.at(32_500_000, 20_000_000).unwrap();
         assert!((a.quaternion.to_rpy().to_degrees()[0] - 3.25).abs() < 1e-9);
+        assert!((a.height_m.unwrap() - 13.25).abs() < 1e-9, "height: linear");
         assert_eq!(a.age_ns, 2_500_000);
         // After the newest: held while close, refused beyond.
         let h = t.at(55_000_000, 10_000_000).unwrap();
@@ -335,8 +379,9 @@ mod tests {
         assert!(t.at(5_000_000, 10_000_000).is_err());
         // A hole in the stream wider than allowed.
         let mut g = VehicleTrack::new(8);
-        g.push(0, q(0.0, 0.0, 0.0));
-        g.push(200_000_000, q(1.0, 0.0, 0.0));
+        push(&mut g, 0, q(0.0, 0.0, 0.0));
+        push(&mut g, 200_000_000, q(1.0, 0.0, 0.0));
+        assert_eq!(g.at(1_000_000, 30_000_000).unwrap().height_m, None);
         assert_eq!(
             g.at(100_000_000, 30_000_000),
             Err(TrackMiss::TooFar {

@@ -27,6 +27,13 @@ pub struct DecisionConfig {
     /// ... and tilt rates.
     pub max_abs_roll_rate_dps: f64,
     pub max_abs_pitch_rate_dps: f64,
+    /// Whether the deck's heave is part of the capacity: `required` (a frame without a deck
+    /// height is refused, `no-deck-heave`) or `off` (roll and pitch only: a camera with no
+    /// vehicle height, or the paper's method alone).
+    pub heave: HeaveUse,
+    /// ... and the deck's vertical speed (m/s): a small quadrotor's gear; ship-helicopter
+    /// operating limits are about 1 m/s.
+    pub max_abs_heave_rate_mps: f64,
     /// Time from commit to contact (s): the deck must stay within capacity all that time.
     pub touchdown_s: f64,
     /// An attitude older than this when decided on is stale (capture -> decision).
@@ -57,8 +64,12 @@ pub struct DecisionConfig {
     pub margin_deg: f64,
     /// The same for rates (deg/s).
     pub rate_margin_dps: f64,
+    /// The same for the heave rate (m/s).
+    pub heave_rate_margin_mps: f64,
     /// The prediction is unreliable if it misses the newest seconds of history by more.
     pub max_holdout_error_deg: f64,
+    /// ... or the heave by more (m).
+    pub max_holdout_error_m: f64,
     /// Seconds of history held out to measure the prediction error.
     pub holdout_s: f64,
     /// The prediction error bound is this factor times the largest held-out error of the last
@@ -67,6 +78,8 @@ pub struct DecisionConfig {
     pub error_memory_s: f64,
     /// ... or if a new attitude is further than this from the model's value.
     pub max_innovation_deg: f64,
+    /// ... or a new deck height (m).
+    pub max_heave_innovation_m: f64,
     /// ... or if the model's rate differs from the measured rate by more than this (deg/s).
     pub max_rate_innovation_dps: f64,
     /// How far ahead calm windows are searched (s).
@@ -82,6 +95,8 @@ impl Default for DecisionConfig {
             max_abs_pitch_deg: 5.0,
             max_abs_roll_rate_dps: 5.0,
             max_abs_pitch_rate_dps: 5.0,
+            heave: HeaveUse::Required,
+            max_abs_heave_rate_mps: 0.6,
             touchdown_s: 2.0,
             max_age_ms: 300.0,
             max_gap_ms: 500.0,
@@ -96,11 +111,14 @@ impl Default for DecisionConfig {
             fit_memory_s: 10.0,
             margin_deg: 0.5,
             rate_margin_dps: 0.5,
+            heave_rate_margin_mps: 0.1,
             max_holdout_error_deg: 2.0,
+            max_holdout_error_m: 0.3,
             holdout_s: 2.0,
             error_factor: 1.2,
             error_memory_s: 30.0,
             max_innovation_deg: 1.0,
+            max_heave_innovation_m: 0.2,
             max_rate_innovation_dps: 1.0,
             horizon_s: 20.0,
             abort_hold_s: 2.0,
@@ -116,6 +134,41 @@ pub enum Predictor {
     Ar,
     /// Dominant sinusoids of the window: exact for a regular sea.
     Sinusoids,
+}
+
+/// Whether the deck's heave is part of the capacity (`[decide] heave`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum HeaveUse {
+    /// Every frame needs a deck height; its predicted vertical speed must stay within
+    /// `max_abs_heave_rate_mps`.
+    Required,
+    /// Roll and pitch only.
+    Off,
+}
+
+/// What the decider sees of one frame: the deck's roll and pitch in W and the deck centre's
+/// height in W (the heave; NaN when not measured).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DeckObservation {
+    pub roll_deg: f64,
+    pub pitch_deg: f64,
+    pub height_m: f64,
+}
+
+impl DeckObservation {
+    pub fn new(roll_deg: f64, pitch_deg: f64, height_m: f64) -> Self {
+        Self {
+            roll_deg,
+            pitch_deg,
+            height_m,
+        }
+    }
+
+    /// Roll and pitch, no height.
+    pub fn angles(roll_deg: f64, pitch_deg: f64) -> Self {
+        Self::new(roll_deg, pitch_deg, f64::NAN)
+    }
 }
 
 /// A `[decide]` value out of range: the key and what is wrong.
@@ -148,6 +201,9 @@ impl DecisionConfig {
             ("max_abs_pitch_deg", self.max_abs_pitch_deg),
             ("max_abs_roll_rate_dps", self.max_abs_roll_rate_dps),
             ("max_abs_pitch_rate_dps", self.max_abs_pitch_rate_dps),
+            ("max_abs_heave_rate_mps", self.max_abs_heave_rate_mps),
+            ("max_holdout_error_m", self.max_holdout_error_m),
+            ("max_heave_innovation_m", self.max_heave_innovation_m),
             ("touchdown_s", self.touchdown_s),
             ("max_age_ms", self.max_age_ms),
             ("max_gap_ms", self.max_gap_ms),
@@ -172,6 +228,7 @@ impl DecisionConfig {
         for (k, v) in [
             ("margin_deg", self.margin_deg),
             ("rate_margin_dps", self.rate_margin_dps),
+            ("heave_rate_margin_mps", self.heave_rate_margin_mps),
             ("gap_recovery_s", self.gap_recovery_s),
             ("abort_hold_s", self.abort_hold_s),
         ] {
@@ -216,18 +273,30 @@ pub struct Decision {
     pub calm_window: Option<(f64, f64)>,
     /// This decision starts a new commitment (a new touchdown window begins now).
     pub new_commit: bool,
+    /// The deck's vertical speed now by the heave model (m/s, up), trusted or not; NaN without
+    /// one.
+    pub heave_rate_mps: f64,
 }
+
+/// The predicted channels, in this order: roll (deg), pitch (deg), and the deck's height (m)
+/// when `[decide] heave = "required"`.
+const ROLL: usize = 0;
+const PITCH: usize = 1;
+const HEAVE: usize = 2;
 
 #[derive(Debug, Clone)]
 struct Models {
-    roll: Track,
-    pitch: Track,
-    /// Bound on the prediction error (deg): `error_factor` times the largest error, over the
-    /// last `error_memory_s`, of a model fitted `holdout_s` earlier on the samples since.
+    /// One per channel in use.
+    tracks: Vec<Track>,
+    /// Bound on the prediction error of the angles (deg): `error_factor` times the largest
+    /// error, over the last `error_memory_s`, of a model fitted `holdout_s` earlier on the
+    /// samples since.
     holdout_error: f64,
+    /// The same for the heave (m; 0 without heave).
+    heave_error: f64,
 }
 
-/// One angle's predictor.
+/// One channel's predictor.
 #[derive(Debug, Clone)]
 enum Track {
     Sinusoids(SinusoidModel),
@@ -255,6 +324,22 @@ impl Track {
     }
 }
 
+/// What a prediction must keep clear of the capacity's limits.
+#[derive(Debug, Clone, Copy)]
+struct Margins {
+    angle_deg: f64,
+    rate_dps: f64,
+    heave_rate_mps: f64,
+}
+
+impl Margins {
+    const NONE: Self = Self {
+        angle_deg: 0.0,
+        rate_dps: 0.0,
+        heave_rate_mps: 0.0,
+    };
+}
+
 /// Samples closer than this are thinned out for the fit (ship motion is below 0.5 Hz).
 const FIT_SPACING_S: f64 = 0.2;
 /// A full frequency search at most this often; warm refits in between.
@@ -265,16 +350,23 @@ const RETRY_S: f64 = 0.3;
 /// Window of the measured rate (s).
 const RATE_WINDOW_S: f64 = 0.6;
 const F_MAX_HZ: f64 = 0.5;
+/// No ship deck rises or falls faster (m/s): a faster change of the deck height is a jump.
+const PLAUSIBLE_HEAVE_RATE_MPS: f64 = 5.0;
+/// The model's heave rate must match the measured one within this (m/s).
+const MAX_HEAVE_RATE_INNOVATION_MPS: f64 = 0.2;
 
 /// The decision state machine.
 pub struct LandingDecider {
     config: DecisionConfig,
-    history: VecDeque<(f64, f64, f64)>,
+    /// Channels predicted: 2 (roll, pitch) or 3 (and heave).
+    channels: usize,
+    /// (time, [roll deg, pitch deg, deck height m or NaN]).
+    history: VecDeque<(f64, [f64; 3])>,
     models: Option<Models>,
     /// Earlier fits (newest last), to measure how well they predicted what came after.
-    past: VecDeque<(Track, Track)>,
-    /// (time, held-out error) of recent refits.
-    errors: VecDeque<(f64, f64)>,
+    past: VecDeque<Vec<Track>>,
+    /// (time, held-out angle error, held-out heave error) of recent refits.
+    errors: VecDeque<(f64, f64, f64)>,
     last_fit: f64,
     last_grid: f64,
     jump_run: u32,
@@ -294,6 +386,7 @@ impl LandingDecider {
     pub fn new(config: DecisionConfig) -> Result<Self, DecisionConfigError> {
         config.validate()?;
         Ok(Self {
+            channels: if config.heave == HeaveUse::Required { 3 } else { 2 },
             config,
             history: VecDeque::new(),
             models: None,
@@ -320,19 +413,18 @@ impl LandingDecider {
         self.state
     }
 
-    /// Decides on the attitude of a frame captured at `t` (roll and pitch in degrees; None: no
-    /// valid attitude), at time `now`.
-    pub fn update(&mut self, t: f64, attitude: Option<[f64; 2]>, now: f64) -> Decision {
-        self.decide(t, attitude, now - t, now)
+    /// Decides on the deck of a frame captured at `t` (None: no valid attitude), at time `now`.
+    pub fn update(&mut self, t: f64, deck: Option<DeckObservation>, now: f64) -> Decision {
+        self.decide(t, deck, now - t, now)
     }
 
-    /// Decides on the attitude of a frame captured at `t` that was `age_s` old when it arrived,
-    /// on the frames' own timeline: the decision is made as of the capture time. Freshness is
+    /// Decides on the deck of a frame captured at `t` that was `age_s` old when it arrived, on
+    /// the frames' own timeline: the decision is made as of the capture time. Freshness is
     /// judged by `age_s` (one monotonic clock), everything else by `t` alone, so the same
     /// frames give the same decisions however long the pipeline took, in one process or in
     /// four (the stage uses this; `update` is for callers that model the delay themselves).
-    pub fn update_at_capture(&mut self, t: f64, attitude: Option<[f64; 2]>, age_s: f64) -> Decision {
-        self.decide(t, attitude, age_s, t)
+    pub fn update_at_capture(&mut self, t: f64, deck: Option<DeckObservation>, age_s: f64) -> Decision {
+        self.decide(t, deck, age_s, t)
     }
 
     /// Refuses a frame's input for `reason` (say, its attitude could not be compensated for the
@@ -347,7 +439,7 @@ impl LandingDecider {
         self.transition(Err(reason), now)
     }
 
-    fn decide(&mut self, t: f64, attitude: Option<[f64; 2]>, age_s: f64, now: f64) -> Decision {
+    fn decide(&mut self, t: f64, deck: Option<DeckObservation>, age_s: f64, now: f64) -> Decision {
         // A time that is not a number cannot move the clock: a committed landing must still
         // see itself committed (and abort), not forget it.
         let now = if now.is_finite() {
@@ -356,7 +448,7 @@ impl LandingDecider {
         } else {
             self.last_input.unwrap_or(f64::NEG_INFINITY)
         };
-        let verdict = self.check(t, attitude, age_s);
+        let verdict = self.check(t, deck, age_s);
         self.transition(verdict, now)
     }
 
@@ -371,15 +463,24 @@ impl LandingDecider {
         Some(self.transition(Err(DecisionReason::StaleData), now))
     }
 
-    fn check(&mut self, t: f64, attitude: Option<[f64; 2]>, age_s: f64) -> Result<(), DecisionReason> {
+    fn check(&mut self, t: f64, deck: Option<DeckObservation>, age_s: f64) -> Result<(), DecisionReason> {
         let c = self.config.clone();
-        let Some([roll, pitch]) = attitude.filter(|a| a.iter().all(|v| v.is_finite())) else {
+        let Some(deck) = deck.filter(|d| d.roll_deg.is_finite() && d.pitch_deg.is_finite()) else {
             return Err(DecisionReason::InvalidAttitude);
         };
+        let heave = self.channels > HEAVE;
+        if heave && !deck.height_m.is_finite() {
+            return Err(DecisionReason::NoDeckHeave);
+        }
+        let sample = [
+            deck.roll_deg,
+            deck.pitch_deg,
+            if heave { deck.height_m } else { f64::NAN },
+        ];
         if !(t.is_finite() && age_s <= c.max_age_ms / 1e3) {
             return Err(DecisionReason::StaleData);
         }
-        if let Some(&(tp, rp, pp)) = self.history.back() {
+        if let Some(&(tp, prev)) = self.history.back() {
             let dt = t - tp;
             if !(dt > 0.0) {
                 return Err(DecisionReason::StaleData); // out of order or repeated
@@ -387,8 +488,16 @@ impl LandingDecider {
             if dt > c.max_gap_ms / 1e3 {
                 self.gap_until = t + c.gap_recovery_s;
             }
-            let rate = (roll - rp).abs().max((pitch - pp).abs()) / dt;
-            if rate > c.max_plausible_rate_dps {
+            let rate = (sample[ROLL] - prev[ROLL])
+                .abs()
+                .max((sample[PITCH] - prev[PITCH]).abs())
+                / dt;
+            let heave_rate = if heave {
+                (sample[HEAVE] - prev[HEAVE]).abs() / dt
+            } else {
+                0.0
+            };
+            if rate > c.max_plausible_rate_dps || heave_rate > PLAUSIBLE_HEAVE_RATE_MPS {
                 self.jump_run += 1;
                 if self.jump_run < 3 {
                     return Err(DecisionReason::Jump);
@@ -401,12 +510,8 @@ impl LandingDecider {
             }
         }
         self.jump_run = 0;
-        self.history.push_back((t, roll, pitch));
-        while self
-            .history
-            .front()
-            .is_some_and(|&(t0, _, _)| t - t0 > c.window_s)
-        {
+        self.history.push_back((t, sample));
+        while self.history.front().is_some_and(|&(t0, _)| t - t0 > c.window_s) {
             self.history.pop_front();
         }
         if t < self.gap_until {
@@ -424,21 +529,24 @@ impl LandingDecider {
             self.models = self.fit();
         }
         let m = self.models.as_ref().ok_or(DecisionReason::PredictionUnreliable)?;
-        if m.holdout_error > c.max_holdout_error_deg {
+        if m.holdout_error > c.max_holdout_error_deg || m.heave_error > c.max_holdout_error_m {
             return Err(DecisionReason::PredictionUnreliable);
         }
-        let innovation = (m.roll.value(t) - roll)
-            .abs()
-            .max((m.pitch.value(t) - pitch).abs());
-        if innovation > c.max_innovation_deg {
+        let miss = |k: usize| (m.tracks[k].value(t) - sample[k]).abs();
+        let innovation = miss(ROLL).max(miss(PITCH));
+        let heave_innovation = if heave { miss(HEAVE) } else { 0.0 };
+        if innovation > c.max_innovation_deg || heave_innovation > c.max_heave_innovation_m {
             self.refit_soon(t);
             return Err(DecisionReason::PredictionUnreliable);
         }
         // The model's rate must match the measured one (a local line through the newest
         // samples): a fit that turns the motion around where the deck does not is caught here.
-        if let Some([rr, pr]) = self.measured_rate(t, RATE_WINDOW_S) {
-            let miss = (m.roll.rate(t) - rr).abs().max((m.pitch.rate(t) - pr).abs());
-            if miss > c.max_rate_innovation_dps {
+        if let Some(rates) = self.measured_rate(t, RATE_WINDOW_S) {
+            let miss = |k: usize| (m.tracks[k].rate(t) - rates[k]).abs();
+            let heave_miss = if heave { miss(HEAVE) } else { 0.0 };
+            if miss(ROLL).max(miss(PITCH)) > c.max_rate_innovation_dps
+                || heave_miss > MAX_HEAVE_RATE_INNOVATION_MPS
+            {
                 self.refit_soon(t);
                 return Err(DecisionReason::PredictionUnreliable);
             }
@@ -452,10 +560,10 @@ impl LandingDecider {
         self.last_fit = self.last_fit.min(t - self.config.refit_interval_s + RETRY_S);
     }
 
-    /// Roll and pitch rates (deg/s) from a least-squares line through the samples of the last
+    /// Each channel's rate (per s) from a least-squares line through the samples of the last
     /// `window` seconds; None with fewer than 4 samples.
-    fn measured_rate(&self, t: f64, window: f64) -> Option<[f64; 2]> {
-        let recent: Vec<&(f64, f64, f64)> = self
+    fn measured_rate(&self, t: f64, window: f64) -> Option<[f64; 3]> {
+        let recent: Vec<&(f64, [f64; 3])> = self
             .history
             .iter()
             .rev()
@@ -471,131 +579,157 @@ impl LandingDecider {
             return None;
         }
         let slope = |k: usize| {
-            let mv = recent.iter().map(|h| if k == 0 { h.1 } else { h.2 }).sum::<f64>() / n;
-            recent
-                .iter()
-                .map(|h| (h.0 - mt) * (if k == 0 { h.1 } else { h.2 } - mv))
-                .sum::<f64>()
-                / stt
+            let mv = recent.iter().map(|h| h.1[k]).sum::<f64>() / n;
+            recent.iter().map(|h| (h.0 - mt) * (h.1[k] - mv)).sum::<f64>() / stt
         };
-        Some([slope(0), slope(1)])
+        Some([slope(ROLL), slope(PITCH), slope(HEAVE)])
     }
 
     fn fit(&mut self) -> Option<Models> {
         let c = self.config.clone();
-        let (mut t, mut roll, mut pitch) = (Vec::new(), Vec::new(), Vec::new());
+        let channels = self.channels;
+        let mut t = Vec::new();
+        let mut y: Vec<Vec<f64>> = vec![Vec::new(); channels];
         // Newest sample always in; older ones thinned to the fit spacing.
-        for &(ti, r, p) in self.history.iter().rev() {
+        for &(ti, v) in self.history.iter().rev() {
             if t.last().is_none_or(|&last: &f64| last - ti >= FIT_SPACING_S) {
                 t.push(ti);
-                roll.push(r);
-                pitch.push(p);
+                for (k, yk) in y.iter_mut().enumerate() {
+                    yk.push(v[k]);
+                }
             }
         }
         t.reverse();
-        roll.reverse();
-        pitch.reverse();
+        for yk in &mut y {
+            yk.reverse();
+        }
         let end = *t.last()?;
-        let (r, p) = if c.predictor == Predictor::Sinusoids {
-            let warm = match self.past.back() {
-                Some((Track::Sinusoids(r0), Track::Sinusoids(p0)))
-                    if end - self.last_grid < REGRID_INTERVAL_S =>
-                {
-                    r0.refit(&t, &roll, F_MIN_HZ, F_MAX_HZ, c.fit_memory_s)
-                        .zip(p0.refit(&t, &pitch, F_MIN_HZ, F_MAX_HZ, c.fit_memory_s))
-                }
+        let tracks: Vec<Track> = if c.predictor == Predictor::Sinusoids {
+            let warm: Option<Vec<SinusoidModel>> = match self.past.back() {
+                Some(prev) if end - self.last_grid < REGRID_INTERVAL_S => prev
+                    .iter()
+                    .zip(&y)
+                    .map(|(p, yk)| match p {
+                        Track::Sinusoids(m0) => m0.refit(&t, yk, F_MIN_HZ, F_MAX_HZ, c.fit_memory_s),
+                        Track::Autoregressive(_) => None,
+                    })
+                    .collect(),
                 _ => None,
             };
-            let (r, p) = match warm {
-                Some(rp) => rp,
+            let models = match warm {
+                Some(m) => m,
                 None => {
                     self.last_grid = end;
-                    let fit = |y: &[f64]| {
-                        SinusoidModel::fit(&t, y, c.components, F_MIN_HZ, F_MAX_HZ, c.fit_memory_s)
-                    };
-                    (fit(&roll)?, fit(&pitch)?)
+                    y.iter()
+                        .map(|yk| {
+                            SinusoidModel::fit(&t, yk, c.components, F_MIN_HZ, F_MAX_HZ, c.fit_memory_s)
+                        })
+                        .collect::<Option<Vec<_>>>()?
                 }
             };
-            (Track::Sinusoids(r), Track::Sinusoids(p))
+            models.into_iter().map(Track::Sinusoids).collect()
         } else {
             let horizon = c.horizon_s + c.touchdown_s + c.holdout_s;
-            let fit = |y: &[f64]| ArModel::fit(&t, y, c.ar_order, FIT_SPACING_S, horizon);
-            (
-                Track::Autoregressive(fit(&roll)?),
-                Track::Autoregressive(fit(&pitch)?),
-            )
+            y.iter()
+                .map(|yk| ArModel::fit(&t, yk, c.ar_order, FIT_SPACING_S, horizon).map(Track::Autoregressive))
+                .collect::<Option<Vec<_>>>()?
         };
-        // How well did the fit of `holdout_s` ago predict the samples since?
-        let old = self.past.iter().rev().find(|(m, _)| end - m.t0() >= c.holdout_s);
-        let holdout_error = match old {
-            Some((r_old, p_old)) => self
-                .history
-                .iter()
-                .filter(|h| h.0 > r_old.t0() && h.0 <= r_old.t0() + c.holdout_s)
-                .map(|&(ti, rv, pv)| (r_old.value(ti) - rv).abs().max((p_old.value(ti) - pv).abs()))
-                .fold(0.0, f64::max),
-            None => f64::INFINITY, // no track record yet
+        // How well did the fit of `holdout_s` ago predict the samples since? (angles, heave)
+        let old = self.past.iter().rev().find(|m| end - m[0].t0() >= c.holdout_s);
+        let (angle_miss, heave_miss) = match old {
+            Some(old) => {
+                let t0 = old[0].t0();
+                self.history
+                    .iter()
+                    .filter(|h| h.0 > t0 && h.0 <= t0 + c.holdout_s)
+                    .map(|&(ti, v)| channel_misses(old, ti, &v))
+                    .fold((0.0, 0.0), |(a, b), (x, y)| (f64::max(a, x), f64::max(b, y)))
+            }
+            None => (f64::INFINITY, f64::INFINITY), // no track record yet
         };
-        self.errors.push_back((end, holdout_error));
+        self.errors.push_back((end, angle_miss, heave_miss));
         while self
             .errors
             .front()
-            .is_some_and(|&(te, _)| end - te > c.error_memory_s)
+            .is_some_and(|&(te, _, _)| end - te > c.error_memory_s)
         {
             self.errors.pop_front();
         }
         // Consecutive fits must agree on the coming touchdown; a disagreement is an error of one
         // of them and widens the bound like one.
         let disagreement = match self.past.back() {
-            Some((r_prev, p_prev)) => (0..=20)
+            Some(prev) => (0..=20)
                 .map(|k| end + c.touchdown_s * k as f64 / 20.0)
                 .map(|ti| {
-                    (r_prev.value(ti) - r.value(ti))
-                        .abs()
-                        .max((p_prev.value(ti) - p.value(ti)).abs())
+                    let now: Vec<f64> = tracks.iter().map(|m| m.value(ti)).collect();
+                    let mut v = [f64::NAN; 3];
+                    v[..now.len()].copy_from_slice(&now);
+                    channel_misses(prev, ti, &v)
                 })
-                .fold(0.0, f64::max),
-            None => f64::INFINITY,
+                .fold((0.0, 0.0), |(a, b), (x, y)| (f64::max(a, x), f64::max(b, y))),
+            None => (f64::INFINITY, f64::INFINITY),
         };
-        let recent_max = self.errors.iter().map(|e| e.1).fold(0.0, f64::max);
-        let holdout_error = c.error_factor * recent_max.max(disagreement);
-        self.past.push_back((r.clone(), p.clone()));
+        let recent_angle = self.errors.iter().map(|e| e.1).fold(0.0, f64::max);
+        let recent_heave = self.errors.iter().map(|e| e.2).fold(0.0, f64::max);
+        let holdout_error = c.error_factor * recent_angle.max(disagreement.0);
+        let heave_error = c.error_factor * recent_heave.max(disagreement.1);
+        self.past.push_back(tracks.clone());
         while self
             .past
             .front()
-            .is_some_and(|(m, _)| end - m.t0() > c.holdout_s + 2.0 * c.refit_interval_s)
+            .is_some_and(|m| end - m[0].t0() > c.holdout_s + 2.0 * c.refit_interval_s)
         {
             self.past.pop_front();
         }
         Some(Models {
-            roll: r,
-            pitch: p,
+            tracks,
             holdout_error,
+            heave_error,
         })
     }
 
-    /// Whether the model keeps the deck within capacity (less `margin`) over [from, to].
-    fn predicted_within(&self, m: &Models, from: f64, to: f64, margin: f64) -> bool {
+    /// The margins to enter `ClearToLand`: the configured ones plus the prediction's error.
+    fn entry_margins(&self, m: &Models) -> Margins {
         let c = &self.config;
-        let rate_margin = c.rate_margin_dps * (margin > 0.0) as u8 as f64;
+        Margins {
+            angle_deg: c.margin_deg + m.holdout_error,
+            rate_dps: c.rate_margin_dps,
+            heave_rate_mps: c.heave_rate_margin_mps,
+        }
+    }
+
+    /// The margins to stay committed: the prediction's own error bound only.
+    fn stay_margins(m: &Models) -> Margins {
+        Margins {
+            angle_deg: m.holdout_error,
+            ..Margins::NONE
+        }
+    }
+
+    /// Whether the model keeps the deck within capacity (less the margins) over [from, to].
+    fn predicted_within(&self, m: &Models, from: f64, to: f64, margins: Margins) -> bool {
+        let c = &self.config;
         let steps = ((to - from) / STEP_S).ceil().max(0.0) as usize;
+        let (roll, pitch) = (&m.tracks[ROLL], &m.tracks[PITCH]);
+        let heave = m.tracks.get(HEAVE);
         (0..=steps).all(|k| {
             let t = (from + k as f64 * STEP_S).min(to);
-            m.roll.value(t).abs() <= c.max_abs_roll_deg - margin
-                && m.pitch.value(t).abs() <= c.max_abs_pitch_deg - margin
-                && m.roll.rate(t).abs() <= c.max_abs_roll_rate_dps - rate_margin
-                && m.pitch.rate(t).abs() <= c.max_abs_pitch_rate_dps - rate_margin
+            roll.value(t).abs() <= c.max_abs_roll_deg - margins.angle_deg
+                && pitch.value(t).abs() <= c.max_abs_pitch_deg - margins.angle_deg
+                && roll.rate(t).abs() <= c.max_abs_roll_rate_dps - margins.rate_dps
+                && pitch.rate(t).abs() <= c.max_abs_pitch_rate_dps - margins.rate_dps
+                && heave.is_none_or(|h| h.rate(t).abs() <= c.max_abs_heave_rate_mps - margins.heave_rate_mps)
         })
     }
 
     /// The first window within the horizon in which a commit would be safe.
-    fn calm_window(&self, m: &Models, now: f64, margin: f64) -> Option<(f64, f64)> {
+    fn calm_window(&self, m: &Models, now: f64, margins: Margins) -> Option<(f64, f64)> {
         let c = &self.config;
         let steps = (c.horizon_s / STEP_S) as usize;
         let ok: Vec<bool> = (0..=steps)
             .map(|k| {
                 let t = now + k as f64 * STEP_S;
-                self.predicted_within(m, t, t, margin)
+                self.predicted_within(m, t, t, margins)
             })
             .collect();
         let need = (c.touchdown_s / STEP_S).ceil() as usize;
@@ -615,7 +749,7 @@ impl LandingDecider {
     }
 
     /// The calm window, searched once per model (the search walks the whole horizon).
-    fn cached_calm_window(&mut self, m: &Models, now: f64, margin: f64) -> Option<(f64, f64)> {
+    fn cached_calm_window(&mut self, m: &Models, now: f64, margins: Margins) -> Option<(f64, f64)> {
         let fresh = match self.calm_cache {
             Some((fit, Some((start, len)))) => {
                 fit == self.last_fit && now <= start + len - self.config.touchdown_s
@@ -624,7 +758,7 @@ impl LandingDecider {
             None => false,
         };
         if !fresh {
-            let w = self.calm_window(m, now, margin).map(|(s, l)| (now + s, l));
+            let w = self.calm_window(m, now, margins).map(|(s, l)| (now + s, l));
             self.calm_cache = Some((self.last_fit, w));
         }
         let (start, len) = self.calm_cache?.1?;
@@ -640,6 +774,7 @@ impl LandingDecider {
             reason: DecisionReason::WithinCapacity,
             calm_window: None,
             new_commit: false,
+            heave_rate_mps: f64::NAN,
         };
         match verdict {
             Err(reason) => {
@@ -657,11 +792,11 @@ impl LandingDecider {
             }
             Ok(()) => {
                 let m = self.models.clone().expect("checked");
-                let margin = self.config.margin_deg + m.holdout_error;
-                decision.calm_window = self.cached_calm_window(&m, now, margin);
+                let enter = self.entry_margins(&m);
+                decision.calm_window = self.cached_calm_window(&m, now, enter);
                 if committed {
                     // Staying needs only the prediction's own error bound.
-                    if self.predicted_within(&m, now, self.commit_end, m.holdout_error) {
+                    if self.predicted_within(&m, now, self.commit_end, Self::stay_margins(&m)) {
                         decision.state = DecisionState::ClearToLand;
                     } else {
                         decision.state = DecisionState::Abort;
@@ -671,12 +806,12 @@ impl LandingDecider {
                     // Held: still the reason the landing was aborted for.
                     decision.state = DecisionState::Abort;
                     decision.reason = self.abort_reason;
-                } else if self.predicted_within(&m, now, now + self.config.touchdown_s, margin) {
+                } else if self.predicted_within(&m, now, now + self.config.touchdown_s, enter) {
                     decision.state = DecisionState::ClearToLand;
                     decision.new_commit = true;
                     self.commit_end = now + self.config.touchdown_s;
                 } else {
-                    decision.reason = if self.predicted_within(&m, now, now, 0.0) {
+                    decision.reason = if self.predicted_within(&m, now, now, Margins::NONE) {
                         DecisionReason::PredictedOutside
                     } else {
                         DecisionReason::OutsideCapacity
@@ -684,6 +819,13 @@ impl LandingDecider {
                 }
             }
         }
+        // What the heave model says now, whether or not it may be trusted to clear (shown to the
+        // ground station and in the viewer).
+        decision.heave_rate_mps = self
+            .models
+            .as_ref()
+            .and_then(|m| m.tracks.get(HEAVE))
+            .map_or(f64::NAN, |h| h.rate(now));
         if decision.state == DecisionState::Abort && self.state != DecisionState::Abort {
             self.abort_reason = decision.reason;
             self.abort_until = now + self.config.abort_hold_s;
@@ -694,23 +836,37 @@ impl LandingDecider {
     }
 }
 
+/// How far `tracks` are from the values `v` at `ti`: the largest angle miss (deg) and the heave
+/// miss (m; 0 without a heave track).
+fn channel_misses(tracks: &[Track], ti: f64, v: &[f64; 3]) -> (f64, f64) {
+    let miss = |k: usize| (tracks[k].value(ti) - v[k]).abs();
+    let heave = if tracks.len() > HEAVE { miss(HEAVE) } else { 0.0 };
+    (miss(ROLL).max(miss(PITCH)), heave)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use std::f64::consts::TAU;
 
-    fn sea(t: f64, scale: f64) -> [f64; 2] {
-        [
+    /// Roll, pitch (deg) and the deck's height (m): heave up to 0.33 m/s at scale 1.
+    fn sea(t: f64, scale: f64) -> DeckObservation {
+        DeckObservation::new(
             scale * (4.0 * (TAU * t / 11.0).sin() + 2.0 * (TAU * t / 8.3 + 1.0).sin()),
             scale * (1.5 * (TAU * t / 6.4 + 0.5).sin() + 0.8 * (TAU * t / 8.9).sin()),
-        ]
+            scale * 0.5 * (TAU * t / 9.5 + 0.3).sin(),
+        )
+    }
+
+    fn heave_rate(t: f64, scale: f64) -> f64 {
+        scale * 0.5 * TAU / 9.5 * (TAU * t / 9.5 + 0.3).cos()
     }
 
     fn run(
         decider: &mut LandingDecider,
         from: f64,
         to: f64,
-        f: impl Fn(f64) -> Option<[f64; 2]>,
+        f: impl Fn(f64) -> Option<DeckObservation>,
     ) -> Vec<(f64, Decision)> {
         let mut out = Vec::new();
         let mut t = from;
@@ -739,9 +895,11 @@ mod tests {
         for tc in commits {
             let mut t = tc;
             while t <= tc + c.touchdown_s {
-                let [r, p] = sea(t, 0.8);
+                let d = sea(t, 0.8);
                 assert!(
-                    r.abs() <= c.max_abs_roll_deg && p.abs() <= c.max_abs_pitch_deg,
+                    d.roll_deg.abs() <= c.max_abs_roll_deg
+                        && d.pitch_deg.abs() <= c.max_abs_pitch_deg
+                        && heave_rate(t, 0.8).abs() <= c.max_abs_heave_rate_mps,
                     "unsafe at {t}"
                 );
                 t += 0.01;
@@ -789,8 +947,15 @@ mod tests {
             (DecisionState::NoDeck, DecisionReason::InvalidAttitude)
         );
         // A jump of 20 deg since the last accepted attitude (0.3 s ago).
-        let [a, b] = sea(30.2, 0.3);
-        let r = d.update(30.2, Some([a + 20.0, b]), 30.205);
+        let s = sea(30.2, 0.3);
+        let r = d.update(
+            30.2,
+            Some(DeckObservation {
+                roll_deg: s.roll_deg + 20.0,
+                ..s
+            }),
+            30.205,
+        );
         assert_eq!(r.reason, DecisionReason::Jump);
         assert_ne!(r.state, DecisionState::ClearToLand);
         // A gap of 2 s.
@@ -809,7 +974,9 @@ mod tests {
         run(&mut d, 0.0, 40.0, |t| Some(sea(t, 0.3)));
         // The motion suddenly changes character (new frequencies, bigger): no clearance until the
         // model has learned it.
-        let out = run(&mut d, 40.0, 44.0, |t| Some([3.0 * (TAU * t / 3.0).sin(), 0.0]));
+        let out = run(&mut d, 40.0, 44.0, |t| {
+            Some(DeckObservation::new(3.0 * (TAU * t / 3.0).sin(), 0.0, 0.0))
+        });
         assert!(out
             .iter()
             .any(|(_, d)| d.reason == DecisionReason::PredictionUnreliable));
@@ -818,6 +985,64 @@ mod tests {
                 panic!("cleared at {t} on an unknown motion");
             }
         }
+    }
+
+    #[test]
+    fn the_heave_rate_is_part_of_the_capacity() {
+        // Gentle angles, but the deck rises and falls at up to 0.79 m/s (1.5 m, 12 s): cleared
+        // only where the heave is slow (near its crests and troughs).
+        let rough = |t: f64| {
+            let calm = sea(t, 0.3);
+            DeckObservation {
+                height_m: 1.5 * (TAU * t / 12.0).sin(),
+                ..calm
+            }
+        };
+        let rate = |t: f64| 1.5 * TAU / 12.0 * (TAU * t / 12.0).cos();
+        let c = DecisionConfig::default();
+        let mut d = LandingDecider::new(c.clone()).unwrap();
+        let out = run(&mut d, 0.0, 120.0, |t| Some(rough(t)));
+        let commits: Vec<f64> = out
+            .iter()
+            .filter(|(_, d)| d.new_commit)
+            .map(|(t, _)| *t)
+            .collect();
+        let reasons: std::collections::BTreeSet<_> = out.iter().map(|(_, d)| d.reason.name()).collect();
+        assert!(
+            !commits.is_empty(),
+            "the heave is slow near its crests and troughs: {reasons:?}"
+        );
+        for tc in commits {
+            for k in 0..=200 {
+                let t = tc + c.touchdown_s * k as f64 / 200.0;
+                assert!(rate(t).abs() <= c.max_abs_heave_rate_mps, "heave too fast at {t}");
+            }
+        }
+        assert!(out
+            .iter()
+            .any(|(_, d)| d.reason == DecisionReason::PredictedOutside
+                || d.reason == DecisionReason::OutsideCapacity));
+        // No deck height: refused, with its own reason, never cleared.
+        let mut d = LandingDecider::new(c.clone()).unwrap();
+        let out = run(&mut d, 0.0, 60.0, |t| {
+            Some(DeckObservation {
+                height_m: f64::NAN,
+                ..sea(t, 0.3)
+            })
+        });
+        assert!(out
+            .iter()
+            .all(|(_, d)| d.reason == DecisionReason::NoDeckHeave && d.state == DecisionState::Hold));
+        // Heave off: angles only, a height is not needed.
+        let mut d = LandingDecider::new(DecisionConfig {
+            heave: HeaveUse::Off,
+            ..c
+        })
+        .unwrap();
+        let out = run(&mut d, 0.0, 120.0, |t| {
+            Some(DeckObservation::angles(rough(t).roll_deg, rough(t).pitch_deg))
+        });
+        assert!(out.iter().filter(|(_, d)| d.new_commit).count() > 0);
     }
 
     #[test]

@@ -3,14 +3,14 @@
 //! how many of the truly calm windows it uses (availability). Pure: the caller supplies the
 //! true motion and the measured attitude stream (with its noise, dropouts and outliers).
 
-use crate::decision::{DecisionConfig, LandingDecider};
+use crate::decision::{DecisionConfig, DeckObservation, LandingDecider};
 use deckwatch_common::messages::{DecisionReason, DecisionState};
 
-/// One measured frame: capture time, measured roll/pitch (None: no valid attitude), decision time.
+/// One measured frame: capture time, measured deck (None: no valid attitude), decision time.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Measured {
     pub t: f64,
-    pub attitude: Option<[f64; 2]>,
+    pub deck: Option<DeckObservation>,
     pub now: f64,
     /// The vehicle's attitude was missing for this frame (the autopilot's stream was out): the
     /// attitude is not compensated and is refused.
@@ -49,28 +49,32 @@ impl RuleOutcome {
     }
 }
 
-/// The capacity as the truth is judged by (angles and rates).
-fn truly_within(truth: &dyn Fn(f64) -> [f64; 2], c: &DecisionConfig, t: f64) -> bool {
+/// The true deck at an instant: roll, pitch (deg) and the deck centre's height (m).
+pub type TrueDeck<'a> = &'a dyn Fn(f64) -> [f64; 3];
+
+/// The capacity as the truth is judged by: angles, rates and the heave rate, always (the
+/// capacity is the vehicle's; `heave = "off"` only says the decider cannot see the heave).
+fn truly_within(truth: TrueDeck, c: &DecisionConfig, t: f64) -> bool {
     let h = 1e-3;
-    let [r, p] = truth(t);
-    let [r1, p1] = truth(t + h);
-    let [r0, p0] = truth(t - h);
-    let (rr, pr) = ((r1 - r0) / (2.0 * h), (p1 - p0) / (2.0 * h));
+    let [r, p, _] = truth(t);
+    let [r1, p1, z1] = truth(t + h);
+    let [r0, p0, z0] = truth(t - h);
+    let (rr, pr, zr) = (
+        (r1 - r0) / (2.0 * h),
+        (p1 - p0) / (2.0 * h),
+        (z1 - z0) / (2.0 * h),
+    );
     r.abs() <= c.max_abs_roll_deg
         && p.abs() <= c.max_abs_pitch_deg
         && rr.abs() <= c.max_abs_roll_rate_dps
         && pr.abs() <= c.max_abs_pitch_rate_dps
+        && zr.abs() <= c.max_abs_heave_rate_mps
 }
 
 const TRUTH_STEP_S: f64 = 0.02;
 
 /// The truly calm intervals in [t0, t1] of at least `touchdown_s`.
-fn calm_intervals(
-    truth: &dyn Fn(f64) -> [f64; 2],
-    c: &DecisionConfig,
-    t0: f64,
-    t1: f64,
-) -> (Vec<(f64, f64)>, f64) {
+fn calm_intervals(truth: TrueDeck, c: &DecisionConfig, t0: f64, t1: f64) -> (Vec<(f64, f64)>, f64) {
     let mut out = Vec::new();
     let mut start: Option<f64> = None;
     let mut safe_time = 0.0;
@@ -93,14 +97,7 @@ fn calm_intervals(
     (out, safe_time / (t1 - t0))
 }
 
-fn judge(
-    truth: &dyn Fn(f64) -> [f64; 2],
-    c: &DecisionConfig,
-    commits: &[f64],
-    outcome: &mut RuleOutcome,
-    t0: f64,
-    t1: f64,
-) {
+fn judge(truth: TrueDeck, c: &DecisionConfig, commits: &[f64], outcome: &mut RuleOutcome, t0: f64, t1: f64) {
     let (calm, share) = calm_intervals(truth, c, t0, t1 + c.touchdown_s);
     outcome.calm_windows = calm.len() as u64;
     outcome.safe_time_share = share;
@@ -127,7 +124,7 @@ fn judge(
 /// Runs the state machine and the naive rule ("current angles within the limits") over the
 /// same measured stream; returns (state machine, naive).
 pub fn evaluate(
-    truth: &dyn Fn(f64) -> [f64; 2],
+    truth: TrueDeck,
     config: &DecisionConfig,
     stream: &[Measured],
 ) -> Result<(RuleOutcome, RuleOutcome), crate::DecisionConfigError> {
@@ -145,7 +142,7 @@ pub fn evaluate(
         let d = if m.vehicle_missing {
             decider.refuse(m.now, DecisionReason::NoVehicleAttitude)
         } else {
-            decider.update(m.t, m.attitude, m.now)
+            decider.update(m.t, m.deck, m.now)
         };
         cost_us.push(clock.elapsed().as_secs_f64() * 1e6);
         *smart
@@ -165,8 +162,8 @@ pub fn evaluate(
         previous = d.state;
         // The naive rule commits whenever the current angles are within the limits and no
         // touchdown of its own is under way.
-        if let Some([r, p]) = m.attitude.filter(|_| !m.vehicle_missing) {
-            if m.now >= naive_until && config.naive_within(r, p) {
+        if let Some(d) = m.deck.filter(|_| !m.vehicle_missing) {
+            if m.now >= naive_until && config.naive_within(d.roll_deg, d.pitch_deg) {
                 naive_commits.push(m.now);
                 naive_until = m.now + config.touchdown_s;
             }
@@ -189,13 +186,20 @@ mod tests {
     #[test]
     fn a_calm_sea_is_used_and_the_naive_rule_is_unsafe_on_a_rough_one() {
         let c = DecisionConfig::default();
-        let calm = |t: f64| [1.0 * (TAU * t / 9.0).sin(), 0.5 * (TAU * t / 6.0).sin()];
+        let calm = |t: f64| {
+            [
+                1.0 * (TAU * t / 9.0).sin(),
+                0.5 * (TAU * t / 6.0).sin(),
+                0.3 * (TAU * t / 9.5).sin(),
+            ]
+        };
+        let observed = |[r, p, h]: [f64; 3]| Some(DeckObservation::new(r, p, h));
         let stream: Vec<Measured> = (0..1200)
             .map(|k| {
                 let t = k as f64 * 0.1;
                 Measured {
                     t,
-                    attitude: Some(calm(t)),
+                    deck: observed(calm(t)),
                     now: t + 0.005,
                     vehicle_missing: false,
                 }
@@ -226,11 +230,11 @@ mod tests {
             .sum();
         assert_eq!(refused, 600, "every frame of the outage: {:?}", smart.decisions);
         // Rough: angles pass through the limits fast; the naive rule commits on the way out.
-        let rough = |t: f64| [9.0 * (TAU * t / 9.0).sin(), 0.5 * (TAU * t / 6.0).sin()];
+        let rough = |t: f64| [9.0 * (TAU * t / 9.0).sin(), 0.5 * (TAU * t / 6.0).sin(), 0.0];
         let stream: Vec<Measured> = stream
             .iter()
             .map(|m| Measured {
-                attitude: Some(rough(m.t)),
+                deck: observed(rough(m.t)),
                 ..*m
             })
             .collect();

@@ -7,4 +7,6 @@ pub mod decision;
 pub mod eval;
 pub mod predict;
 
-pub use decision::{Decision, DecisionConfig, DecisionConfigError, LandingDecider, Predictor};
+pub use decision::{
+    Decision, DecisionConfig, DecisionConfigError, DeckObservation, HeaveUse, LandingDecider, Predictor,
+};

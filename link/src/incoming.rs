@@ -38,7 +38,10 @@ pub struct InCounts {
     pub heartbeats: u64,
     pub attitudes: u64,
     pub timesyncs: u64,
+    /// DISTANCE_SENSOR readings used.
     pub heights: u64,
+    /// LOCAL_POSITION_NED received (the vehicle's height in the local frame).
+    pub positions: u64,
     /// Attitudes that were not rotations, or came from another system.
     pub refused: u64,
     pub other: u64,
@@ -53,6 +56,9 @@ pub struct Handled {
     pub reply: Option<MavMessage>,
 }
 
+/// A LOCAL_POSITION_NED further than this from an attitude sample gives it no height (ms).
+const HEIGHT_MAX_AGE_MS: f64 = 200.0;
+
 /// The receiving side of the link.
 #[derive(Debug, Clone)]
 pub struct Incoming {
@@ -66,6 +72,8 @@ pub struct Incoming {
     /// ATTITUDE_QUATERNION seen: ATTITUDE (the same attitude, as angles) is then ignored.
     quaternions: bool,
     altitude_m: f64,
+    /// The newest LOCAL_POSITION_NED: (time_boot_ms, height up m, vertical speed up m/s).
+    local_height: Option<(u32, f64, f64)>,
     seq: u64,
     newest: Option<VehicleSample>,
     pub counts: InCounts,
@@ -82,6 +90,7 @@ impl Incoming {
             last_attitude_ns: None,
             quaternions: false,
             altitude_m: f64::NAN,
+            local_height: None,
             seq: 0,
             newest: None,
             counts: InCounts::default(),
@@ -161,10 +170,31 @@ impl Incoming {
                 if self.counts.heights == 0 && p.z.is_finite() {
                     self.altitude_m = -f64::from(p.z);
                 }
+                if p.z.is_finite() && p.vz.is_finite() {
+                    self.local_height = Some((p.time_boot_ms, -f64::from(p.z), -f64::from(p.vz)));
+                    self.counts.positions += 1;
+                }
             }
             _ => self.counts.other += 1,
         }
         out
+    }
+
+    /// The vehicle's height in the local frame at `time_boot_ms`: the newest LOCAL_POSITION_NED
+    /// carried there by its vertical speed (the autopilot sends positions more slowly than
+    /// attitudes); NaN with none within `HEIGHT_MAX_AGE_MS`.
+    fn height_at(&self, time_boot_ms: u32) -> f64 {
+        match self.local_height {
+            Some((t, h, v)) => {
+                let dt_ms = f64::from(time_boot_ms) - f64::from(t);
+                if dt_ms.abs() <= HEIGHT_MAX_AGE_MS {
+                    h + v * dt_ms / 1e3
+                } else {
+                    f64::NAN
+                }
+            }
+            None => f64::NAN,
+        }
     }
 
     fn attitude(
@@ -192,6 +222,7 @@ impl Incoming {
             received_ns: now_ns,
             quaternion: q,
             altitude_m: self.altitude_m,
+            height_m: self.height_at(time_boot_ms),
             clock_offset_ns: clock.offset_at(local) as i64,
             clock_method: clock.method,
             clock_drift_ppm: clock.drift_ppm,
@@ -207,7 +238,9 @@ impl Incoming {
 mod tests {
     use super::*;
     use deckwatch_common::messages::ClockMethod;
-    use mavlink::dialects::common::{MavModeFlag, MavState, ATTITUDE_QUATERNION_DATA, HEARTBEAT_DATA};
+    use mavlink::dialects::common::{
+        MavModeFlag, MavState, ATTITUDE_QUATERNION_DATA, HEARTBEAT_DATA, LOCAL_POSITION_NED_DATA,
+    };
 
     fn header(system_id: u32, component_id: u8) -> MavHeader {
         MavHeader {
@@ -268,6 +301,36 @@ mod tests {
             .sample
             .is_none());
         assert_eq!(i.counts.refused, 2);
+    }
+
+    #[test]
+    fn local_position_gives_each_attitude_the_vehicles_height() {
+        let mut i = Incoming::new(&LinkConfig::default());
+        let ap = header(1, 1);
+        i.handle(
+            &ap,
+            &heartbeat(
+                MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
+                MavType::MAV_TYPE_QUADROTOR,
+            ),
+            1_000,
+        );
+        let s = i.handle(&ap, &attitude(1_000), 2_000_000).sample.unwrap();
+        assert!(s.height_m.is_nan(), "no LOCAL_POSITION_NED yet");
+        // NED: 12 m up, climbing at 0.5 m/s; an attitude 40 ms later is 2 cm higher.
+        let position = MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA {
+            time_boot_ms: 1_010,
+            z: -12.0,
+            vz: -0.5,
+            ..Default::default()
+        });
+        i.handle(&ap, &position, 3_000_000);
+        let s = i.handle(&ap, &attitude(1_050), 4_000_000).sample.unwrap();
+        assert!((s.height_m - 12.02).abs() < 1e-6, "{}", s.height_m);
+        assert_eq!(i.counts.positions, 1);
+        // Too far from the position: no height rather than a guess.
+        let s = i.handle(&ap, &attitude(1_500), 5_000_000).sample.unwrap();
+        assert!(s.height_m.is_nan());
     }
 
     #[test]

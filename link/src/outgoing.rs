@@ -20,6 +20,10 @@ pub mod names {
     /// Deck roll and pitch in W (deg).
     pub const ROLL: &str = "dw_roll";
     pub const PITCH: &str = "dw_pitch";
+    /// The deck centre's height in W (m, on the autopilot's local origin) and its vertical
+    /// speed (m/s, up); NaN when not measured.
+    pub const HEAVE: &str = "dw_heave";
+    pub const HEAVE_RATE: &str = "dw_hrate";
     /// Start and length of the next predicted calm window (s; -1: none).
     pub const CALM_START: &str = "dw_calm_s";
     pub const CALM_LENGTH: &str = "dw_calm_l";
@@ -203,6 +207,8 @@ impl Outgoing {
             for (name, value) in [
                 (names::ROLL, roll),
                 (names::PITCH, pitch),
+                (names::HEAVE, if a.valid { a.deck_height_m } else { f64::NAN }),
+                (names::HEAVE_RATE, d.heave_rate_mps),
                 (names::CALM_START, calm(d.calm_window_start_s)),
                 (names::CALM_LENGTH, calm(d.calm_window_length_s)),
             ] {
@@ -269,7 +275,7 @@ mod tests {
         let m = o.decision(&d, LinkState::Up, None, 10);
         assert_eq!(
             kinds(&m),
-            ["target", "text", "float", "float", "float", "float", "int", "int", "int"]
+            ["target", "text", "float", "float", "float", "float", "float", "float", "int", "int", "int"]
         );
         match &m[1] {
             MavMessage::STATUSTEXT(s) => {

@@ -10,9 +10,9 @@ use deckwatch_capture::camera::CameraConfig;
 use deckwatch_capture::scenario::SimulationArgs;
 use deckwatch_capture::sim::ImageArgs;
 use deckwatch_capture::source::{CaptureConfig, ReplayConfig, SourceConfig, SourceError};
-use deckwatch_common::messages::FrameSource;
+use deckwatch_common::messages::{EstimatorKind, FrameSource};
 use deckwatch_common::vehicle::{VehicleAttitudeSource, VehicleConfig};
-use deckwatch_decide::DecisionConfig;
+use deckwatch_decide::{DecisionConfig, HeaveUse};
 use deckwatch_estimate::EstimateConfig;
 use deckwatch_link::LinkConfig;
 use deckwatch_viz::RerunConfig;
@@ -161,6 +161,21 @@ impl PipelineConfig {
                 "a camera's frames carry no vehicle attitude: use \"autopilot\" (the link process), or \"level\" for a gimballed camera".into(),
             ));
         }
+        if self.decide.heave == HeaveUse::Required {
+            let no_pose = self.estimate.estimator != EstimatorKind::FullPose && !self.estimate.compare;
+            if no_pose {
+                return Err(invalid(
+                    "decide.heave".into(),
+                    "the deck's heave needs the full pose (estimate.estimator = \"full-pose\" or estimate.compare = true); or set heave = \"off\" to decide on roll and pitch alone".into(),
+                ));
+            }
+            if self.vehicle.attitude == VehicleAttitudeSource::Level {
+                return Err(invalid(
+                    "decide.heave".into(),
+                    "the deck's heave needs the vehicle's height, which vehicle.attitude = \"level\" does not give: use \"autopilot\" or \"frames\", or set heave = \"off\" to decide on roll and pitch alone".into(),
+                ));
+            }
+        }
         self.rerun.validate().map_err(|e| match e {
             deckwatch_viz::VizError::Config { key, problem } => invalid(format!("rerun.{key}"), problem),
             other => invalid("rerun".into(), other.to_string()),
@@ -231,6 +246,20 @@ mod tests {
         let c = PipelineConfig::from_toml("p.toml", "[source]\nkind = \"replay\"\n").unwrap();
         let m = c.validate("p.toml").unwrap_err().to_string();
         assert!(m.contains("replay.recording"), "{m}");
+        // The heave needs a full pose and a vehicle height; `off` says there is none.
+        for text in [
+            "[estimate]\nestimator = \"paper-atan2\"\ncompare = false\n",
+            "[vehicle]\nattitude = \"level\"\n",
+        ] {
+            let c = PipelineConfig::from_toml("p.toml", text).unwrap();
+            let m = c.validate("p.toml").unwrap_err().to_string();
+            assert!(m.contains("decide.heave") && m.contains("\"off\""), "{m}");
+            let off = format!("{text}[decide]\nheave = \"off\"\n");
+            PipelineConfig::from_toml("p.toml", &off)
+                .unwrap()
+                .validate("p.toml")
+                .unwrap();
+        }
         let c = PipelineConfig::from_toml("p.toml", "[bus]\ndomain = \"Not Ok\"\n").unwrap();
         let m = c.validate("p.toml").unwrap_err().to_string();
         assert!(m.contains("bus") && m.contains("Not Ok"), "{m}");

@@ -46,6 +46,8 @@ def main():
     ap.add_argument("--port", type=int, required=True, help="deckwatch's udpin port on 127.0.0.1")
     ap.add_argument("--tilt-deg", type=float, nargs=3, default=[0.0, 0.0, 0.0])
     ap.add_argument("--rate-hz", type=float, default=100.0)
+    ap.add_argument("--height-m", type=float, default=5.0,
+                    help="the vehicle's height in the local frame (LOCAL_POSITION_NED at 30 Hz)")
     ap.add_argument("--clock-offset-s", type=float, default=0.0)
     ap.add_argument("--stop-after-s", type=float, required=True)
     ap.add_argument("--linger-s", type=float, default=3.0)
@@ -71,6 +73,7 @@ def main():
     period_ns = int(1e9 / a.rate_hz)
     next_attitude = start
     next_heartbeat = start
+    next_position = start
     out = {
         "stop_monotonic_ns": stop_ns,
         "attitudes_sent": 0,
@@ -97,6 +100,10 @@ def main():
             mav.attitude_quaternion_send(int(boot_ns() / 1e6) & 0xFFFFFFFF, q[0], q[1], q[2], q[3], 0, 0, 0)
             out["attitudes_sent"] += 1
             next_attitude += period_ns
+        if streaming and now >= next_position:
+            # NED: z is down; holding its height, the vehicle does not move.
+            mav.local_position_ned_send(int(boot_ns() / 1e6) & 0xFFFFFFFF, 0, 0, -a.height_m, 0, 0, 0)
+            next_position += 33_333_333
         # Receive until the next thing to send is due.
         m = conn.recv_match(blocking=True, timeout=0.002)
         if m is None:
@@ -126,7 +133,8 @@ def main():
         elif t == "NAMED_VALUE_INT" and m.name == "dw_state":
             out["states"].append([recv, m.value])
         elif t == "NAMED_VALUE_FLOAT":
-            out["floats"].setdefault(m.name, []).append(m.value)
+            # NaN (not measured) has no JSON form: null.
+            out["floats"].setdefault(m.name, []).append(m.value if math.isfinite(m.value) else None)
         elif t == "STATUSTEXT":
             out["texts"].append([recv, m.severity, m.text])
         elif t == "HEARTBEAT":

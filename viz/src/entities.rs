@@ -30,6 +30,12 @@ pub const CALM_WINDOW_LENGTH: &str = "decision/calm_window/length_s";
 /// State changes as text.
 pub const DECISION_LOG: &str = "decision/log";
 /// The vehicle's attitude from the autopilot (deg; north-west-up) and the link's clock.
+/// The deck's heave: its height in W as measured and true (m), and its predicted vertical
+/// speed (m/s).
+pub const HEAVE: &str = "heave";
+pub const HEAVE_MEASURED: &str = "heave/deck_height_m";
+pub const HEAVE_TRUTH: &str = "heave/truth_m";
+pub const HEAVE_RATE: &str = "heave/rate_mps";
 pub const VEHICLE_ROLL: &str = "vehicle/roll";
 pub const VEHICLE_PITCH: &str = "vehicle/pitch";
 pub const LINK_CLOCK_OFFSET: &str = "link/clock_offset_ms";
@@ -89,11 +95,14 @@ pub fn truth_items(seq: u64, captured_ns: u64, truth: &Truth) -> Vec<Item> {
         return Vec::new();
     }
     let values = [truth.roll_deg, truth.pitch_deg, truth.yaw_deg];
-    let scalars = AXES
+    let mut scalars: Vec<(String, f64)> = AXES
         .iter()
         .zip(values)
         .map(|(axis, v)| (attitude_path(axis, TRUTH_SERIES), v))
         .collect();
+    if truth.deck_heave_m.is_finite() {
+        scalars.push((HEAVE_TRUTH.into(), truth.deck_heave_m));
+    }
     vec![item(seq, captured_ns, ItemKind::Scalars(scalars))]
 }
 
@@ -106,6 +115,9 @@ pub fn attitude_items(a: &AttitudeMessage) -> Vec<Item> {
     if a.valid {
         for (axis, v) in AXES.iter().zip(a.rpy.to_degrees()) {
             scalars.push((attitude_path(axis, a.estimator.name()), v));
+        }
+        if a.deck_height_m.is_finite() {
+            scalars.push((HEAVE_MEASURED.into(), a.deck_height_m));
         }
     }
     let alt = &a.alternative;
@@ -203,6 +215,7 @@ pub fn decision_items(d: &LandingDecision, state_changed: bool) -> Vec<Item> {
             (DECISION_STATE.into(), d.state as u32 as f64),
             (CALM_WINDOW_START.into(), d.calm_window_start_s),
             (CALM_WINDOW_LENGTH.into(), d.calm_window_length_s),
+            (HEAVE_RATE.into(), d.heave_rate_mps),
         ]),
     )];
     if state_changed {

@@ -155,6 +155,9 @@ pub fn send_blueprint(rec: &RecordingStream) -> Result<(), VizError> {
         TimeSeriesView::new("yaw (deg)")
             .with_origin(entities::attitude_axis_path(entities::AXES[2]))
             .into(),
+        TimeSeriesView::new("heave (m, m/s)")
+            .with_origin(entities::HEAVE)
+            .into(),
         TimeSeriesView::new("decision")
             .with_origin(entities::DECISION)
             .into(),

@@ -13,7 +13,7 @@ use deckwatch_common::messages::{
     monotonic_ns, AttitudeMessage, DecisionReason, DecisionState, GapCounter, LandingDecision,
 };
 use deckwatch_common::vehicle::Compensation;
-use deckwatch_decide::{DecisionConfig, LandingDecider};
+use deckwatch_decide::{DecisionConfig, DeckObservation, LandingDecider};
 use deckwatch_viz::Item;
 use std::time::Duration;
 
@@ -63,9 +63,9 @@ impl DecideStage {
     pub fn process(&mut self, a: &AttitudeMessage, received_ns: u64) -> LandingDecision {
         self.dropped += self.gaps.observe(a.stamp.seq, a.stamp.drops.total());
         self.processed += 1;
-        let attitude = a.valid.then(|| {
+        let deck = a.valid.then(|| {
             let [r, p, _] = a.rpy.to_degrees();
-            [r, p]
+            DeckObservation::new(r, p, a.deck_height_m)
         });
         let captured = a.stamp.times.captured_ns;
         // A message without a capture time cannot be judged fresh.
@@ -79,7 +79,7 @@ impl DecideStage {
             // The deck relative to a tilted camera is not the deck.
             self.decider.refuse(t, DecisionReason::NoVehicleAttitude)
         } else {
-            self.decider.update_at_capture(t, attitude, age_s)
+            self.decider.update_at_capture(t, deck, age_s)
         };
         self.last_input = Some((t, received_ns));
         let (start, length) = d.calm_window.unwrap_or((f64::NAN, f64::NAN));
@@ -91,6 +91,7 @@ impl DecideStage {
             reason: d.reason,
             calm_window_start_s: start,
             calm_window_length_s: length,
+            heave_rate_mps: d.heave_rate_mps,
             watchdog: false,
         };
         out.stamp.drops.decide = self.dropped;
@@ -111,6 +112,7 @@ impl DecideStage {
         out.reason = d.reason;
         out.calm_window_start_s = f64::NAN;
         out.calm_window_length_s = f64::NAN;
+        out.heave_rate_mps = f64::NAN;
         out.watchdog = true;
         out.stamp.times.decide_received_ns = now_ns;
         out.stamp.times.decide_finished_ns = monotonic_ns();
@@ -172,6 +174,7 @@ mod tests {
         let mut a = AttitudeMessage {
             valid: true,
             rpy: Rpy::from_degrees(1.0, 1.0, 0.0),
+            deck_height_m: 0.0,
             ..Default::default()
         };
         a.stamp.times.captured_ns = 1_000_000_000;
@@ -220,6 +223,7 @@ mod tests {
         for k in 0..600u64 {
             let t = k as f64 * 0.1;
             a.rpy = Rpy::from_degrees(0.8 * (0.7 * t).sin(), 0.6 * (0.5 * t + 1.0).sin(), 0.0);
+            a.deck_height_m = 0.3 * (0.6 * t).sin();
             a.stamp.seq = k;
             a.context.source_timestamp_ns = k * 100_000_000;
             a.stamp.times.captured_ns = 1_000_000_000 + k * 100_000_000;
@@ -249,6 +253,7 @@ mod tests {
                     let mut a = AttitudeMessage {
                         valid: true,
                         rpy: Rpy::from_degrees(2.0 * (0.7 * t).sin(), 1.5 * (0.5 * t + 1.0).sin(), 0.0),
+                        deck_height_m: 0.4 * (0.6 * t).sin(),
                         ..Default::default()
                     };
                     a.stamp.seq = k;

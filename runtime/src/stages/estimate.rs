@@ -11,7 +11,7 @@ use deckwatch_common::messages::{
 };
 use deckwatch_common::rotation::rot_z;
 use deckwatch_common::vehicle::{
-    Compensation, MeanHeading, VehicleAttitudeSource, VehicleConfig, VehicleTrack,
+    Compensation, MeanHeading, VehicleAttitudeSource, VehicleConfig, VehicleStateSample, VehicleTrack,
 };
 use deckwatch_common::{Attitude, RotationMatrix, Rpy};
 use deckwatch_estimate::config::paper_variant;
@@ -40,6 +40,13 @@ fn pose_failure(e: &PoseError) -> AttitudeFailure {
         | PoseError::WrongMarkerCount { .. } => AttitudeFailure::TooFewMarkers,
         PoseError::Undistortion { .. } | PoseError::Degenerate(_) => AttitudeFailure::Degenerate,
     }
+}
+
+/// The deck centre's height in W: the vehicle's height less the camera's height over the deck
+/// centre (W's z is vertical whatever its heading, so the heading reference does not matter).
+/// NaN when either is unknown.
+fn deck_height_m(vehicle: &VehicleAttitude, e: &Estimate) -> f64 {
+    vehicle.height_m - e.camera_position_m[2]
 }
 
 /// One estimator's attitude, as it goes into a message.
@@ -157,6 +164,7 @@ impl EstimateStage {
                 let [x, y, z] = e.camera_position_m;
                 let c = to_w * nalgebra::Vector3::new(x, y, z);
                 e.camera_position_m = [c.x, c.y, c.z];
+                out.deck_height_m = deck_height_m(&vehicle, &e);
                 e.write(&mut out)
             }
             Err(f) => out.failure = f,
@@ -166,6 +174,10 @@ impl EstimateStage {
             let mut second = self.run(kind, m, &camera);
             if let Ok(e) = &mut second.result {
                 e.attitude = Attitude::from_matrix(to_w * e.attitude.matrix);
+                // The paper's method has no position: the full pose beside it gives the heave.
+                if out.valid && !out.deck_height_m.is_finite() {
+                    out.deck_height_m = deck_height_m(&vehicle, e);
+                }
             }
             // The paper's ring ellipse is worth drawing whichever estimator leads.
             if let Ok(Estimate {
@@ -191,7 +203,11 @@ impl EstimateStage {
     /// A vehicle attitude sample from the autopilot (kept for the frames to come).
     pub fn observe_vehicle(&mut self, sample: &VehicleSample) {
         if sample.link_up {
-            self.track.push(sample.time_ns, sample.quaternion);
+            self.track.push(VehicleStateSample {
+                time_ns: sample.time_ns,
+                quaternion: sample.quaternion,
+                height_m: Some(sample.height_m).filter(|h| h.is_finite()),
+            });
         }
     }
 

@@ -232,12 +232,13 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
         pct(&mut all_ns)
     );
     Ok(format!(
-        "{} heartbeats, {} attitudes ({} refused), {} timesyncs, {} heights in; {sent_decisions} decisions, {} landing targets out ({} sends failed); {latency}; {clock}",
+        "{} heartbeats, {} attitudes ({} refused), {} timesyncs, {} ranges, {} local positions in; {sent_decisions} decisions, {} landing targets out ({} sends failed); {latency}; {clock}",
         c.heartbeats,
         c.attitudes,
         c.refused,
         c.timesyncs,
         c.heights,
+        c.positions,
         outgoing.landing_targets,
         failed.load(Ordering::Relaxed)
     ))

@@ -153,9 +153,10 @@ impl SimulationArgs {
             .to_string();
         let camera = CameraModel::preset(&camera_name)
             .ok_or_else(|| format!("--camera: unknown `{camera_name}` (paper, rpi-v2)"))?;
-        if !(self.rate.is_finite() && self.rate > 0.0) {
+        use crate::source::{MAX_RATE_HZ, MIN_RATE_HZ};
+        if !(MIN_RATE_HZ..=MAX_RATE_HZ).contains(&self.rate) {
             return Err(format!(
-                "--rate: must be a positive number of Hz, got {}",
+                "--rate: must be within [{MIN_RATE_HZ}, {MAX_RATE_HZ}] Hz, got {}",
                 self.rate
             ));
         }

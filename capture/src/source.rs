@@ -160,8 +160,15 @@ impl CaptureConfig {
         Ok(match self.replay.rate_hz {
             None => Pace::Recorded,
             Some(0.0) => Pace::AsFastAsPossible,
-            Some(hz) if hz.is_finite() && hz > 0.0 => Pace::Fixed((1e9 / hz).round() as u64),
-            Some(hz) => return Err(config_error("replay.rate_hz", format!("must be >= 0, got {hz}"))),
+            Some(hz) if (MIN_RATE_HZ..=MAX_RATE_HZ).contains(&hz) => Pace::Fixed((1e9 / hz).round() as u64),
+            Some(hz) => {
+                return Err(config_error(
+                    "replay.rate_hz",
+                    format!(
+                    "must be 0 (as fast as possible) or within [{MIN_RATE_HZ}, {MAX_RATE_HZ}] Hz, got {hz}"
+                ),
+                ))
+            }
         })
     }
 
@@ -292,7 +299,9 @@ fn recorded_offset_ns(rec: &Recording, k: u64) -> u64 {
     let last = rec.frames[n as usize - 1].timestamp_ns.saturating_sub(t0);
     let period = if n > 1 { last / (n - 1) } else { 100_000_000 };
     let (lap, j) = (k / n, (k % n) as usize);
-    lap * (last + period) + rec.frames[j].timestamp_ns.saturating_sub(t0)
+    // Saturating: recorded timestamps near u64::MAX, looped, must not wrap to the past.
+    lap.saturating_mul(last.saturating_add(period))
+        .saturating_add(rec.frames[j].timestamp_ns.saturating_sub(t0))
 }
 
 /// The error of a build without the `libcamera` feature asked for a camera.
@@ -302,6 +311,11 @@ fn not_built() -> SourceError {
         crate::camera::NOT_BUILT
     ))
 }
+
+/// Frame rates a source accepts (Hz): slower than one frame in 1000 s or faster than 10 kHz is
+/// a mistake, and would overflow the pacing arithmetic at the extremes.
+pub const MIN_RATE_HZ: f64 = 1e-3;
+pub const MAX_RATE_HZ: f64 = 1e4;
 
 /// How replay paces frames.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -417,10 +431,11 @@ impl CaptureSource {
     /// When frame `k` is due, in ns after the first; None = as fast as possible.
     pub fn due_ns(&self, k: u64) -> Option<u64> {
         match &self.inner {
-            Inner::Sim { period_ns, .. } => Some(k * period_ns),
+            // Saturating: a run long enough to overflow is due "never", not at a wrapped time.
+            Inner::Sim { period_ns, .. } => Some(k.saturating_mul(*period_ns)),
             Inner::Replay { rec, pace, .. } => match pace {
                 Pace::AsFastAsPossible => None,
-                Pace::Fixed(p) => Some(k * p),
+                Pace::Fixed(p) => Some(k.saturating_mul(*p)),
                 Pace::Recorded => Some(recorded_offset_ns(rec, k)),
             },
             // A camera sets its own pace: frames are taken as they arrive.

@@ -111,6 +111,14 @@ pub struct CameraModel {
 /// The camera presets deckwatch knows by name.
 pub const CAMERA_PRESETS: [&str; 2] = ["paper", "rpi-v2"];
 
+/// The largest image side accepted (px): beyond any sensor, and small enough that a frame's
+/// size in bytes cannot overflow.
+pub const MAX_SIDE_PX: u32 = 32_768;
+/// The longest focal length accepted, in image sides (a 0.3 deg field of view).
+pub const MAX_FOCAL_SIDES: f64 = 200.0;
+/// The largest distortion coefficient accepted (OpenCV's fits stay far below).
+pub const MAX_DISTORTION: f64 = 1e3;
+
 impl CameraModel {
     /// A distortion-free camera with the principal point at the image centre.
     pub fn centred(width: u32, height: u32, fx: f64, fy: f64) -> Self {
@@ -170,33 +178,38 @@ impl CameraModel {
 
     /// Checks every field; the error names the field.
     pub fn validate(&self) -> Result<(), crate::InvalidField> {
-        if self.width == 0 {
-            return Err(crate::InvalidField::new("width", "must be > 0"));
-        }
-        if self.height == 0 {
-            return Err(crate::InvalidField::new("height", "must be > 0"));
-        }
-        for (name, v) in [("fx", self.fx), ("fy", self.fy)] {
-            if !(v.is_finite() && v > 0.0) {
+        // Bounded, not just positive: buffer sizes and search windows are computed from these
+        // (a 1e10 px focal length or a 4e9 px wide image would overflow them).
+        for (name, v) in [("width", self.width), ("height", self.height)] {
+            if !(1..=MAX_SIDE_PX).contains(&v) {
                 return Err(crate::InvalidField::new(
                     name,
-                    format!("must be a positive number, got {v}"),
+                    format!("must be 1..={MAX_SIDE_PX} px, got {v}"),
+                ));
+            }
+        }
+        let side = f64::from(self.width.max(self.height));
+        for (name, v) in [("fx", self.fx), ("fy", self.fy)] {
+            if !(v.is_finite() && v > 0.0 && v <= MAX_FOCAL_SIDES * side) {
+                return Err(crate::InvalidField::new(
+                    name,
+                    format!("must be a positive number of px up to {MAX_FOCAL_SIDES} image widths, got {v}"),
                 ));
             }
         }
         for (name, v) in [("cx", self.cx), ("cy", self.cy)] {
-            if !v.is_finite() {
+            if !(v.is_finite() && v.abs() <= 10.0 * side) {
                 return Err(crate::InvalidField::new(
                     name,
-                    format!("must be a finite number, got {v}"),
+                    format!("must be a finite number of px within 10 image widths, got {v}"),
                 ));
             }
         }
         for (i, k) in self.distortion.to_array().iter().enumerate() {
-            if !k.is_finite() {
+            if !(k.is_finite() && k.abs() <= MAX_DISTORTION) {
                 return Err(crate::InvalidField::new(
                     format!("distortion[{i}]"),
-                    format!("must be finite, got {k}"),
+                    format!("must be finite and within +-{MAX_DISTORTION}, got {k}"),
                 ));
             }
         }

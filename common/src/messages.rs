@@ -120,9 +120,12 @@ pub struct DropCounts {
 }
 
 impl DropCounts {
-    /// Every frame lost before the stage that reports these counts.
+    /// Every frame lost before the stage that reports these counts. Saturating: the counts
+    /// come from other processes over shared memory, and a corrupt one must not overflow here.
     pub fn total(&self) -> u64 {
-        self.capture + self.bad_frames + self.detect + self.estimate + self.decide
+        self.named()
+            .iter()
+            .fold(0u64, |sum, (_, n)| sum.saturating_add(*n))
     }
 
     /// The counts with their names, in pipeline order.
@@ -657,6 +660,12 @@ pub enum DecisionReason {
     /// The deck's heave is part of the capacity (`[decide] heave = "required"`) but this frame
     /// has no deck height (no vehicle height, or no full pose).
     NoDeckHeave = 10,
+    /// The input repeats itself bit for bit (`[decide] frozen_input_count` attitudes in a row):
+    /// a frozen camera or a stuck stage, never a calm deck.
+    FrozenInput = 11,
+    /// A frame's time went backwards, or its capture is stamped in the future: the clock jumped.
+    /// Three in a row start a new timeline (history cleared, warm-up again).
+    ClockJump = 12,
 }
 
 impl DecisionReason {
@@ -673,6 +682,8 @@ impl DecisionReason {
             Self::PredictedOutside => "predicted-outside",
             Self::NoVehicleAttitude => "no-vehicle-attitude",
             Self::NoDeckHeave => "no-deck-heave",
+            Self::FrozenInput => "frozen-input",
+            Self::ClockJump => "clock-jump",
         }
     }
 }

@@ -44,6 +44,9 @@ pub struct DecisionConfig {
     pub gap_recovery_s: f64,
     /// A change between consecutive attitudes faster than this is a jump (a bad estimate).
     pub max_plausible_rate_dps: f64,
+    /// This many bit-identical inputs in a row (roll, pitch and deck height) are a frozen input:
+    /// refused (`frozen-input`), and the history is learnt afresh once it moves again.
+    pub frozen_input_count: u32,
     /// History used for the prediction.
     pub window_s: f64,
     /// No clearance before this much history.
@@ -102,6 +105,7 @@ impl Default for DecisionConfig {
             max_gap_ms: 500.0,
             gap_recovery_s: 1.0,
             max_plausible_rate_dps: 40.0,
+            frozen_input_count: 3,
             window_s: 40.0,
             min_history_s: 20.0,
             refit_interval_s: 1.0,
@@ -235,6 +239,37 @@ impl DecisionConfig {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(invalid(k, format!("must be >= 0, got {v}")));
             }
+        }
+        // Upper bounds: every duration sizes a loop, a buffer or a timer; beyond these they are
+        // mistakes, and at the extremes they would overflow or never end.
+        for (k, v, max) in [
+            ("touchdown_s", self.touchdown_s, 60.0),
+            ("max_age_ms", self.max_age_ms, 60_000.0),
+            ("max_gap_ms", self.max_gap_ms, 60_000.0),
+            ("gap_recovery_s", self.gap_recovery_s, 600.0),
+            ("window_s", self.window_s, 600.0),
+            ("min_history_s", self.min_history_s, 600.0),
+            ("refit_interval_s", self.refit_interval_s, 60.0),
+            ("fit_memory_s", self.fit_memory_s, 3600.0),
+            ("holdout_s", self.holdout_s, 300.0),
+            ("error_memory_s", self.error_memory_s, 3600.0),
+            ("horizon_s", self.horizon_s, 600.0),
+            ("abort_hold_s", self.abort_hold_s, 600.0),
+            ("error_factor", self.error_factor, 100.0),
+            ("max_plausible_rate_dps", self.max_plausible_rate_dps, 1e4),
+            ("max_abs_roll_rate_dps", self.max_abs_roll_rate_dps, 1e4),
+            ("max_abs_pitch_rate_dps", self.max_abs_pitch_rate_dps, 1e4),
+            ("max_abs_heave_rate_mps", self.max_abs_heave_rate_mps, 100.0),
+        ] {
+            if v > max {
+                return Err(invalid(k, format!("must be at most {max}, got {v}")));
+            }
+        }
+        if !(2..=1000).contains(&self.frozen_input_count) {
+            return Err(invalid(
+                "frozen_input_count",
+                format!("must be 2..=1000, got {}", self.frozen_input_count),
+            ));
         }
         if self.max_abs_roll_deg >= 90.0 || self.max_abs_pitch_deg >= 90.0 {
             return Err(invalid(
@@ -378,7 +413,14 @@ pub struct LandingDecider {
     /// The calm window found at the last refit (absolute start, length), and that refit's time.
     calm_cache: Option<(f64, Option<(f64, f64)>)>,
     last_input: Option<f64>,
+    /// The newest input's bits and how many times in a row it came.
+    repeated: Option<([u64; 3], u32)>,
+    /// Inputs in a row whose time went backwards.
+    backwards_run: u32,
 }
+
+/// A capture stamped further in the future than this (s) is a clock jump.
+const MAX_FUTURE_S: f64 = 0.05;
 
 const STEP_S: f64 = 0.05;
 
@@ -402,6 +444,8 @@ impl LandingDecider {
             abort_reason: DecisionReason::PredictedOutside,
             calm_cache: None,
             last_input: None,
+            repeated: None,
+            backwards_run: 0,
         })
     }
 
@@ -477,13 +521,34 @@ impl LandingDecider {
             deck.pitch_deg,
             if heave { deck.height_m } else { f64::NAN },
         ];
-        if !(t.is_finite() && age_s <= c.max_age_ms / 1e3) {
+        if !t.is_finite() || age_s < -MAX_FUTURE_S {
+            return Err(DecisionReason::ClockJump);
+        }
+        if !(age_s <= c.max_age_ms / 1e3) {
             return Err(DecisionReason::StaleData);
+        }
+        // A real sensor never repeats itself bit for bit: a frozen one must not look calm.
+        let bits = sample.map(f64::to_bits);
+        let count = match self.repeated {
+            Some((b, n)) if b == bits => n.saturating_add(1),
+            _ => 1,
+        };
+        self.repeated = Some((bits, count));
+        if count >= c.frozen_input_count {
+            // What came while it was frozen is not the deck's motion: learn afresh after it.
+            self.forget();
+            return Err(DecisionReason::FrozenInput);
         }
         if let Some(&(tp, prev)) = self.history.back() {
             let dt = t - tp;
             if !(dt > 0.0) {
-                return Err(DecisionReason::StaleData); // out of order or repeated
+                // Out of order or repeated once; three in a row: the clock jumped back (or an
+                // earlier time was in the future), so start a new timeline.
+                self.backwards_run += 1;
+                if self.backwards_run >= 3 {
+                    self.forget();
+                }
+                return Err(DecisionReason::ClockJump);
             }
             if dt > c.max_gap_ms / 1e3 {
                 self.gap_until = t + c.gap_recovery_s;
@@ -503,13 +568,11 @@ impl LandingDecider {
                     return Err(DecisionReason::Jump);
                 }
                 // Three in a row agree with each other, not with the history: start afresh.
-                self.history.clear();
-                self.models = None;
-                self.past.clear();
-                self.errors.clear();
+                self.forget();
             }
         }
         self.jump_run = 0;
+        self.backwards_run = 0;
         self.history.push_back((t, sample));
         while self.history.front().is_some_and(|&(t0, _)| t - t0 > c.window_s) {
             self.history.pop_front();
@@ -552,6 +615,17 @@ impl LandingDecider {
             }
         }
         Ok(())
+    }
+
+    /// Forgets the history and the models: what follows is learnt afresh (warm-up).
+    fn forget(&mut self) {
+        self.history.clear();
+        self.models = None;
+        self.past.clear();
+        self.errors.clear();
+        self.backwards_run = 0;
+        // A gap on the old timeline (say, to a time in the future) means nothing on the new one.
+        self.gap_until = f64::NEG_INFINITY;
     }
 
     /// The model missed: refit within `RETRY_S` (not at once: a refit every frame would cost
@@ -924,7 +998,7 @@ mod tests {
         let r = d.update_at_capture(f64::NAN, Some(sea(committed, 0.8)), 0.01);
         assert_eq!(
             (r.state, r.reason),
-            (DecisionState::Abort, DecisionReason::StaleData)
+            (DecisionState::Abort, DecisionReason::ClockJump)
         );
         // Nor does it stop the watchdog: silence after it is still noticed.
         assert!(d.timeout(committed + 1.0).is_some());
@@ -1045,6 +1119,49 @@ mod tests {
         assert!(out.iter().filter(|(_, d)| d.new_commit).count() > 0);
     }
 
+    /// The frozen camera: one image again and again, on a timeline that moves on. Never
+    /// cleared; once the input moves again, the history is learnt afresh.
+    #[test]
+    fn a_frozen_input_never_clears_and_is_learnt_afresh_after() {
+        let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
+        run(&mut d, 0.0, 40.0, |t| Some(sea(t, 0.3)));
+        let still = sea(40.0, 0.3);
+        let out = run(&mut d, 40.0, 110.0, |_| Some(still));
+        assert!(out.iter().all(|(_, d)| d.state != DecisionState::ClearToLand));
+        assert!(out[2..]
+            .iter()
+            .all(|(_, d)| d.reason == DecisionReason::FrozenInput));
+        let out = run(&mut d, 110.0, 112.0, |t| Some(sea(t, 0.3)));
+        assert!(out.iter().all(|(_, d)| d.reason == DecisionReason::Warmup));
+        let c = DecisionConfig {
+            frozen_input_count: 1,
+            ..Default::default()
+        };
+        assert_eq!(c.validate().unwrap_err().key, "frozen_input_count");
+    }
+
+    /// One frame stamped far in the future, then the true timeline again: held with
+    /// `clock-jump`, then a new timeline after three, without a restart.
+    #[test]
+    fn a_clock_jump_is_recovered_from() {
+        let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
+        run(&mut d, 0.0, 30.0, |t| Some(sea(t, 0.3)));
+        let r = d.update(1e6, Some(sea(30.0, 0.3)), 1e6 + 0.005);
+        assert_ne!(r.state, DecisionState::ClearToLand);
+        let out = run(&mut d, 30.1, 150.0, |t| Some(sea(t, 0.3)));
+        let reasons: Vec<_> = out.iter().map(|(_, d)| d.reason).collect();
+        assert_eq!(reasons[..3], [DecisionReason::ClockJump; 3]);
+        assert_eq!(reasons[3], DecisionReason::Warmup);
+        assert!(
+            out.iter().any(|(_, d)| d.new_commit),
+            "cleared again after a new warm-up: {:?}",
+            &reasons[200..]
+        );
+        // A capture stamped in the future on the monotonic clock (negative age).
+        let r = d.update_at_capture(150.1, Some(sea(150.1, 0.3)), -1.0);
+        assert_eq!(r.reason, DecisionReason::ClockJump);
+    }
+
     #[test]
     fn config_errors_name_the_field() {
         let c = DecisionConfig {
@@ -1052,5 +1169,31 @@ mod tests {
             ..Default::default()
         };
         assert_eq!(c.validate().unwrap_err().key, "touchdown_s");
+        // Bounded above too: these size loops, buffers and timers.
+        for (c, key) in [
+            (
+                DecisionConfig {
+                    touchdown_s: 1e9,
+                    ..Default::default()
+                },
+                "touchdown_s",
+            ),
+            (
+                DecisionConfig {
+                    horizon_s: 1e12,
+                    ..Default::default()
+                },
+                "horizon_s",
+            ),
+            (
+                DecisionConfig {
+                    max_age_ms: 1e300,
+                    ..Default::default()
+                },
+                "max_age_ms",
+            ),
+        ] {
+            assert_eq!(c.validate().unwrap_err().key, key);
+        }
     }
 }

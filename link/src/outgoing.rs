@@ -6,7 +6,7 @@ use crate::clock::ClockEstimate;
 use crate::config::LinkConfig;
 use crate::frames::body_target;
 use crate::incoming::LinkState;
-use deckwatch_common::messages::{DecisionState, LandingDecision};
+use deckwatch_common::messages::{DecisionReason, DecisionState, LandingDecision};
 use deckwatch_common::vehicle::Compensation;
 use deckwatch_common::RotationMatrix;
 use mavlink::dialects::common::{
@@ -42,6 +42,20 @@ pub fn reported_state(d: &LandingDecision, link: LinkState) -> DecisionState {
     } else {
         d.state
     }
+}
+
+/// What the link reports when decide has said nothing for longer than its freshness limit (or
+/// nothing yet): NO-DECK for stale data, on the newest decision's frame, never a target. A
+/// decision the link cannot see renewed is not one to act on.
+pub fn stale_decision(last: Option<&LandingDecision>) -> LandingDecision {
+    let mut d = last.copied().unwrap_or_default();
+    d.state = DecisionState::NoDeck;
+    d.reason = DecisionReason::StaleData;
+    d.calm_window_start_s = f64::NAN;
+    d.calm_window_length_s = f64::NAN;
+    d.heave_rate_mps = f64::NAN;
+    d.watchdog = true;
+    d
 }
 
 fn link_number(l: LinkState) -> i32 {
@@ -237,7 +251,6 @@ impl Outgoing {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use deckwatch_common::messages::DecisionReason;
     use deckwatch_common::Rpy;
 
     fn decision(state: DecisionState) -> LandingDecision {
@@ -266,6 +279,30 @@ mod tests {
                 _ => "other",
             })
             .collect()
+    }
+
+    #[test]
+    fn a_decision_not_renewed_is_reported_stale_without_a_target() {
+        let mut o = Outgoing::new(&LinkConfig::default(), RotationMatrix::identity());
+        let d = decision(DecisionState::ClearToLand);
+        o.decision(&d, LinkState::Up, None, 10);
+        let stale = stale_decision(Some(&d));
+        assert_eq!(
+            (stale.state, stale.reason),
+            (DecisionState::NoDeck, DecisionReason::StaleData)
+        );
+        let m = o.decision(&stale, LinkState::Up, None, 400_000_010);
+        assert_eq!(kinds(&m)[0], "text", "no target, the change said at once");
+        match &m[0] {
+            MavMessage::STATUSTEXT(s) => {
+                assert_eq!(s.text.to_str().unwrap(), "deckwatch NO-DECK: stale-data")
+            }
+            _ => unreachable!(),
+        }
+        assert!(m.iter().any(|m| matches!(m, MavMessage::NAMED_VALUE_INT(v)
+            if v.name.to_str().unwrap() == names::STATE && v.value == 0)));
+        // Before any decision: the same.
+        assert_eq!(stale_decision(None).state, DecisionState::NoDeck);
     }
 
     #[test]

@@ -26,8 +26,10 @@ pub struct SupervisorConfig {
     /// First restart delay of a crashed stage; doubles with each further crash in a row.
     pub restart_backoff_ms: u64,
     pub max_backoff_ms: u64,
-    /// Restarts allowed per stage before the run is given up (0: never restart).
+    /// Restarts allowed per stage within `restart_window_ms` before the run is given up (0:
+    /// never restart). A sliding window: a long mission with a rare crash never runs out.
     pub max_restarts: u32,
+    pub restart_window_ms: u64,
     /// A stage that ran this long before crashing starts its backoff afresh.
     pub healthy_after_ms: u64,
     /// How long a stage may take to connect at start.
@@ -46,6 +48,7 @@ impl Default for SupervisorConfig {
             restart_backoff_ms: 250,
             max_backoff_ms: 8000,
             max_restarts: 10,
+            restart_window_ms: 600_000,
             healthy_after_ms: 10_000,
             ready_timeout_ms: 10_000,
             stop_timeout_ms: 3000,
@@ -186,6 +189,7 @@ impl PipelineConfig {
             ("stop_timeout_ms", s.stop_timeout_ms),
             ("status_interval_ms", s.status_interval_ms),
             ("restart_backoff_ms", s.restart_backoff_ms),
+            ("restart_window_ms", s.restart_window_ms),
         ] {
             if v == 0 {
                 return Err(invalid(format!("supervisor.{k}"), "must be positive".into()));

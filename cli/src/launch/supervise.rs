@@ -2,7 +2,8 @@
 //!
 //! [`RestartPolicy`] is the rule (pure, tested alone): a crashed stage is restarted after a
 //! backoff that doubles with each crash in a row (a stage that ran for `healthy_after_ms`
-//! starts afresh), up to `max_restarts` per stage; then the run is given up. [`supervise`]
+//! starts afresh), up to `max_restarts` per stage within a sliding `restart_window_ms`; then
+//! the run is given up. [`supervise`]
 //! applies it to the processes while the observer follows the decisions.
 
 use super::observe::Observer;
@@ -28,10 +29,13 @@ pub enum CrashVerdict {
 }
 
 /// One stage's crash history.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct CrashHistory {
+    /// Restarts over the whole run (reported).
     pub restarts: u32,
     failures_in_a_row: u32,
+    /// When the restarts within the window happened (time since the run began).
+    recent: std::collections::VecDeque<Duration>,
 }
 
 /// The restart rule of `[supervisor]`.
@@ -40,6 +44,7 @@ pub struct RestartPolicy {
     pub backoff: Duration,
     pub max_backoff: Duration,
     pub max_restarts: u32,
+    pub window: Duration,
     pub healthy_after: Duration,
 }
 
@@ -49,20 +54,30 @@ impl RestartPolicy {
             backoff: Duration::from_millis(c.restart_backoff_ms),
             max_backoff: Duration::from_millis(c.max_backoff_ms),
             max_restarts: c.max_restarts,
+            window: Duration::from_millis(c.restart_window_ms),
             healthy_after: Duration::from_millis(c.healthy_after_ms),
         }
     }
 
-    /// A stage stopped after running for `ran_for`: restart it (when), or give up.
-    pub fn on_crash(&self, history: &mut CrashHistory, ran_for: Duration) -> CrashVerdict {
+    /// A stage stopped at `now` (since the run began) after running for `ran_for`: restart it
+    /// (when), or give up when it has used `max_restarts` within the last `window`.
+    pub fn on_crash(&self, history: &mut CrashHistory, ran_for: Duration, now: Duration) -> CrashVerdict {
         if ran_for >= self.healthy_after {
             history.failures_in_a_row = 0;
         }
         history.failures_in_a_row = history.failures_in_a_row.saturating_add(1);
-        if history.restarts >= self.max_restarts {
+        while history
+            .recent
+            .front()
+            .is_some_and(|&t| now.saturating_sub(t) > self.window)
+        {
+            history.recent.pop_front();
+        }
+        if history.recent.len() >= self.max_restarts as usize {
             return CrashVerdict::GiveUp;
         }
-        history.restarts += 1;
+        history.recent.push_back(now);
+        history.restarts = history.restarts.saturating_add(1);
         let shift = (history.failures_in_a_row - 1).min(16);
         let backoff = self.backoff.checked_mul(1 << shift).unwrap_or(Duration::MAX);
         CrashVerdict::RestartAfter(backoff.min(self.max_backoff))
@@ -116,6 +131,7 @@ pub fn supervise(
 ) -> Result<RunReport, String> {
     let sup = &config.supervisor;
     let policy = RestartPolicy::new(sup);
+    let run_started = Instant::now();
     let domain = &config.bus.domain;
     let bus = Bus::join(&config.bus.settings(1), super::LAUNCHER).map_err(|e| e.to_string())?;
     let decisions = bus.subscriber::<LandingDecision>().map_err(|e| e.to_string())?;
@@ -167,24 +183,27 @@ pub fn supervise(
                     source_done = Some(now);
                     continue;
                 }
-                match policy.on_crash(&mut s.history, s.process.started.elapsed()) {
+                match policy.on_crash(&mut s.history, s.process.started.elapsed(), run_started.elapsed()) {
                     CrashVerdict::GiveUp => {
                         failure = Some(format!(
-                            "{} stopped ({}) and has used its {} restarts",
+                            "{} stopped ({}) and has used its {} restarts within {} s",
                             s.process.name,
                             describe(status),
-                            policy.max_restarts
+                            policy.max_restarts,
+                            policy.window.as_secs()
                         ));
                         return Ok(Flow::Stop);
                     }
                     CrashVerdict::RestartAfter(backoff) => {
                         say(format_args!(
-                            "{} stopped ({}); restarting in {} ms (restart {} of {})",
+                            "{} stopped ({}); restarting in {} ms (restart {}; {} of {} within {} s)",
                             s.process.name,
                             describe(status),
                             backoff.as_millis(),
                             s.history.restarts,
-                            policy.max_restarts
+                            s.history.recent.len(),
+                            policy.max_restarts,
+                            policy.window.as_secs()
                         ));
                         s.restart_at = Some(now + backoff);
                     }
@@ -258,7 +277,8 @@ mod tests {
         let p = policy(10);
         let mut h = CrashHistory::default();
         let quick = ms(100);
-        let backoffs: Vec<CrashVerdict> = (0..5).map(|_| p.on_crash(&mut h, quick)).collect();
+        let t = ms(0);
+        let backoffs: Vec<CrashVerdict> = (0..5).map(|_| p.on_crash(&mut h, quick, t)).collect();
         assert_eq!(
             backoffs,
             [250, 500, 1000, 1500, 1500].map(|v| CrashVerdict::RestartAfter(ms(v)))
@@ -266,23 +286,32 @@ mod tests {
         assert_eq!(h.restarts, 5);
         // It ran long enough to count as healthy: the backoff starts afresh.
         assert_eq!(
-            p.on_crash(&mut h, ms(10_000)),
+            p.on_crash(&mut h, ms(10_000), t),
             CrashVerdict::RestartAfter(ms(250))
         );
-        assert_eq!(p.on_crash(&mut h, quick), CrashVerdict::RestartAfter(ms(500)));
+        assert_eq!(p.on_crash(&mut h, quick, t), CrashVerdict::RestartAfter(ms(500)));
     }
 
     #[test]
     fn the_restart_budget_ends_the_run() {
         let p = policy(2);
         let mut h = CrashHistory::default();
-        assert!(matches!(p.on_crash(&mut h, ms(1)), CrashVerdict::RestartAfter(_)));
-        assert!(matches!(p.on_crash(&mut h, ms(1)), CrashVerdict::RestartAfter(_)));
-        assert_eq!(p.on_crash(&mut h, ms(1)), CrashVerdict::GiveUp);
+        let restart = |h: &mut CrashHistory, at_s: u64| p.on_crash(h, ms(1), ms(at_s * 1000));
+        assert!(matches!(restart(&mut h, 0), CrashVerdict::RestartAfter(_)));
+        assert!(matches!(restart(&mut h, 1), CrashVerdict::RestartAfter(_)));
+        assert_eq!(restart(&mut h, 2), CrashVerdict::GiveUp);
         assert_eq!(h.restarts, 2);
+        // A sliding window (10 min): a crash an hour on into a long mission is restarted.
+        let mut h = CrashHistory::default();
+        assert!(matches!(restart(&mut h, 0), CrashVerdict::RestartAfter(_)));
+        assert!(matches!(restart(&mut h, 1), CrashVerdict::RestartAfter(_)));
+        assert!(matches!(restart(&mut h, 3600), CrashVerdict::RestartAfter(_)));
+        assert!(matches!(restart(&mut h, 3601), CrashVerdict::RestartAfter(_)));
+        assert_eq!(restart(&mut h, 3602), CrashVerdict::GiveUp);
+        assert_eq!(h.restarts, 4);
         // max_restarts = 0: never restart.
         assert_eq!(
-            policy(0).on_crash(&mut CrashHistory::default(), ms(1)),
+            policy(0).on_crash(&mut CrashHistory::default(), ms(1), ms(0)),
             CrashVerdict::GiveUp
         );
     }
@@ -293,12 +322,13 @@ mod tests {
             backoff: Duration::from_secs(u32::MAX as u64),
             max_backoff: Duration::from_secs(1),
             max_restarts: u32::MAX,
+            window: Duration::MAX,
             healthy_after: Duration::MAX,
         };
         let mut h = CrashHistory::default();
         for _ in 0..40 {
             assert_eq!(
-                p.on_crash(&mut h, ms(1)),
+                p.on_crash(&mut h, ms(1), ms(0)),
                 CrashVerdict::RestartAfter(Duration::from_secs(1))
             );
         }

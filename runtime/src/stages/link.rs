@@ -13,7 +13,7 @@ use deckwatch_common::messages::{monotonic_ns, LandingDecision, VehicleSample};
 use deckwatch_common::stats::Percentiles;
 use deckwatch_link::incoming::{Incoming, LinkState};
 use deckwatch_link::mavlink;
-use deckwatch_link::outgoing::Outgoing;
+use deckwatch_link::outgoing::{stale_decision, Outgoing};
 use deckwatch_link::{LinkConfig, MavHeader, MavMessage};
 use mavlink::error::MessageReadError;
 use mavlink::{ConnectionAddress, MavConnection, MavlinkVersion};
@@ -148,6 +148,10 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
     let (mut hop_ns, mut first_ns, mut all_ns) = (Vec::new(), Vec::new(), Vec::new());
     let mut sent_decisions = 0u64;
     let mut last_logged_seq = u64::MAX;
+    // The newest decision and when it came: one older than decide's freshness limit (or none
+    // yet) is reported as NO-DECK stale-data, whatever it said.
+    let mut newest_decision: Option<(LandingDecision, u64)> = None;
+    let stale_after_ns = (config.decide.max_age_ms * 1e6) as u64;
     let tick = Duration::from_millis(50);
     event_loop(&[decisions.listener()], Some(tick), |wake| {
         let now = monotonic_ns();
@@ -177,6 +181,12 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
                     .request(monotonic_ns() as i64);
                 send(&conn, &id, &Outgoing::timesync_request(ts1, autopilot), &failed);
             }
+            if newest_decision.is_none_or(|(_, at)| now.saturating_sub(at) > stale_after_ns) {
+                let stale = stale_decision(newest_decision.as_ref().map(|(d, _)| d));
+                for m in outgoing.decision(&stale, state, clock.as_ref(), now) {
+                    send(&conn, &id, &m, &failed);
+                }
+            }
             if let (Some(l), Some(s)) = (&logger, newest) {
                 if s.seq != last_logged_seq {
                     last_logged_seq = s.seq;
@@ -194,6 +204,7 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
                 first.get_or_insert_with(monotonic_ns);
             }
             sent_decisions += 1;
+            newest_decision = Some((d, received));
             let made = d.stamp.times.decide_finished_ns;
             if made != 0 && !d.watchdog {
                 let since = |t: u64| t.saturating_sub(made) as f64;

@@ -72,3 +72,137 @@ fn a_frozen_camera_never_clears() {
     // decided are frozen (and the watchdog's stale one at the end).
     assert!(total > 100 && frozen + 5 >= total, "{seen:?}");
 }
+
+/// A decisions CSV on a full disk (`/dev/full`: every write fails with ENOSPC): said once, the
+/// pipeline goes on deciding every frame, and the command fails at the end so that no script
+/// takes the file for the whole run.
+#[test]
+fn a_full_disk_for_the_decisions_csv_does_not_stop_the_pipeline() {
+    let out = Command::new(workspace_binary("deckwatch"))
+        .args([
+            "run", "--quiet", "--frames", "30", "--rate", "30", "--rerun", "off",
+        ])
+        .args(["--domain", &format!("t{}-full", std::process::id())])
+        .args(["--decisions", "/dev/full"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(!out.status.success(), "an incomplete CSV must fail the command");
+    assert!(
+        stderr.contains("decisions CSV") && stderr.contains("incomplete after 0 rows"),
+        "{stderr}"
+    );
+    // The pipeline went on after the first failed row (a debug build may drop a few frames).
+    let decided: u64 = stdout
+        .split(" decisions in")
+        .next()
+        .and_then(|n| n.trim().parse().ok())
+        .unwrap_or(0);
+    assert!(decided >= 20, "still deciding:\n{stdout}\n{stderr}");
+}
+
+/// Pids of the live (not zombie) children of `parent`, from /proc.
+fn children(parent: u32) -> Vec<u32> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(pid) = e.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) else {
+            continue;
+        };
+        // pid (comm) state ppid ...: comm may hold spaces, so split after its ')'.
+        let Some(rest) = stat.rsplit_once(')').map(|(_, r)| r.to_string()) else {
+            continue;
+        };
+        let f: Vec<&str> = rest.split_whitespace().collect();
+        if f.len() > 1 && f[1] == parent.to_string() && f[0] != "Z" {
+            out.push(pid);
+        }
+    }
+    out
+}
+
+/// Whether `pid` still runs (a zombie has exited).
+fn running(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat"))
+        .ok()
+        .and_then(|s| {
+            s.rsplit_once(')')
+                .map(|(_, r)| r.split_whitespace().next() != Some("Z"))
+        })
+        .unwrap_or(false)
+}
+
+/// The launcher SIGKILLed mid-run: its stages exit on their own (PR_SET_PDEATHSIG), and
+/// `deckwatch clean` removes what it left: the domain's shared memory and its run folder.
+#[test]
+fn a_killed_launcher_leaves_nothing_after_clean() {
+    let dir = tempfile::tempdir().unwrap();
+    let domain = format!("t{}-kill", std::process::id());
+    let csv = dir.path().join("d.csv");
+    let mut launcher = Command::new(workspace_binary("deckwatch"))
+        .args([
+            "run", "--quiet", "--frames", "100000", "--rate", "10", "--rerun", "off",
+        ])
+        .args(["--domain", &domain])
+        .arg("--decisions")
+        .arg(&csv)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    // Until decisions flow through every stage.
+    while std::fs::read_to_string(&csv).map_or(0, |t| t.lines().count()) < 5 {
+        assert!(start.elapsed().as_secs() < 120, "no decisions");
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    let stages = children(launcher.id());
+    assert_eq!(stages.len(), 4, "capture, detect, estimate, decide: {stages:?}");
+    let run_dir = std::env::temp_dir().join(format!("deckwatch-{domain}-{}", launcher.id()));
+    assert!(run_dir.exists());
+    launcher.kill().unwrap();
+    launcher.wait().unwrap();
+    let killed = std::time::Instant::now();
+    while stages.iter().any(|&p| running(p)) {
+        assert!(killed.elapsed().as_secs() < 10, "stages outlived the launcher");
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    println!(
+        "every stage exited {} ms after the launcher was killed",
+        killed.elapsed().as_millis()
+    );
+    assert!(run_dir.exists(), "a SIGKILL leaves the run folder");
+    let out = Command::new(workspace_binary("deckwatch"))
+        .args(["clean", "--domain", &domain])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(text.contains(&run_dir.display().to_string()), "{text}");
+    assert!(!run_dir.exists());
+    let prefix = deckwatch_runtime::bus::domain_prefix(&domain);
+    let left: Vec<String> = ["/dev/shm", "/tmp/iceoryx2"]
+        .iter()
+        .flat_map(|d| walk(Path::new(d)))
+        .filter(|name| name.contains(&prefix))
+        .collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+}
+
+/// Every path under `dir`.
+fn walk(dir: &Path) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut todo = vec![dir.to_path_buf()];
+    while let Some(d) = todo.pop() {
+        for e in std::fs::read_dir(&d).into_iter().flatten().flatten() {
+            if e.path().is_dir() {
+                todo.push(e.path());
+            }
+            out.push(e.path().display().to_string());
+        }
+    }
+    out
+}

@@ -94,6 +94,18 @@ enum Command {
         #[command(subcommand)]
         command: RecordingCommand,
     },
+    /// Remove what a killed launcher left behind in a domain: the shared memory of its dead
+    /// processes and the domain, its temporary run folders, and (with `--rerun FILE.rrd`) that
+    /// recording's part files. Refuses while a pipeline runs in the domain. `deckwatch run` does
+    /// the same for its own domain when it starts.
+    Clean {
+        /// The iceoryx2 domain.
+        #[arg(long, default_value = deckwatch_runtime::bus::DEFAULT_DOMAIN)]
+        domain: String,
+        /// The `.rrd` of a `--rerun save` run whose parts to remove.
+        #[arg(long, value_name = "FILE.rrd")]
+        rerun: Option<std::path::PathBuf>,
+    },
 }
 
 #[derive(Subcommand)]
@@ -394,6 +406,20 @@ fn main() -> ExitCode {
             command: RecordingCommand::Check { dir },
         } => check_recording(&dir),
         Command::Cameras { json } => cameras(json),
+        Command::Clean { domain, rerun } => launch::clean(&domain, rerun.as_deref()).map(|c| {
+            println!(
+                "domain `{domain}`: {} dead processes' resources removed{}",
+                c.dead_nodes,
+                if c.domain_removed {
+                    ", the domain removed"
+                } else {
+                    ""
+                }
+            );
+            for p in &c.paths {
+                println!("removed {}", p.display());
+            }
+        }),
         Command::CameraRecord { config, frames, out } => camera_record(config, frames, &out),
     };
     match result {

@@ -170,7 +170,9 @@ pub fn load(config: Option<&Path>) -> Result<(PipelineConfig, String), String> {
     Ok((c, name))
 }
 
-fn finish(report: RunReport, json: bool) -> Result<(), String> {
+/// Prints the report; a decisions CSV that could not be written to the end fails the command
+/// (after the report), so no script takes the incomplete file for the whole run.
+fn finish(report: RunReport, json: bool, csv: Option<&Path>) -> Result<(), String> {
     if json {
         println!(
             "{}",
@@ -179,7 +181,11 @@ fn finish(report: RunReport, json: bool) -> Result<(), String> {
     } else {
         print_report(&report);
     }
-    Ok(())
+    match (&report.decisions_csv_error, csv) {
+        (Some(e), Some(path)) => Err(format!("the decisions CSV {} is {e}", path.display())),
+        (Some(e), None) => Err(format!("the decisions CSV is {e}")),
+        _ => Ok(()),
+    }
 }
 
 pub fn run(a: RunArgs) -> Result<(), String> {
@@ -202,7 +208,11 @@ pub fn run(a: RunArgs) -> Result<(), String> {
         decisions_csv: a.decisions,
         stage_dir: a.stage_dir,
     };
-    finish(launch(&c, &file, &options)?, a.json)
+    finish(
+        launch(&c, &file, &options)?,
+        a.json,
+        options.decisions_csv.as_deref(),
+    )
 }
 
 #[derive(clap::Args)]
@@ -255,7 +265,11 @@ pub fn latency(a: LatencyArgs) -> Result<(), String> {
         decisions_csv: a.decisions,
         stage_dir: a.stage_dir,
     };
-    finish(launch(&c, &file, &options)?, a.json)
+    finish(
+        launch(&c, &file, &options)?,
+        a.json,
+        options.decisions_csv.as_deref(),
+    )
 }
 
 #[cfg(test)]

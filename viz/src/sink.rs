@@ -181,10 +181,39 @@ pub fn send_blueprint(rec: &RecordingStream) -> Result<(), VizError> {
 /// Merges the per-process part files of a `save` run into one `.rrd` (one stream header), and
 /// removes the parts. Returns the number of messages written.
 pub fn merge_parts(path: &Path, stages: &[&str]) -> Result<u64, VizError> {
+    // Into a temporary file beside it, renamed once complete: a failed merge (disk full, a
+    // corrupt part) leaves no partial .rrd under the user's name, and keeps the parts.
+    let mut partial = path.as_os_str().to_owned();
+    partial.push(".merging");
+    let partial = std::path::PathBuf::from(partial);
+    let result = merge_into(&partial, path, stages);
+    match result {
+        Ok((n, parts)) => {
+            std::fs::rename(&partial, path)
+                .map_err(|e| file_error(path, format!("cannot rename {}: {e}", partial.display())))?;
+            for p in parts {
+                let _ = std::fs::remove_file(p);
+            }
+            Ok(n)
+        }
+        Err(e) => {
+            let _ = std::fs::remove_file(&partial);
+            Err(e)
+        }
+    }
+}
+
+/// Writes the parts of `path` into `out`: (messages, the parts read).
+fn merge_into(
+    out_path: &Path,
+    path: &Path,
+    stages: &[&str],
+) -> Result<(u64, Vec<std::path::PathBuf>), VizError> {
     use rerun::external::re_build_info::CrateVersion;
     use rerun::external::re_log_encoding as enc;
     use rerun::external::re_log_types::LogMsg;
-    let out = std::fs::File::create(path).map_err(|e| file_error(path, format!("cannot create: {e}")))?;
+    let out =
+        std::fs::File::create(out_path).map_err(|e| file_error(out_path, format!("cannot create: {e}")))?;
     let mut encoder = enc::Encoder::new_eager(
         CrateVersion::LOCAL,
         enc::EncodingOptions::PROTOBUF_COMPRESSED,
@@ -203,17 +232,20 @@ pub fn merge_parts(path: &Path, stages: &[&str]) -> Result<u64, VizError> {
             .map_err(|e| file_error(&part, e))?;
         for msg in decoder {
             let msg = msg.map_err(|e| file_error(&part, e))?;
-            encoder.append(&msg).map_err(|e| file_error(path, e))?;
+            encoder.append(&msg).map_err(|e| file_error(out_path, e))?;
             n += 1;
         }
         parts.push(part);
     }
-    encoder.finish().map_err(|e| file_error(path, e))?;
-    drop(encoder);
-    for p in parts {
-        let _ = std::fs::remove_file(p);
-    }
-    Ok(n)
+    encoder.finish().map_err(|e| file_error(out_path, e))?;
+    // Flushed and synced here, where an error can still be reported (a drop would swallow it).
+    let file = encoder
+        .into_inner()
+        .map_err(|e| file_error(out_path, e))?
+        .into_inner()
+        .map_err(|e| file_error(out_path, e.error().to_string()))?;
+    file.sync_all().map_err(|e| file_error(out_path, e))?;
+    Ok((n, parts))
 }
 
 /// Rows logged per entity of the recording (blueprint stores excluded), read back from an

@@ -17,6 +17,7 @@ use deckwatch_runtime::stage::active_stages;
 use deckwatch_viz::RerunSink;
 use process::{stage_binary, stop_all, StageProcess};
 pub use report::{print_report, RunReport};
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 pub use supervise::LaunchOptions;
 use supervise::{supervise, Supervised};
@@ -32,6 +33,15 @@ pub fn launch(config: &PipelineConfig, file: &str, options: &LaunchOptions) -> R
     let domain = config.bus.domain.clone();
     quiet_logging();
     Bus::cleanup_dead_nodes(&domain).map_err(|e| e.to_string())?;
+    // What an earlier launcher of this domain, killed, left behind.
+    for dir in stale_run_dirs(&domain) {
+        if std::fs::remove_dir_all(&dir).is_ok() {
+            say(format_args!(
+                "removed {} (left by a killed launcher)",
+                dir.display()
+            ));
+        }
+    }
     let alive = Bus::live_nodes(&domain).map_err(|e| e.to_string())?;
     if !alive.is_empty() {
         return Err(format!(
@@ -53,7 +63,7 @@ pub fn launch(config: &PipelineConfig, file: &str, options: &LaunchOptions) -> R
     let viewer = start_viewer(&mut config)?;
     let config = &config;
     // The stages read the same configuration, as the launcher resolved it.
-    let run_dir = std::env::temp_dir().join(format!("deckwatch-{domain}-{}", std::process::id()));
+    let run_dir = run_dir(&domain, std::process::id());
     std::fs::create_dir_all(&run_dir).map_err(|e| format!("{}: {e}", run_dir.display()))?;
     let config_path = run_dir.join("pipeline.toml");
     std::fs::write(&config_path, config.to_toml()).map_err(|e| format!("{}: {e}", config_path.display()))?;
@@ -94,6 +104,77 @@ pub fn launch(config: &PipelineConfig, file: &str, options: &LaunchOptions) -> R
 
 /// The launcher's name as a rerun part and iceoryx2 node.
 const LAUNCHER: &str = "launcher";
+
+/// The launcher's temporary folder of a run (the configuration it hands the stages).
+fn run_dir(domain: &str, pid: u32) -> PathBuf {
+    std::env::temp_dir().join(format!("deckwatch-{domain}-{pid}"))
+}
+
+/// Run folders of `domain` whose launcher is gone (a SIGKILL leaves them).
+fn stale_run_dirs(domain: &str) -> Vec<PathBuf> {
+    let prefix = format!("deckwatch-{domain}-");
+    let Ok(entries) = std::fs::read_dir(std::env::temp_dir()) else {
+        return Vec::new();
+    };
+    entries
+        .flatten()
+        .filter_map(|e| {
+            let name = e.file_name().to_string_lossy().to_string();
+            let pid: i32 = name.strip_prefix(&prefix)?.parse().ok()?;
+            // SAFETY: kill with signal 0 only checks that the process exists.
+            let alive = pid > 0 && unsafe { libc::kill(pid, 0) } == 0;
+            (!alive).then(|| e.path())
+        })
+        .collect()
+}
+
+/// What `deckwatch clean` removed.
+#[derive(Debug, Default)]
+pub struct Cleaned {
+    pub dead_nodes: u64,
+    pub domain_removed: bool,
+    pub paths: Vec<PathBuf>,
+}
+
+/// `deckwatch clean`: everything a killed launcher of `domain` left behind: the shared memory of
+/// its dead processes and the domain itself, its run folders, and with `rrd` the rerun part
+/// files (and an unfinished merge) of that recording. Refuses while the domain is in use.
+pub fn clean(domain: &str, rrd: Option<&Path>) -> Result<Cleaned, String> {
+    quiet_logging();
+    let alive = Bus::live_nodes(domain).map_err(|e| e.to_string())?;
+    if !alive.is_empty() {
+        return Err(format!(
+            "domain `{domain}` is in use by running nodes ({}): stop that pipeline first",
+            alive.join(", ")
+        ));
+    }
+    let mut out = Cleaned {
+        dead_nodes: Bus::cleanup_dead_nodes(domain)
+            .map_err(|e| e.to_string())?
+            .removed,
+        ..Cleaned::default()
+    };
+    out.domain_removed = Bus::remove_idle_domain(domain).map_err(|e| e.to_string())?;
+    for dir in stale_run_dirs(domain) {
+        if std::fs::remove_dir_all(&dir).is_ok() {
+            out.paths.push(dir);
+        }
+    }
+    if let Some(rrd) = rrd {
+        let mut merging = rrd.as_os_str().to_owned();
+        merging.push(".merging");
+        let parts = std::iter::once(LAUNCHER)
+            .chain(deckwatch_runtime::stage::STAGES.iter().map(|s| s.name))
+            .map(|stage| deckwatch_viz::RerunConfig::part_path(rrd, stage))
+            .chain(std::iter::once(PathBuf::from(merging)));
+        for p in parts {
+            if std::fs::remove_file(&p).is_ok() {
+                out.paths.push(p);
+            }
+        }
+    }
+    Ok(out)
+}
 
 /// Opens the launcher's own rerun stream (which carries the blueprint) and points the stages at
 /// the same recording.

@@ -141,6 +141,9 @@ pub struct Observer {
     /// When the last decision on a frame arrived.
     pub last_at: Instant,
     csv: Option<DecisionsCsv>,
+    /// Why the decisions CSV stopped being written (it is incomplete), with the rows written.
+    pub csv_error: Option<(String, u64)>,
+    csv_rows: u64,
 }
 
 impl Observer {
@@ -161,17 +164,32 @@ impl Observer {
             last: None,
             last_at: Instant::now(),
             csv: csv.map(DecisionsCsv::create).transpose()?,
+            csv_error: None,
+            csv_rows: 0,
         })
     }
 
-    pub fn observe(&mut self, d: &LandingDecision) -> Result<(), String> {
+    /// Follows one decision. A decisions CSV that cannot be written (disk full, read-only)
+    /// is said once and given up; the pipeline goes on deciding, and the report says the file
+    /// is incomplete.
+    pub fn observe(&mut self, d: &LandingDecision) {
         if let Some(w) = &mut self.csv {
-            w.write(d)?;
+            match w.write(d) {
+                Ok(()) => self.csv_rows += 1,
+                Err(e) => {
+                    super::say(format_args!(
+                        "decisions CSV: {e}; it is incomplete after {} rows and no more are written (the pipeline goes on)",
+                        self.csv_rows
+                    ));
+                    self.csv_error = Some((e, self.csv_rows));
+                    self.csv = None;
+                }
+            }
         }
         self.last = Some(*d);
         if d.watchdog {
             self.watchdog += 1;
-            return Ok(());
+            return;
         }
         self.decisions += 1;
         self.recent_count += 1;
@@ -193,7 +211,6 @@ impl Observer {
             }
         }
         self.last_at = Instant::now();
-        Ok(())
     }
 
     pub fn drops(&self) -> DropReport {
@@ -253,6 +270,10 @@ impl Observer {
             max_error_deg: (self.errors.n > 0).then_some(self.errors.max),
             attitudes_without_deck: self.attitudes_without_deck,
             interrupted,
+            decisions_csv_error: self
+                .csv_error
+                .as_ref()
+                .map(|(e, rows)| format!("incomplete after {rows} rows: {e}")),
         }
     }
 }
@@ -305,13 +326,13 @@ mod tests {
     #[test]
     fn observer_counts_states_drops_latency_and_error() {
         let mut o = Observer::new(None).unwrap();
-        o.observe(&decision(0, DecisionState::Hold, 0)).unwrap();
+        o.observe(&decision(0, DecisionState::Hold, 0));
         // Frame 1 dropped by capture, frame 3 missed by the launcher itself.
-        o.observe(&decision(2, DecisionState::ClearToLand, 1)).unwrap();
-        o.observe(&decision(4, DecisionState::Hold, 1)).unwrap();
+        o.observe(&decision(2, DecisionState::ClearToLand, 1));
+        o.observe(&decision(4, DecisionState::Hold, 1));
         let mut w = decision(4, DecisionState::NoDeck, 1);
         w.watchdog = true;
-        o.observe(&w).unwrap();
+        o.observe(&w);
         let r = o.report(1.0, vec![("detect".into(), 2)], false);
         assert_eq!((r.decisions, r.watchdog_decisions, r.valid_attitudes), (3, 1, 3));
         assert_eq!(r.states[1], ("HOLD".to_string(), 2));

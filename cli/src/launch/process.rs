@@ -51,11 +51,16 @@ impl StageProcess {
         }
         // Own process group: Ctrl-C reaches the launcher only, which stops the stages in order.
         cmd.process_group(0);
-        // SAFETY: prctl is async-signal-safe; it makes the kernel send SIGTERM to the stage if
-        // the launcher dies, so no stage outlives it.
+        // SAFETY: prctl and getppid are async-signal-safe; prctl makes the kernel send SIGTERM
+        // to the stage if the launcher dies, so no stage outlives it. A launcher that died
+        // before the prctl took effect is caught by the parent check (the stage is not started).
+        let launcher = std::process::id() as libc::pid_t;
         unsafe {
-            cmd.pre_exec(|| {
+            cmd.pre_exec(move || {
                 libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM);
+                if libc::getppid() != launcher {
+                    return Err(std::io::Error::other("the launcher is gone"));
+                }
                 Ok(())
             });
         }

@@ -42,6 +42,8 @@ pub struct RunReport {
     pub attitudes_without_deck: u64,
     /// Whether the run ended because of a signal (else: the source was exhausted).
     pub interrupted: bool,
+    /// The decisions CSV could not be written to the end (it is incomplete): why.
+    pub decisions_csv_error: Option<String>,
 }
 
 /// The report as a table for people.

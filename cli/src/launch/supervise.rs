@@ -168,10 +168,7 @@ pub fn supervise(
     let end = event_loop(&[decisions.listener()], Some(Duration::from_millis(50)), |wake| {
         if wake == Wake::Input(0) {
             while let Some(d) = decisions.receive()? {
-                if let Err(e) = observer.observe(&d) {
-                    failure = Some(e);
-                    return Ok(Flow::Stop);
-                }
+                observer.observe(&d);
             }
             return Ok(Flow::Continue);
         }

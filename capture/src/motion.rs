@@ -377,6 +377,125 @@ impl<P: MotionProfile> MotionProfile for Heaving<P> {
     }
 }
 
+/// A sea state's significant wave height (m) and modal (peak) period (s), as NATO STANAG 4194
+/// tabulates them for the open ocean (sea states 3-6).
+pub fn sea_state_waves(sea_state: u32) -> Option<(f64, f64)> {
+    match sea_state {
+        3 => Some((0.88, 7.5)),
+        4 => Some((1.88, 8.8)),
+        5 => Some((3.25, 9.7)),
+        6 => Some((5.0, 12.4)),
+        _ => None,
+    }
+}
+
+/// Ship motion from a wave spectrum rather than a few sinusoids (so not the family the
+/// decider's predictor fits): a JONSWAP spectrum (peak enhancement 3.3) of `COMPONENTS` waves
+/// with random frequencies and phases, seen from a ship at 5 m/s (encounter frequencies), through
+/// a simple ship response: roll a damped resonance at an 11 s natural period (damping 0.1) of
+/// the wave slope across the ship, pitch the wave slope along it low-passed at 6 s, heave the
+/// elevation low-passed at 8 s. The heading relative to the waves wanders (+-25 deg over 10 min
+/// about 60 deg), so roll and pitch trade places slowly.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpectrumShipMotion {
+    /// (amplitude, encounter angular frequency rad/s, phase) per wave, for roll (deg per unit
+    /// sin of heading), pitch (deg per unit cos of heading) and heave (m).
+    roll: Vec<(f64, f64, f64)>,
+    pitch: Vec<(f64, f64, f64)>,
+    heave: Vec<(f64, f64, f64)>,
+    yaw_deg: Vec<Sinusoid>,
+    pub tracking: TrackingError,
+}
+
+const COMPONENTS: usize = 300;
+const GRAVITY: f64 = 9.81;
+
+impl SpectrumShipMotion {
+    /// The JONSWAP sea of significant wave height `hs_m` and peak period `tp_s`, phases and
+    /// frequencies from `seed`.
+    pub fn jonswap(hs_m: f64, tp_s: f64, seed: u64) -> Self {
+        let mut rng = SplitMix64::new(seed ^ 0x0005_EA5B_EC7A);
+        let wp = TAU / tp_s;
+        let spectrum = |w: f64| {
+            let sigma = if w <= wp { 0.07 } else { 0.09 };
+            let r = (-(w - wp).powi(2) / (2.0 * sigma * sigma * wp * wp)).exp();
+            w.powi(-5) * (-1.25 * (wp / w).powi(4)).exp() * 3.3f64.powf(r)
+        };
+        // Random frequencies (so the sum never repeats) over the band that holds the energy.
+        let (w_lo, w_hi) = (0.5 * wp, 3.0 * wp);
+        let dw = (w_hi - w_lo) / COMPONENTS as f64;
+        let waves: Vec<(f64, f64)> = (0..COMPONENTS)
+            .map(|i| {
+                let w = w_lo + (i as f64 + rng.next_f64()) * dw;
+                (w, spectrum(w) * dw)
+            })
+            .collect();
+        // Scaled so that 4 sqrt(m0) = Hs.
+        let m0: f64 = waves.iter().map(|(_, e)| e).sum();
+        let scale = (hs_m / 4.0).powi(2) / m0;
+        let (speed_mps, mean_heading) = (5.0, 60f64.to_radians());
+        let (wr, zeta, wpitch, wheave) = (TAU / 11.0, 0.1, TAU / 6.0, TAU / 8.0);
+        let (mut roll, mut pitch, mut heave) = (Vec::new(), Vec::new(), Vec::new());
+        for (w, e) in waves {
+            let a = (2.0 * e * scale).sqrt();
+            let k = w * w / GRAVITY;
+            // Encounter frequency for waves from `mean_heading` off the bow.
+            let we = (w - k * speed_mps * mean_heading.cos()).abs().max(0.05);
+            let slope_deg = (k * a).to_degrees();
+            let u = we / wr;
+            let resonance = 1.0 / ((1.0 - u * u).powi(2) + (2.0 * zeta * u).powi(2)).sqrt();
+            let low_pass = |wc: f64| 1.0 / (1.0 + (we / wc).powi(4)).sqrt();
+            let phase = TAU * rng.next_f64();
+            roll.push((slope_deg * resonance, we, phase));
+            pitch.push((0.6 * slope_deg * low_pass(wpitch), we, phase + 0.5));
+            heave.push((a * low_pass(wheave), we, phase - 0.3));
+        }
+        let yaw_deg = sinusoids(&mut rng, &SEA_STATE_6_YAW, hs_m / 5.0);
+        Self {
+            roll,
+            pitch,
+            heave,
+            yaw_deg,
+            tracking: TrackingError::hover(5.0),
+        }
+    }
+
+    /// The sea state's JONSWAP sea ([`sea_state_waves`]).
+    pub fn sea_state(sea_state: u32, seed: u64) -> Option<Self> {
+        sea_state_waves(sea_state).map(|(hs, tp)| Self::jonswap(hs, tp, seed))
+    }
+
+    /// The heading of the waves off the bow (rad): wandering +-25 deg over 10 min.
+    fn heading(t_s: f64) -> f64 {
+        (60.0 + 25.0 * (TAU * t_s / 600.0).sin()).to_radians()
+    }
+
+    fn sum(c: &[(f64, f64, f64)], t_s: f64) -> f64 {
+        c.iter().map(|&(a, w, p)| a * (w * t_s + p).sin()).sum()
+    }
+
+    /// The deck's heave (m).
+    pub fn heave_m(&self, t_s: f64) -> f64 {
+        Self::sum(&self.heave, t_s)
+    }
+}
+
+impl MotionProfile for SpectrumShipMotion {
+    fn sample(&self, t_s: f64) -> MotionSample {
+        let chi = Self::heading(t_s);
+        MotionSample {
+            t_s,
+            attitude: Rpy::from_degrees(
+                chi.sin() * Self::sum(&self.roll, t_s),
+                chi.cos() * Self::sum(&self.pitch, t_s),
+                sum(&self.yaw_deg, t_s),
+            ),
+            viewpoint: self.tracking.at(t_s),
+            deck_heave_m: self.heave_m(t_s),
+        }
+    }
+}
+
 /// Samples a profile at `rate_hz` for `n` frames starting at t = 0.
 pub fn sample_series(profile: &dyn MotionProfile, rate_hz: f64, n: usize) -> Vec<MotionSample> {
     (0..n).map(|k| profile.sample(k as f64 / rate_hz)).collect()
@@ -384,6 +503,33 @@ pub fn sample_series(profile: &dyn MotionProfile, rate_hz: f64, n: usize) -> Vec
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn spectrum_seas_have_their_wave_height_and_plausible_motion() {
+        // Roll up to a few degrees at sea state 3, tens at 6 (frigates roll 20-30 deg in it).
+        for (ss, roll_range) in [(3, 0.5..10.0), (6, 10.0..45.0)] {
+            let sea = SpectrumShipMotion::sea_state(ss, 1).unwrap();
+            let (hs, _) = sea_state_waves(ss).unwrap();
+            let n = 60_000;
+            let (mut heave2, mut roll_max) = (0.0, 0.0f64);
+            for k in 0..n {
+                let s = sea.sample(k as f64 * 0.1);
+                heave2 += s.deck_heave_m * s.deck_heave_m;
+                roll_max = roll_max.max(s.attitude.to_degrees()[0].abs());
+            }
+            // The heave is the low-passed elevation: a bit under the waves' own 4 sigma.
+            let heave_hs = 4.0 * (heave2 / n as f64).sqrt();
+            assert!(
+                heave_hs > 0.3 * hs && heave_hs < 1.1 * hs,
+                "SS{ss}: {heave_hs} vs {hs}"
+            );
+            assert!(
+                roll_range.contains(&roll_max),
+                "SS{ss}: roll up to {roll_max} deg"
+            );
+        }
+        assert!(SpectrumShipMotion::sea_state(7, 1).is_none());
+    }
 
     #[test]
     fn hover_sway_stays_within_its_bounds_and_rates() {

@@ -3,7 +3,7 @@
 //! rule. Measurements are the truth plus Gaussian noise, dropped frames and outliers, as the
 //! estimate stage delivers them.
 
-use deckwatch_capture::motion::{DeckHeave, MotionProfile, ShipMotion, VehicleSway};
+use deckwatch_capture::motion::{DeckHeave, MotionProfile, ShipMotion, SpectrumShipMotion, VehicleSway};
 use deckwatch_capture::rng::SplitMix64;
 use deckwatch_decide::decision::{DecisionConfig, DeckObservation};
 use deckwatch_decide::eval::{evaluate, Measured, RuleOutcome};
@@ -20,10 +20,13 @@ pub struct DecideEvalArgs {
     /// Seeds (sea phases, noise).
     #[arg(long, value_delimiter = ',', default_value = "1,2,3")]
     seeds: Vec<u64>,
-    /// Sea states: 4 (x0.25 of the sea-state-6 amplitudes), 5 (x0.5), 6 (x1).
+    /// Sea states: 4 (x0.25 of the sea-state-6 amplitudes), 5 (x0.5), 6 (x1); with
+    /// `--motion jonswap` 3-6 (their significant wave heights and peak periods).
     #[arg(long, value_delimiter = ',', default_value = "4,5,6")]
     sea_states: Vec<u32>,
-    /// `irregular` (each mode spread over 8 nearby periods) or `regular` (three sinusoids).
+    /// `irregular` (each mode spread over 8 nearby periods), `regular` (three sinusoids), or
+    /// `jonswap` (a wave spectrum of 300 components through a simple ship response, with a
+    /// wandering heading: not the family the predictor fits).
     #[arg(long, default_value = "irregular")]
     motion: String,
     /// Attitude noise (deg, standard deviation per angle).
@@ -43,6 +46,21 @@ pub struct DecideEvalArgs {
     /// more than it rolls it).
     #[arg(long, default_value_t = 1.0)]
     heave_scale: f64,
+    /// Frozen input: stretches a minute during which the measurement repeats itself bit for bit
+    /// (a frozen camera), each `--frozen-s` long.
+    #[arg(long, default_value_t = 0.0)]
+    frozen_per_min: f64,
+    #[arg(long, default_value_t = 2.0)]
+    frozen_s: f64,
+    /// Share of frames whose roll is NaN (a broken estimate that says it is valid).
+    #[arg(long, default_value_t = 0.0)]
+    nan_share: f64,
+    /// Share of frames that arrive stale (1 s after capture).
+    #[arg(long, default_value_t = 0.0)]
+    stale_share: f64,
+    /// Jitter of the frames' capture stamps (ms, standard deviation).
+    #[arg(long, default_value_t = 0.0)]
+    jitter_ms: f64,
     /// Capture -> decision latency (ms).
     #[arg(long, default_value_t = 5.0)]
     latency_ms: f64,
@@ -123,10 +141,19 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
     {
         return Err("--vehicle-*: noise and outages must not be negative, outages must last".into());
     }
+    let shares = [a.nan_share, a.stale_share, a.dropout, a.outliers];
+    if !(shares.iter().all(|v| (0.0..=1.0).contains(v))
+        && a.frozen_per_min >= 0.0
+        && a.frozen_s > 0.0
+        && a.jitter_ms >= 0.0)
+    {
+        return Err("--nan-share, --stale-share, --dropout, --outliers are shares in [0, 1]; --frozen-*, --jitter-ms must not be negative".into());
+    }
     if !a.json {
         println!(
-            "{} min at {} Hz per series, {} motion, noise {} deg, heave noise {} m x{}, dropout {}, outliers {}; vehicle {} (autopilot noise {} deg, bias {:?} deg, timing {} ms, {} outages/min of {} s); capacity roll/pitch {}/{} deg, rates {}/{} deg/s, heave {:?} rate {} m/s, touchdown {} s",
-            a.minutes, a.rate, a.motion, a.noise_deg, a.heave_noise_m, a.heave_scale, a.dropout, a.outliers, a.vehicle, a.vehicle_noise_deg,
+            "{} min at {} Hz per series, {} motion, noise {} deg, heave noise {} m x{}, dropout {}, outliers {}, NaN {}, stale {}, frozen {}/min of {} s, jitter {} ms; vehicle {} (autopilot noise {} deg, bias {:?} deg, timing {} ms, {} outages/min of {} s); capacity roll/pitch {}/{} deg, rates {}/{} deg/s, heave {:?} rate {} m/s, touchdown {} s",
+            a.minutes, a.rate, a.motion, a.noise_deg, a.heave_noise_m, a.heave_scale, a.dropout, a.outliers, a.nan_share, a.stale_share,
+            a.frozen_per_min, a.frozen_s, a.jitter_ms, a.vehicle, a.vehicle_noise_deg,
             a.vehicle_bias_deg, a.vehicle_time_error_ms, a.vehicle_outages_per_min, a.vehicle_outage_s, config.max_abs_roll_deg,
             config.max_abs_pitch_deg, config.max_abs_roll_rate_dps, config.max_abs_pitch_rate_dps, config.heave,
             config.max_abs_heave_rate_mps, config.touchdown_s
@@ -137,18 +164,33 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
         );
     }
     let (mut total_smart, mut total_naive) = (RuleOutcome::default(), RuleOutcome::default());
+    let mut oracle_share = Vec::new();
     for &ss in &a.sea_states {
-        let scale = scale_of(ss)?;
         for &seed in &a.seeds {
-            let motion = match a.motion.as_str() {
-                "irregular" => ShipMotion::irregular(seed, scale, 8),
-                "regular" => ShipMotion::scaled(seed, scale),
-                other => return Err(format!("--motion: unknown `{other}` (irregular, regular)")),
+            // The deck's roll, pitch (deg) and heave (m) over time.
+            let motion: Box<dyn MotionProfile> = match a.motion.as_str() {
+                "irregular" => Box::new(ShipMotion::irregular(seed, scale_of(ss)?, 8)),
+                "regular" => Box::new(ShipMotion::scaled(seed, scale_of(ss)?)),
+                "jonswap" => Box::new(
+                    SpectrumShipMotion::sea_state(ss, seed)
+                        .ok_or(format!("--sea-states: {ss} has no JONSWAP sea (3, 4, 5, 6)"))?,
+                ),
+                other => {
+                    return Err(format!(
+                        "--motion: unknown `{other}` (irregular, regular, jonswap)"
+                    ))
+                }
             };
-            let heave = DeckHeave::sea_state_6(seed, scale * a.heave_scale);
+            // The sinusoid models have no heave of their own: the sea state's `DeckHeave`.
+            let heave = match a.motion.as_str() {
+                "jonswap" => None,
+                _ => Some(DeckHeave::sea_state_6(seed, scale_of(ss)? * a.heave_scale)),
+            };
             let truth = |t: f64| {
-                let [r, p, _] = motion.sample(t).attitude.to_degrees();
-                [r, p, heave.at(t)]
+                let s = motion.sample(t);
+                let [r, p, _] = s.attitude.to_degrees();
+                let h = heave.as_ref().map_or(a.heave_scale * s.deck_heave_m, |h| h.at(t));
+                [r, p, h]
             };
             let mut rng = SplitMix64::new(seed.wrapping_mul(0x9E37_79B9) ^ ss as u64);
             // What compensating with the autopilot's attitude leaves in the deck's roll and
@@ -161,9 +203,12 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
                 let timing = if sway { [r1 - r0, p1 - p0] } else { [0.0; 2] };
                 [0, 1].map(|i| timing[i] + bias[i] + a.vehicle_noise_deg * rng.next_gaussian())
             };
-            // Outages: a Poisson process of starts, each `vehicle_outage_s` long.
+            // Outages: a Poisson process of starts, each `vehicle_outage_s` long; frozen input
+            // the same way.
             let mut outage_until = f64::NEG_INFINITY;
             let p_start = a.vehicle_outages_per_min / 60.0 / a.rate;
+            let (mut frozen_until, mut frozen_deck) = (f64::NEG_INFINITY, None);
+            let p_frozen = a.frozen_per_min / 60.0 / a.rate;
             let stream: Vec<Measured> = (0..n)
                 .map(|k| {
                     let t = k as f64 / a.rate;
@@ -173,6 +218,9 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
                     }
                     let [er, ep] = vehicle_error(t, &mut rng);
                     let (r, p) = (r + er, p + ep);
+                    if rng.next_f64() < p_frozen {
+                        frozen_until = frozen_until.max(t + a.frozen_s);
+                    }
                     let deck = if rng.next_f64() < a.dropout {
                         None
                     } else {
@@ -186,18 +234,31 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
                             m[i] +=
                                 (5.0 + 10.0 * rng.next_f64()) * if rng.next_f64() < 0.5 { -1.0 } else { 1.0 };
                         }
+                        if rng.next_f64() < a.nan_share {
+                            m[0] = f64::NAN;
+                        }
                         Some(DeckObservation::new(m[0], m[1], height))
                     };
+                    // A frozen camera: the same measurement again and again.
+                    let deck = if t < frozen_until {
+                        *frozen_deck.get_or_insert(deck)
+                    } else {
+                        frozen_deck = None;
+                        deck
+                    };
+                    let stamp = t + a.jitter_ms / 1e3 * rng.next_gaussian();
+                    let late = if rng.next_f64() < a.stale_share { 1.0 } else { 0.0 };
                     Measured {
-                        t,
+                        t: stamp,
                         deck,
-                        now: t + a.latency_ms / 1e3,
+                        now: stamp + a.latency_ms / 1e3 + late,
                         vehicle_missing: t < outage_until,
                     }
                 })
                 .collect();
             let clock = Instant::now();
             let (smart, naive) = evaluate(&truth, &config, &stream).map_err(|e| e.to_string())?;
+            oracle_share.push(smart.safe_time_share);
             let per_frame_us = clock.elapsed().as_secs_f64() * 1e6 / n as f64;
             if a.json {
                 println!(
@@ -259,6 +320,15 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
             reasons.join(", ")
         );
         println!("{:<10} {}", "", row("naive", &total_naive));
+        // An oracle that knows the future commits into every truly calm window (availability
+        // 100 %), and could commit this share of the time.
+        let share = oracle_share.iter().sum::<f64>() / oracle_share.len().max(1) as f64;
+        println!(
+            "{:<10} oracle (knows the future motion): {} calm windows, 100.0 % used; a commit would be safe {:.1} % of the time",
+            "",
+            total_smart.calm_windows,
+            100.0 * share
+        );
     }
     Ok(())
 }

@@ -23,6 +23,8 @@ pub struct RuleOutcome {
     pub commits: u64,
     /// Commits during whose touchdown the true deck left the capacity.
     pub unsafe_commits: u64,
+    /// When they were made (s on the series' timeline), to look into.
+    pub unsafe_commit_times_s: Vec<f64>,
     /// Commits later aborted (the state machine only).
     pub aborts: u64,
     /// Truly calm windows (at least one touchdown long).
@@ -109,6 +111,7 @@ fn judge(truth: TrueDeck, c: &DecisionConfig, commits: &[f64], outcome: &mut Rul
             (0..=steps).all(|k| truly_within(truth, c, tc + (k as f64 * TRUTH_STEP_S).min(c.touchdown_s)));
         if !safe {
             outcome.unsafe_commits += 1;
+            outcome.unsafe_commit_times_s.push(tc);
             continue;
         }
         if let Some(i) = calm

@@ -1,0 +1,562 @@
+//! Property-based fuzzing (proptest) of what comes from outside: every parser (frames.csv,
+//! camera.json, vehicle.csv, the marker table, the TOML configuration) fed arbitrary and
+//! near-valid text must answer with a value or an error, never a panic; the landing decider fed
+//! arbitrary streams (NaN, infinities, out of order, future, frozen, jumps) must never panic and
+//! never clear a landing on an invalid input.
+//!
+//! A bounded number of cases runs by default; `DECKWATCH_FUZZ_CASES=N` sets it, and the
+//! `--ignored` tests run a million parser cases and ten thousand decider streams:
+//! `cargo test --test fuzz -- --ignored --nocapture`.
+
+use deckwatch_common::messages::DecisionState;
+use deckwatch_decide::{DecisionConfig, DeckObservation, LandingDecider};
+use proptest::prelude::*;
+use proptest::test_runner::{Config, TestRunner};
+use std::io::Cursor;
+use std::path::Path;
+
+fn cases(default: u32) -> u32 {
+    std::env::var("DECKWATCH_FUZZ_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
+}
+
+/// Runs `test` on `n` values of `strategy`; prints how many ran.
+fn fuzz<S: Strategy>(name: &str, n: u32, strategy: S, test: impl Fn(S::Value) -> Result<(), TestCaseError>) {
+    let mut runner = TestRunner::new(Config {
+        cases: n,
+        failure_persistence: None,
+        ..Config::default()
+    });
+    let clock = std::time::Instant::now();
+    runner.run(&strategy, test).unwrap();
+    println!("{name}: {n} cases in {:.1} s", clock.elapsed().as_secs_f64());
+}
+
+/// Cells that have broken parsers before: numbers at the edges, non-numbers, paths out of the
+/// folder, separators.
+const CELLS: &[&str] = &[
+    "0",
+    "1",
+    "-1",
+    "2.5",
+    "nan",
+    "NaN",
+    "inf",
+    "-inf",
+    "1e308",
+    "-1e308",
+    "1e-320",
+    "",
+    " ",
+    "abc",
+    "18446744073709551615",
+    "18446744073709551616",
+    "-9223372036854775808",
+    "frames/000000.png",
+    "../escape.png",
+    "/etc/passwd",
+    "a,b",
+    "\"quoted\"",
+    "\u{feff}",
+    "é",
+];
+
+const FRAME_COLUMNS: &[&str] = &[
+    "index",
+    "timestamp_ns",
+    "file",
+    "roll_deg",
+    "pitch_deg",
+    "yaw_deg",
+    "alt_m",
+    "offset_x_m",
+    "offset_y_m",
+    "vehicle_roll_deg",
+    "vehicle_height_m",
+    "deck_heave_m",
+    "extra",
+];
+
+/// A CSV: a header of known (and unknown) columns, rows of edge cells; or arbitrary text.
+fn csv_text(columns: &'static [&'static str]) -> impl Strategy<Value = String> {
+    let structured = (
+        prop::collection::vec(prop::sample::select(columns), 0..8),
+        prop::collection::vec(prop::collection::vec(prop::sample::select(CELLS), 0..10), 0..6),
+    )
+        .prop_map(|(header, rows)| {
+            let mut text = header.join(",");
+            for r in rows {
+                text.push('\n');
+                text.push_str(&r.join(","));
+            }
+            text
+        });
+    prop_oneof![3 => structured, 1 => ".{0,200}"]
+}
+
+/// A camera.json: a valid one with some values replaced by edge values, or arbitrary text.
+fn camera_json_text() -> impl Strategy<Value = String> {
+    const VALUES: &[&str] = &[
+        "0",
+        "-1",
+        "1e10",
+        "1e308",
+        "4294967295",
+        "4294967296",
+        "\"x\"",
+        "null",
+        "[]",
+        "{}",
+        "1.5",
+        "640",
+        "[0,0,0,0,0]",
+        "[1e300,0,0,0,0]",
+        "[0,0]",
+    ];
+    const KEYS: &[&str] = &[
+        "width",
+        "height",
+        "fx",
+        "fy",
+        "cx",
+        "cy",
+        "distortion",
+        "ring_radius_m",
+        "marker_radius_m",
+        "bow_marker_radius_m",
+        "n_ring",
+    ];
+    let structured = prop::collection::vec((prop::sample::select(KEYS), prop::sample::select(VALUES)), 0..6)
+        .prop_map(|edits| {
+            let mut fields: Vec<(String, String)> = [
+                ("width", "640"),
+                ("height", "480"),
+                ("fx", "500"),
+                ("fy", "500"),
+                ("cx", "319.5"),
+                ("cy", "239.5"),
+                ("distortion", "[0,0,0,0,0]"),
+            ]
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect();
+            let mut deck = vec![
+                ("ring_radius_m".to_string(), "1.0".to_string()),
+                ("marker_radius_m".to_string(), "0.1".to_string()),
+                ("bow_marker_radius_m".to_string(), "0.15".to_string()),
+                ("n_ring".to_string(), "8".to_string()),
+            ];
+            for (k, v) in edits {
+                let target = if k.ends_with("_m") || k == "n_ring" {
+                    &mut deck
+                } else {
+                    &mut fields
+                };
+                match target.iter_mut().find(|(kk, _)| kk == k) {
+                    Some(f) => f.1 = v.to_string(),
+                    None => target.push((k.to_string(), v.to_string())),
+                }
+            }
+            let obj = |f: &[(String, String)]| {
+                f.iter()
+                    .map(|(k, v)| format!("\"{k}\": {v}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            };
+            format!("{{{}, \"deck\": {{{}}}}}", obj(&fields), obj(&deck))
+        });
+    prop_oneof![3 => structured, 1 => ".{0,200}"]
+}
+
+/// A TOML configuration of known sections and keys with edge values, or arbitrary text.
+fn toml_text() -> impl Strategy<Value = String> {
+    const LINES: &[&str] = &[
+        "[decide]",
+        "[sim]",
+        "[image]",
+        "[replay]",
+        "[source]",
+        "[estimate]",
+        "[vehicle]",
+        "[link]",
+        "[bus]",
+        "[supervisor]",
+        "[rerun]",
+        "[libcamera]",
+        "touchdown_s = 1e9",
+        "horizon_s = 1e12",
+        "max_age_ms = 1e300",
+        "max_age_ms = -1",
+        "rate = 1e-12",
+        "rate = 0",
+        "rate_hz = 1e-12",
+        "frames = 18446744073709551615",
+        "width = 4294967295",
+        "height = 0",
+        "heave = \"off\"",
+        "heave = \"sideways\"",
+        "kind = \"replay\"",
+        "recording = \"/nonexistent\"",
+        "attitude = \"level\"",
+        "domain = \"x\"",
+        "domain = \"\"",
+        "max_restarts = 0",
+        "restart_window_ms = 0",
+        "frozen_input_count = 0",
+        "mount_rpy_deg = [1e300, 0, 0]",
+        "vehicle_tilt_deg = [1, 2]",
+        "address = \"udpin:nowhere\"",
+        "x = [",
+        "= 1",
+    ];
+    let structured = prop::collection::vec(prop::sample::select(LINES), 0..12).prop_map(|l| l.join("\n"));
+    prop_oneof![3 => structured, 1 => ".{0,200}"]
+}
+
+fn parsers_hold(n_text: u32) {
+    fuzz("frames.csv", n_text, csv_text(FRAME_COLUMNS), |text| {
+        let _ = deckwatch_common::recording::parse_frames_csv(Path::new("f.csv"), Cursor::new(text));
+        Ok(())
+    });
+    fuzz(
+        "marker table",
+        n_text,
+        csv_text(&["index", "timestamp_ns", "u0", "v0", "u1", "v1", "roll_deg", "x"]),
+        |text| {
+            if let Ok(mut r) = deckwatch_common::marker_table::MarkerTableReader::new(
+                "m.csv",
+                Cursor::new(text.into_bytes()),
+                9,
+            ) {
+                while let Some(row) = r.next_row() {
+                    let _ = row;
+                }
+            }
+            Ok(())
+        },
+    );
+    fuzz("TOML configuration", n_text, toml_text(), |text| {
+        if let Ok(c) = deckwatch_runtime::config::PipelineConfig::from_toml("p.toml", &text) {
+            let _ = c.validate("p.toml");
+        }
+        Ok(())
+    });
+    // The file-based readers go through a file, as a user's would.
+    let dir = tempfile::tempdir().unwrap();
+    let vehicle = dir.path().join("vehicle.csv");
+    fuzz(
+        "vehicle.csv",
+        n_text / 4,
+        csv_text(&["timestamp_ns", "qw", "qx", "qy", "qz", "height_m", "x"]),
+        |text| {
+            std::fs::write(&vehicle, text).unwrap();
+            let _ = deckwatch_common::recording::read_vehicle_csv(&vehicle);
+            Ok(())
+        },
+    );
+    fuzz("camera.json", n_text / 4, camera_json_text(), |text| {
+        std::fs::write(dir.path().join("camera.json"), text).unwrap();
+        if let Ok((camera, deck)) = deckwatch_common::recording::read_camera_json(dir.path()) {
+            // Whatever it accepted is a camera the rest of the pipeline can size buffers for.
+            prop_assert!(camera.validate().is_ok() && deck.validate().is_ok());
+        }
+        Ok(())
+    });
+}
+
+/// One input of a fault phase: what is wrong with it (0: nothing).
+#[derive(Debug, Clone, Copy)]
+struct Fault {
+    kind: u8,
+    size: f64,
+}
+
+fn valid_kind(kind: u8) -> bool {
+    kind == 0
+}
+
+/// A sea, a clean warm-up long enough to clear, then a phase of faults among good frames: never
+/// ClearToLand on a faulty input.
+fn decider_holds(n: u32) {
+    let strategy = (
+        0.0..6.0f64,
+        0.0..3.0f64,
+        5.0..15.0f64,
+        0.0..1.0f64,
+        prop::collection::vec(
+            (0u8..10, -1e6..1e6f64).prop_map(|(kind, size)| Fault { kind, size }),
+            50..200,
+        ),
+    );
+    fuzz(
+        "decider streams",
+        n,
+        strategy,
+        |(roll_amp, pitch_amp, period, heave_amp, faults)| {
+            let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
+            let sea = |t: f64| {
+                let w = std::f64::consts::TAU / period;
+                DeckObservation::new(
+                    roll_amp * (w * t).sin(),
+                    pitch_amp * (0.7 * w * t + 1.0).sin(),
+                    heave_amp * (0.8 * w * t).sin(),
+                )
+            };
+            let mut t = 0.0;
+            while t < 30.0 {
+                d.update_at_capture(t, Some(sea(t)), 0.005);
+                t += 0.1;
+            }
+            let mut last = sea(t);
+            // How many times in a row the same input came (a repeat of the previous one adds one).
+            let mut run = 1u32;
+            for f in faults {
+                t += 0.1;
+                let good = sea(t);
+                let (time, deck, age) = match f.kind {
+                    0 => (t, Some(good), 0.005),
+                    1 => (
+                        t,
+                        Some(DeckObservation {
+                            roll_deg: f64::NAN,
+                            ..good
+                        }),
+                        0.005,
+                    ),
+                    2 => (
+                        t,
+                        Some(DeckObservation {
+                            pitch_deg: f64::INFINITY,
+                            ..good
+                        }),
+                        0.005,
+                    ),
+                    3 => (
+                        t,
+                        Some(DeckObservation {
+                            height_m: f64::NAN,
+                            ..good
+                        }),
+                        0.005,
+                    ),
+                    4 => (t, None, 0.005),
+                    5 => (f64::NAN, Some(good), 0.005),
+                    6 => (t - 5.0, Some(good), 0.005), // out of order
+                    7 => (t, Some(good), 10.0),        // stale
+                    8 => (t, Some(good), -1.0),        // captured in the future
+                    _ => (t, Some(last), 0.005),       // repeats the last input bit for bit
+                };
+                let r = d.update_at_capture(time, deck, age);
+                run = if f.kind == 9 { run + 1 } else { 1 };
+                if f.kind == 9 {
+                    // A repeat is refused once it is the third in a row (`frozen_input_count`);
+                    // before that it is a plausible, if odd, input.
+                    prop_assert!(
+                        run < 3 || r.state != DecisionState::ClearToLand,
+                        "cleared a frozen input"
+                    );
+                } else if !valid_kind(f.kind) {
+                    prop_assert!(
+                        r.state != DecisionState::ClearToLand,
+                        "cleared on fault {} ({:?}) at {t}",
+                        f.kind,
+                        r.reason
+                    );
+                }
+                if let Some(x) = deck {
+                    last = x;
+                }
+                // Now and then a jump of the clock far ahead or back: a gap or a clock jump, never a
+                // clearance.
+                if f.size.abs() > 9e5 {
+                    let r = d.update_at_capture(t + f.size, Some(good), 0.005);
+                    prop_assert!(
+                        r.state != DecisionState::ClearToLand,
+                        "cleared after a clock jump of {} s",
+                        f.size
+                    );
+                    run = 1;
+                    last = good;
+                }
+            }
+            Ok(())
+        },
+    );
+}
+
+#[test]
+fn parsers_never_panic() {
+    parsers_hold(cases(20_000));
+}
+
+#[test]
+fn the_decider_never_clears_on_a_fault() {
+    decider_holds(cases(200));
+}
+
+#[test]
+#[ignore = "a million parser cases: cargo test --test fuzz -- --ignored --nocapture"]
+fn parsers_never_panic_million() {
+    parsers_hold(1_000_000);
+}
+
+#[test]
+#[ignore = "ten thousand decider streams: cargo test --test fuzz -- --ignored --nocapture"]
+fn the_decider_never_clears_on_a_fault_many() {
+    decider_holds(10_000);
+}
+
+/// Numbers a message field may carry from a broken or hostile peer.
+fn wild_f64() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        4 => -10.0..10.0f64,
+        1 => -1e4..1e4f64,
+        1 => prop::sample::select(vec![
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            0.0,
+            -0.0,
+            1e308,
+            -1e308,
+            f64::MIN_POSITIVE,
+        ]),
+    ]
+}
+
+fn wild_u64() -> impl Strategy<Value = u64> {
+    prop_oneof![3 => 0..10_000_000_000u64, 1 => prop::sample::select(vec![0, 1, u64::MAX, u64::MAX - 1, 1 << 63])]
+}
+
+fn wild_u32() -> impl Strategy<Value = u32> {
+    prop_oneof![3 => 0..4096u32, 1 => prop::sample::select(vec![0, 1, u32::MAX, 1 << 31, 65_536])]
+}
+
+/// Every stage's step fed arbitrary (well-typed) messages: sizes, counts, timestamps and drop
+/// counts at their extremes, non-finite numbers, payloads shorter than the header says. No
+/// panic; decide never clears on an invalid or non-finite attitude.
+fn stages_hold(n: u32) {
+    use deckwatch_common::messages::{AttitudeMessage, FrameHeader, MarkerMessage};
+    use deckwatch_common::{CameraModel, DeckLayout, Rpy};
+    use deckwatch_runtime::stages::{DecideStage, DetectStage, EstimateStage};
+    let side = || prop_oneof![4 => 1..64u32, 1 => wild_u32()];
+    let detected = std::cell::Cell::new(0u32);
+    let header = (
+        (side(), side(), prop_oneof![4 => 0..8u32, 1 => wild_u32()]),
+        (wild_f64(), wild_f64(), wild_u64(), wild_u64()),
+        prop::collection::vec(any::<u8>(), 0..6000),
+    );
+    fuzz(
+        "detect step",
+        n,
+        header,
+        |((w, h, pad), (fx, cx, seq, drops), pixels)| {
+            let mut stage = DetectStage::new(false);
+            let mut hd = FrameHeader {
+                width: w,
+                height: h,
+                stride: w.saturating_add(pad),
+                ..FrameHeader::default()
+            };
+            let mut camera = CameraModel::rpi_v2().scaled_to(w.clamp(1, 64), h.clamp(1, 64));
+            camera.width = w;
+            camera.height = h;
+            // Mostly a valid camera (so detection runs), sometimes not.
+            camera.fx = 20.0 + fx.abs();
+            camera.fy = camera.fx;
+            camera.cx = f64::from(w) / 2.0 + cx;
+            hd.context.camera = camera;
+            hd.context.deck = DeckLayout::paper();
+            hd.stamp.seq = seq;
+            hd.stamp.drops.capture = drops;
+            hd.stamp.drops.detect = drops;
+            let (m, _) = stage.process(&hd, &pixels, 0);
+            let reached = m.markers.status != deckwatch_common::DetectionStatus::BadFrame;
+            detected.set(detected.get() + u32::from(reached));
+            Ok(())
+        },
+    );
+    println!(
+        "detect step: {} of {n} frames got past the checks into detection",
+        detected.get()
+    );
+    assert!(detected.get() > 0, "the fuzzer never reached detection");
+    let markers = (
+        prop::collection::vec((any::<bool>(), wild_f64(), wild_f64()), 9),
+        (wild_u32(), wild_f64(), wild_f64(), wild_f64()),
+        (wild_f64(), wild_f64(), wild_f64(), wild_u64()),
+    );
+    fuzz(
+        "estimate step",
+        n,
+        markers,
+        |(ms, (count, fx, radius, altitude), (vr, vp, vh, seq))| {
+            let mut stage = EstimateStage::new(&Default::default(), &Default::default(), false);
+            let mut m = MarkerMessage::default();
+            m.context.camera = CameraModel::rpi_v2();
+            m.context.camera.fx = 2714.0 + fx;
+            m.context.deck = DeckLayout::paper();
+            m.context.deck.ring_radius_m = 1.0 + radius;
+            m.context.altitude_m = altitude;
+            m.context.vehicle =
+                deckwatch_common::messages::VehicleAttitude::from_rpy(Some(Rpy::from_degrees(vr, vp, 0.0)))
+                    .with_height(vh);
+            m.stamp.seq = seq;
+            m.stamp.drops.capture = u64::MAX;
+            m.markers.count = count;
+            m.markers.status = deckwatch_common::DetectionStatus::Ok;
+            for (k, (valid, u, v)) in ms.into_iter().enumerate() {
+                m.markers.markers[k].valid = valid;
+                m.markers.markers[k].u = 1640.0 + 100.0 * u;
+                m.markers.markers[k].v = 1232.0 + 100.0 * v;
+            }
+            let a = stage.process(&m, 0);
+            prop_assert!(!a.valid || a.rpy.to_degrees().iter().all(|v| v.is_finite()));
+            Ok(())
+        },
+    );
+    let attitudes = prop::collection::vec(
+        (
+            any::<bool>(),
+            (wild_f64(), wild_f64(), wild_f64()),
+            (wild_u64(), wild_u64(), wild_u64(), wild_u64()),
+        ),
+        1..50,
+    );
+    fuzz("decide step", n, attitudes, |stream| {
+        let mut stage = DecideStage::new(DecisionConfig::default(), false).unwrap();
+        for (valid, (r, p, h), (captured, source, received, drops)) in stream {
+            let mut a = AttitudeMessage {
+                valid,
+                rpy: Rpy::from_degrees(r, p, 0.0),
+                deck_height_m: h,
+                ..AttitudeMessage::default()
+            };
+            a.stamp.times.captured_ns = captured;
+            a.context.source_timestamp_ns = source;
+            a.stamp.drops.estimate = drops;
+            a.stamp.drops.capture = drops;
+            let d = stage.process(&a, received);
+            let finite = r.is_finite() && p.is_finite() && h.is_finite();
+            prop_assert!(
+                (valid && finite) || d.state != DecisionState::ClearToLand,
+                "cleared on {valid} {r} {p} {h}"
+            );
+            let _ = stage.watchdog(received.saturating_add(1_000_000_000));
+        }
+        Ok(())
+    });
+}
+
+#[test]
+fn stage_steps_never_panic() {
+    stages_hold(cases(300));
+}
+
+#[test]
+#[ignore = "a hundred thousand messages per stage: cargo test --test fuzz -- --ignored --nocapture"]
+fn stage_steps_never_panic_many() {
+    stages_hold(100_000);
+}

@@ -63,24 +63,16 @@ const CELLS: &[&str] = &[
     "é",
 ];
 
-const FRAME_COLUMNS: &[&str] = &[
-    "index",
-    "timestamp_ns",
-    "file",
-    "roll_deg",
-    "pitch_deg",
-    "yaw_deg",
-    "alt_m",
-    "offset_x_m",
-    "offset_y_m",
-    "vehicle_roll_deg",
-    "vehicle_height_m",
-    "deck_heave_m",
-    "extra",
-];
+/// frames.csv's columns: the required ones, every truth column (the recording format's own
+/// list), and one it does not know.
+fn frame_columns() -> Vec<&'static str> {
+    let mut c = vec!["index", "timestamp_ns", "file", "extra"];
+    c.extend(deckwatch_common::recording::TRUTH_COLUMNS);
+    c
+}
 
 /// A CSV: a header of known (and unknown) columns, rows of edge cells; or arbitrary text.
-fn csv_text(columns: &'static [&'static str]) -> impl Strategy<Value = String> {
+fn csv_text(columns: Vec<&'static str>) -> impl Strategy<Value = String> {
     let structured = (
         prop::collection::vec(prop::sample::select(columns), 0..8),
         prop::collection::vec(prop::collection::vec(prop::sample::select(CELLS), 0..10), 0..6),
@@ -216,14 +208,23 @@ fn toml_text() -> impl Strategy<Value = String> {
 }
 
 fn parsers_hold(n_text: u32) {
-    fuzz("frames.csv", n_text, csv_text(FRAME_COLUMNS), |text| {
+    fuzz("frames.csv", n_text, csv_text(frame_columns()), |text| {
         let _ = deckwatch_common::recording::parse_frames_csv(Path::new("f.csv"), Cursor::new(text));
         Ok(())
     });
     fuzz(
         "marker table",
         n_text,
-        csv_text(&["index", "timestamp_ns", "u0", "v0", "u1", "v1", "roll_deg", "x"]),
+        csv_text(vec![
+            "index",
+            "timestamp_ns",
+            "u0",
+            "v0",
+            "u1",
+            "v1",
+            "roll_deg",
+            "x",
+        ]),
         |text| {
             if let Ok(mut r) = deckwatch_common::marker_table::MarkerTableReader::new(
                 "m.csv",
@@ -249,7 +250,12 @@ fn parsers_hold(n_text: u32) {
     fuzz(
         "vehicle.csv",
         n_text / 4,
-        csv_text(&["timestamp_ns", "qw", "qx", "qy", "qz", "height_m", "x"]),
+        csv_text({
+            use deckwatch_common::recording::{VEHICLE_COLUMNS, VEHICLE_HEIGHT_COLUMN};
+            let mut c = VEHICLE_COLUMNS.to_vec();
+            c.extend([VEHICLE_HEIGHT_COLUMN, "x"]);
+            c
+        }),
         |text| {
             std::fs::write(&vehicle, text).unwrap();
             let _ = deckwatch_common::recording::read_vehicle_csv(&vehicle);

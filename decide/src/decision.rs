@@ -867,7 +867,8 @@ impl LandingDecider {
                 };
             }
             Ok(()) => {
-                let m = self.models.clone().expect("checked");
+                // Taken out and put back below, not cloned: no allocation per decision.
+                let m = self.models.take().expect("checked");
                 let enter = self.entry_margins(&m);
                 decision.calm_window = self.cached_calm_window(&m, now, enter);
                 if committed {
@@ -893,6 +894,7 @@ impl LandingDecider {
                         DecisionReason::OutsideCapacity
                     };
                 }
+                self.models = Some(m);
             }
         }
         // What the heave model says now, whether or not it may be trusted to clear (shown to the

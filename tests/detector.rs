@@ -17,7 +17,7 @@ fn simulator(
     seed: u64,
 ) -> FrameSimulator {
     let r = Renderer::new(cam, DeckLayout::paper(), opts, seed).unwrap();
-    FrameSimulator::new(scenario.profile(seed), r, rate, 0.0, 1, seed).unwrap()
+    FrameSimulator::new(scenario.profile(seed, 1.0), r, rate, 0.0, 1, seed).unwrap()
 }
 
 #[test]
@@ -108,7 +108,7 @@ fn occlusion_glints_and_no_deck() {
         det.reset_tracking();
         let set = det.detect(img.view());
         assert_eq!(set.status, DetectionStatus::Partial, "frame {k}: {set:?}");
-        assert!(!set.markers[hidden].valid);
+        assert!(!set.markers[hidden].valid.get());
         assert!(
             set.rejected.unassigned + set.rejected.area >= 2,
             "{:?}",
@@ -117,7 +117,7 @@ fn occlusion_glints_and_no_deck() {
         for (i, (m, t)) in set.markers.iter().zip(&truth.markers).take(9).enumerate() {
             if i != hidden {
                 let t = t.unwrap();
-                assert!(m.valid, "frame {k}: marker {i} lost");
+                assert!(m.valid.get(), "frame {k}: marker {i} lost");
                 let e = ((m.u - t[0]).powi(2) + (m.v - t[1]).powi(2)).sqrt();
                 assert!(e < 0.1, "frame {k}: marker {i} off by {e} px");
             }
@@ -133,7 +133,7 @@ fn occlusion_glints_and_no_deck() {
         }
         let set = det.detect(img.view());
         assert_eq!(set.status, DetectionStatus::NoDeck, "frame {k}");
-        assert!(set.markers.iter().all(|m| !m.valid) && set.count == 0);
+        assert!(set.markers.iter().all(|m| !m.valid.get()) && set.count == 0);
     }
 }
 
@@ -149,7 +149,7 @@ fn tracking_follows_the_deck_and_falls_back_when_lost() {
         let truth = sim.render_frame(k, &mut img.view_mut()).unwrap();
         let set = det.detect(img.view());
         assert_eq!(set.status, DetectionStatus::Ok, "frame {k}");
-        tracked += usize::from(set.tracked);
+        tracked += usize::from(set.tracked.get());
         for (m, t) in set.markers.iter().zip(&truth.markers).take(9) {
             let t = t.unwrap();
             assert!(((m.u - t[0]).powi(2) + (m.v - t[1]).powi(2)).sqrt() < 0.1);
@@ -173,7 +173,7 @@ fn tracking_follows_the_deck_and_falls_back_when_lost() {
     }
     let set = det.detect(shifted.view());
     assert_eq!(set.status, DetectionStatus::Ok);
-    assert!(!set.tracked, "a jump is found by the full-frame search");
+    assert!(!set.tracked.get(), "a jump is found by the full-frame search");
     let t = truth.markers[0].unwrap();
     assert!((set.markers[0].u - (t[0] + shift)).abs() < 0.1);
     // A frame of another size is a bad frame, and resets tracking.
@@ -204,7 +204,7 @@ fn dull_markers_among_saturated_glints() {
         }
         found += 1;
         for (i, (m, t)) in set.markers.iter().zip(&truth.markers).take(9).enumerate() {
-            if m.valid {
+            if m.valid.get() {
                 let t = t.unwrap();
                 let e = ((m.u - t[0]).powi(2) + (m.v - t[1]).powi(2)).sqrt();
                 assert!(e < 0.5, "frame {k}: marker {i} off by {e} px");

@@ -8,7 +8,8 @@
 //! `--ignored` tests run a million parser cases and ten thousand decider streams:
 //! `cargo test --test fuzz -- --ignored --nocapture`.
 
-use deckwatch_common::messages::DecisionState;
+use deckwatch_common::messages::{AttitudeMessage, DecisionState, FrameContext};
+use deckwatch_common::wire::{WireBool, WireCheck, WireCode, WireEnum};
 use deckwatch_decide::{DecisionConfig, DeckObservation, LandingDecider};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestRunner};
@@ -512,14 +513,14 @@ fn stages_hold(n: u32) {
             m.stamp.seq = seq;
             m.stamp.drops.capture = u64::MAX;
             m.markers.count = count;
-            m.markers.status = deckwatch_common::DetectionStatus::Ok;
+            m.markers.status = deckwatch_common::DetectionStatus::Ok.into();
             for (k, (valid, u, v)) in ms.into_iter().enumerate() {
-                m.markers.markers[k].valid = valid;
+                m.markers.markers[k].valid = valid.into();
                 m.markers.markers[k].u = 1640.0 + 100.0 * u;
                 m.markers.markers[k].v = 1232.0 + 100.0 * v;
             }
             let a = stage.process(&m, 0);
-            prop_assert!(!a.valid || a.rpy.to_degrees().iter().all(|v| v.is_finite()));
+            prop_assert!(!a.valid.get() || a.rpy.to_degrees().iter().all(|v| v.is_finite()));
             Ok(())
         },
     );
@@ -535,7 +536,7 @@ fn stages_hold(n: u32) {
         let mut stage = DecideStage::new(DecisionConfig::default(), false).unwrap();
         for (valid, (r, p, h), (captured, source, received, drops)) in stream {
             let mut a = AttitudeMessage {
-                valid,
+                valid: valid.into(),
                 rpy: Rpy::from_degrees(r, p, 0.0),
                 deck_height_m: h,
                 ..AttitudeMessage::default()
@@ -554,6 +555,177 @@ fn stages_hold(n: u32) {
         }
         Ok(())
     });
+}
+
+/// Turns arbitrary bytes into a message the way a subscriber does (any bytes are a value,
+/// `AnyBitPattern`); `keep` codes of the enums and booleans are made valid, so that most
+/// messages get past the check and into the steps.
+fn message_from_bytes<M: bytemuck::AnyBitPattern>(bytes: &[u8]) -> M {
+    let mut padded = bytes.to_vec();
+    padded.resize(std::mem::size_of::<M>(), 0);
+    bytemuck::pod_read_unaligned(&padded[..std::mem::size_of::<M>()])
+}
+
+/// Makes every code of a message valid (its value modulo the number of values), except the
+/// one at `spare` (counting in field order), which keeps its random bytes.
+struct Repair {
+    spare: usize,
+    at: usize,
+}
+
+impl Repair {
+    fn code<E: WireEnum>(&mut self, c: &mut WireCode<E>, values: u32) {
+        if self.at != self.spare {
+            *c = WireCode::from_code(c.code() % values);
+        }
+        self.at += 1;
+    }
+    fn flag(&mut self, b: &mut WireBool) {
+        if self.at != self.spare {
+            *b = WireBool::from_byte(b.byte() & 1);
+        }
+        self.at += 1;
+    }
+    fn context(&mut self, c: &mut FrameContext) {
+        self.code(&mut c.source, 3);
+        self.flag(&mut c.truth.known);
+        self.code(&mut c.vehicle.compensation, 4);
+    }
+    fn attitude(&mut self, a: &mut AttitudeMessage) {
+        self.context(&mut a.context);
+        self.code(&mut a.estimator, 4);
+        self.flag(&mut a.valid);
+        self.code(&mut a.failure, 6);
+        self.flag(&mut a.has_image_ellipse);
+        self.flag(&mut a.alternative.present);
+        self.code(&mut a.alternative.estimator, 4);
+        self.flag(&mut a.alternative.valid);
+        self.code(&mut a.vehicle.compensation, 4);
+    }
+}
+
+/// Bytes as another process could leave them in shared memory, read as each message and frame
+/// header: the wire check rejects exactly the messages with a bad code, and the steps take the
+/// rest (wild numbers and all) without a panic; decide never clears on one message.
+fn shared_memory_holds(n: u32) {
+    use deckwatch_common::messages::{
+        AttitudeMessage, FrameHeader, LandingDecision, MarkerMessage, VehicleSample,
+    };
+    use deckwatch_runtime::stage::Stage;
+    use deckwatch_runtime::stages::{DecideStage, DetectStage, EstimateStage};
+    let bytes = || prop::collection::vec(any::<u8>(), 0..4096);
+    let passed = std::cell::Cell::new([0u32; 5]);
+    let count = |k: usize, ok: bool| {
+        let mut p = passed.get();
+        p[k] += u32::from(ok);
+        passed.set(p);
+    };
+    fuzz(
+        "shared-memory bytes",
+        n,
+        (bytes(), 0..40usize, bytes()),
+        |(raw, spare, pixels)| {
+            // A frame header: random sizes against a short payload.
+            let mut h: FrameHeader = message_from_bytes(&raw);
+            let mut r = Repair { spare, at: 0 };
+            r.code(&mut h.pixel_format, 1);
+            r.context(&mut h.context);
+            let checked = h.check_wire();
+            // Only the spare code can be bad.
+            prop_assert!(spare < r.at || checked.is_ok(), "{checked:?}");
+            if checked.is_ok() {
+                count(0, true);
+                let _ = DetectStage::new(false).process(&h, &pixels, 0);
+            }
+            // Markers.
+            let mut m: MarkerMessage = message_from_bytes(&raw);
+            let mut r = Repair { spare, at: 0 };
+            r.context(&mut m.context);
+            r.code(&mut m.markers.status, 4);
+            r.flag(&mut m.markers.tracked);
+            r.flag(&mut m.markers.perspective_corrected);
+            for k in 0..m.markers.markers.len() {
+                r.flag(&mut m.markers.markers[k].valid);
+            }
+            let checked = m.check_wire();
+            prop_assert!(spare < r.at || checked.is_ok(), "{checked:?}");
+            if checked.is_ok() {
+                count(1, true);
+                let mut estimate = EstimateStage::new(&Default::default(), &Default::default(), false);
+                let a = estimate.process(&m, 0);
+                prop_assert!(
+                    a.check_wire().is_ok(),
+                    "estimate made a bad message from good input"
+                );
+            }
+            // An attitude: decide never clears on a single message, whatever it holds.
+            let mut a: AttitudeMessage = message_from_bytes(&raw);
+            let mut r = Repair { spare, at: 0 };
+            r.attitude(&mut a);
+            let checked = a.check_wire();
+            prop_assert!(spare < r.at || checked.is_ok(), "{checked:?}");
+            if checked.is_ok() {
+                count(2, true);
+                let mut decide = DecideStage::new(DecisionConfig::default(), false).unwrap();
+                let d = decide.process(&a, a.stamp.times.captured_ns.saturating_add(1_000_000));
+                prop_assert!(d.state != DecisionState::ClearToLand);
+                prop_assert!(d.check_wire().is_ok());
+                let _ = decide.watchdog(u64::MAX);
+            }
+            // A decision, as the link and the viewer take it.
+            let mut d: LandingDecision = message_from_bytes(&raw);
+            let mut r = Repair { spare, at: 0 };
+            r.code(&mut d.state, 4);
+            r.code(&mut d.reason, 13);
+            r.flag(&mut d.watchdog);
+            r.context(&mut d.context);
+            r.attitude(&mut d.attitude);
+            let checked = d.check_wire();
+            prop_assert!(spare < r.at || checked.is_ok(), "{checked:?}");
+            if checked.is_ok() {
+                count(3, true);
+                let mut out =
+                    deckwatch_link::outgoing::Outgoing::new(&Default::default(), Default::default());
+                let _ = out.decision(&d, deckwatch_link::incoming::LinkState::Up, None, 0);
+                let _ = deckwatch_viz::entities::decision_items(&d, true);
+            }
+            // A vehicle sample, as estimate takes it.
+            let mut v: VehicleSample = message_from_bytes(&raw);
+            let mut r = Repair { spare, at: 0 };
+            r.code(&mut v.clock_method, 3);
+            r.flag(&mut v.link_up);
+            let checked = v.check_wire();
+            prop_assert!(spare < r.at || checked.is_ok(), "{checked:?}");
+            if checked.is_ok() {
+                count(4, true);
+                let mut estimate = EstimateStage::new(&Default::default(), &Default::default(), false);
+                estimate.vehicle_sample(&v);
+                let _ = estimate.process(&MarkerMessage::default(), 0);
+            }
+            Ok(())
+        },
+    );
+    let p = passed.get();
+    println!(
+        "shared-memory bytes: passed the wire check (of {n} each): frame headers {}, markers {}, attitudes {}, decisions {}, vehicle samples {}",
+        p[0], p[1], p[2], p[3], p[4]
+    );
+    assert!(
+        p.iter().all(|&k| k > 0),
+        "some message never got past the check: {p:?}"
+    );
+    assert!(p.iter().all(|&k| k < n), "some message was never rejected: {p:?}");
+}
+
+#[test]
+fn shared_memory_bytes_never_panic() {
+    shared_memory_holds(cases(300));
+}
+
+#[test]
+#[ignore = "a million byte strings per message: cargo test --test fuzz -- --ignored --nocapture"]
+fn shared_memory_bytes_never_panic_many() {
+    shared_memory_holds(1_000_000);
 }
 
 #[test]

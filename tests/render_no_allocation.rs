@@ -34,7 +34,7 @@ fn rendering_a_frame_does_not_allocate() {
     opts.optical_blur_px = 1.2;
     let mut cam_d = cam;
     cam_d.distortion = deckwatch_common::Distortion::from_array([-0.2, 0.05, 0.0, 0.0, 0.0]);
-    let ship = Scenario::Ship.profile(1);
+    let ship = Scenario::Ship.profile(1, 1.0);
     // Eight sub-exposures (motion blur) per frame.
     let exposure = |k: usize| -> Vec<SceneGeometry> {
         (0..8)

@@ -16,7 +16,7 @@ fn case1_through_pixels(options: RenderOptions, frames: u64) -> (ErrorStats, f64
     let renderer = Renderer::new(cam, deck, options, 1).unwrap();
     // The 20 s sweep sampled evenly, ends included.
     let rate = (frames - 1) as f64 / 20.0;
-    let mut sim = FrameSimulator::new(Scenario::Case1.profile(1), renderer, rate, 0.0, 1, 1).unwrap();
+    let mut sim = FrameSimulator::new(Scenario::Case1.profile(1, 1.0), renderer, rate, 0.0, 1, 1).unwrap();
     let est = PaperEstimator::new(cam, deck, PaperVariant::Atan2);
     let mut img = GrayImage::new(cam.width as usize, cam.height as usize);
     let mut stats = ErrorStats::default();

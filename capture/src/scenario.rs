@@ -38,15 +38,15 @@ impl Scenario {
         Self::ALL.into_iter().find(|s| s.name() == name)
     }
 
-    /// The scenario's motion; `seed` sets the sea's phases (Case 1 has none).
-    pub fn profile(&self, seed: u64) -> Box<dyn MotionProfile + Send + Sync> {
+    /// The scenario's motion; `seed` sets the sea's phases (Case 1 has none), `sea_scale`
+    /// multiplies the sea-state-6 amplitudes (1: sea state 6; Case 1 has no sea).
+    pub fn profile(&self, seed: u64, sea_scale: f64) -> Box<dyn MotionProfile + Send + Sync> {
+        let sea = || ShipMotion::scaled(seed, sea_scale);
         match self {
             Self::Case1 => Box::new(Case1Sweep::paper()),
-            Self::Ship => Box::new(ShipMotion::sea_state_6(seed)),
-            Self::Offset => {
-                Box::new(ShipMotion::sea_state_6(seed).with_tracking(TrackingError::offset_0_3m(seed)))
-            }
-            Self::NoDeck => Box::new(ShipMotion::sea_state_6(seed).with_tracking(TrackingError {
+            Self::Ship => Box::new(sea()),
+            Self::Offset => Box::new(sea().with_tracking(TrackingError::offset_0_3m(seed))),
+            Self::NoDeck => Box::new(sea().with_tracking(TrackingError {
                 offset_m: 30.0,
                 ..TrackingError::offset_0_3m(seed)
             })),
@@ -95,6 +95,10 @@ pub struct SimulationArgs {
     /// holds its height in W.
     #[cfg_attr(feature = "cli", arg(long))]
     pub heave: bool,
+    /// The sea's amplitudes (roll, pitch, yaw and heave) times this: 1 is sea state 6, 0.2 a
+    /// calm sea a landing fits in (0 to 2).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 1.0))]
+    pub sea_scale: f64,
     /// The autopilot's attitude stream of a non-level vehicle (`sim record` writes it as
     /// `vehicle.csv`).
     #[cfg_attr(feature = "cli", command(flatten))]
@@ -115,6 +119,7 @@ impl Default for SimulationArgs {
             vehicle: VehicleMotion::Level,
             vehicle_tilt_deg: vec![0.0; 3],
             heave: false,
+            sea_scale: 1.0,
             autopilot: crate::autopilot::AutopilotArgs::default(),
             seed: 1,
         }
@@ -163,6 +168,12 @@ impl SimulationArgs {
         if self.frames == 0 {
             return Err("--frames: must be at least 1".into());
         }
+        if !(0.0..=2.0).contains(&self.sea_scale) {
+            return Err(format!(
+                "--sea-scale: must be within [0, 2], got {}",
+                self.sea_scale
+            ));
+        }
         self.autopilot.validate()?;
         let tilt_ok = self.vehicle_tilt_deg.len() == 3
             && self
@@ -186,11 +197,11 @@ impl SimulationArgs {
     /// The run's motion: the scenario's deck (heaving with `heave`) and camera position, on the
     /// configured vehicle.
     pub fn profile(&self) -> Box<dyn MotionProfile + Send + Sync> {
-        let scenario = self.scenario.profile(self.seed);
+        let scenario = self.scenario.profile(self.seed, self.sea_scale);
         let scenario: Box<dyn MotionProfile + Send + Sync> = if self.heave {
             Box::new(crate::Heaving {
                 inner: scenario,
-                heave: crate::DeckHeave::sea_state_6(self.seed, 1.0),
+                heave: crate::DeckHeave::sea_state_6(self.seed, self.sea_scale),
             })
         } else {
             scenario
@@ -228,7 +239,7 @@ impl SimulationArgs {
             return Err(format!("--noise-px: must be >= 0, got {noise_px}"));
         }
         let mut markers = MarkerSimulator::new(sim.camera, sim.deck, noise_px, self.seed);
-        let profile = sim.scenario.profile(self.seed);
+        let profile = sim.scenario.profile(self.seed, self.sea_scale);
         Ok(
             crate::motion::sample_series(profile.as_ref(), self.rate, self.frames)
                 .iter()
@@ -299,16 +310,16 @@ mod tests {
             assert_eq!(Scenario::from_name(s.name()), Some(s));
             assert!(CameraModel::preset(s.default_camera()).is_some());
         }
-        let off = Scenario::Offset.profile(1).sample(3.0);
+        let off = Scenario::Offset.profile(1, 1.0).sample(3.0);
         assert!((off.viewpoint.offset_x_m.hypot(off.viewpoint.offset_y_m) - 0.3).abs() < 1e-12);
-        let case1 = Scenario::Case1.profile(1).sample(0.0);
+        let case1 = Scenario::Case1.profile(1, 1.0).sample(0.0);
         assert_eq!(case1.attitude.to_degrees(), [-20.0, -10.0, -5.0]);
     }
 
     #[test]
     fn noise_has_the_requested_spread() {
         let cam = CameraModel::rpi_v2();
-        let s = Scenario::Ship.profile(1).sample(1.0);
+        let s = Scenario::Ship.profile(1, 1.0).sample(1.0);
         let exact = MarkerSimulator::new(cam, DeckLayout::paper(), 0.0, 1).row(0, &s);
         let mut sim = MarkerSimulator::new(cam, DeckLayout::paper(), 0.5, 1);
         let mut ss = 0.0;

@@ -303,7 +303,7 @@ mod tests {
             let sim = sim_args(name).resolve().unwrap();
             let cam = sim.camera.scaled_to(320, 240);
             let r = Renderer::new(cam, sim.deck, RenderOptions::realistic(), 5).unwrap();
-            let mut fs = FrameSimulator::new(sim.scenario.profile(5), r, 10.0, 0.01, 4, 5).unwrap();
+            let mut fs = FrameSimulator::new(sim.scenario.profile(5, 1.0), r, 10.0, 0.01, 4, 5).unwrap();
             let mut img = GrayImage::new(320, 240);
             let t = fs.render_frame(7, &mut img.view_mut()).unwrap();
             assert_eq!(t.timestamp_ns, 700_000_000);

@@ -32,7 +32,7 @@ impl DecisionsCsv {
     /// Appends a decision's row (flushed: a crash loses nothing written before it).
     pub fn write(&mut self, d: &LandingDecision) -> Result<(), String> {
         let (a, dr, t, tr) = (&d.attitude, d.stamp.drops, d.stamp.times, &d.context.truth);
-        let [r, p, y] = if a.valid {
+        let [r, p, y] = if a.valid.get() {
             a.rpy.to_degrees()
         } else {
             [f64::NAN; 3]
@@ -50,9 +50,9 @@ impl DecisionsCsv {
             t.estimate_finished_ns,
             t.decide_received_ns,
             t.decide_finished_ns,
-            d.state.name(),
-            d.reason.name(),
-            a.valid as u8,
+            d.state.get().name(),
+            d.reason.get().name(),
+            a.valid.get() as u8,
             tr.roll_deg,
             tr.pitch_deg,
             tr.yaw_deg,
@@ -64,8 +64,8 @@ impl DecisionsCsv {
             dr.decide,
             d.calm_window_start_s,
             d.calm_window_length_s,
-            d.watchdog as u8,
-            if a.valid { a.deck_height_m } else { f64::NAN },
+            d.watchdog.get() as u8,
+            if a.valid.get() { a.deck_height_m } else { f64::NAN },
             tr.deck_heave_m,
             d.heave_rate_mps
         )
@@ -85,7 +85,7 @@ mod tests {
         let p = dir.path().join("d.csv");
         let mut w = DecisionsCsv::create(&p).unwrap();
         let mut d = LandingDecision::default();
-        d.attitude.valid = true;
+        d.attitude.valid = true.into();
         d.attitude.rpy = Rpy::from_degrees(1.0 / 3.0, -2.0e-7, 179.123456789);
         w.write(&d).unwrap();
         drop(w);

@@ -129,7 +129,7 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
                 let mut err = [f64::NAN; 3];
                 let [x, y, z] = a.camera_position_m;
                 // An attitude not compensated for the vehicle is not the deck's: a miss.
-                let usable = a.valid && a.vehicle.compensation != Compensation::Missing;
+                let usable = a.valid.get() && a.vehicle.compensation != Compensation::Missing;
                 match (usable, truth) {
                     (true, Some(tr)) => {
                         t.estimated += 1;
@@ -146,7 +146,7 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
                     }
                     (true, None) => {
                         t.estimated += 1;
-                        if f.truth.known {
+                        if f.truth.known.get() {
                             t.false_attitudes += 1;
                         }
                     }
@@ -154,7 +154,7 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
                     (false, None) => {}
                 }
                 if let Some(w) = &mut csv {
-                    let (rpy, sd) = if a.valid {
+                    let (rpy, sd) = if a.valid.get() {
                         (a.rpy.to_degrees(), a.rpy_std_deg)
                     } else {
                         ([f64::NAN; 3], [f64::NAN; 3])
@@ -164,7 +164,7 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
                         "{name},{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{z:.5},{x:.5},{y:.5},{:.5},{:.5},{:.6},{:.6},{:.6},{cost:.1}",
                         f.source_index,
                         est.name(),
-                        a.valid as u8,
+                        a.valid.get() as u8,
                         rpy[0],
                         rpy[1],
                         rpy[2],

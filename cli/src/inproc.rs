@@ -112,18 +112,18 @@ pub fn run(a: RunArgs) -> Result<(), String> {
         }
         frames += 1;
         let set = &out.markers.markers;
-        match set.status {
+        match set.status.get() {
             DetectionStatus::Ok => ok += 1,
             DetectionStatus::Partial => partial += 1,
             _ => no_deck += 1,
         }
-        tracked += usize::from(set.tracked);
+        tracked += usize::from(set.tracked.get());
         if let Some(i) = DecisionState::ALL.iter().position(|s| *s == out.decision.state) {
             states[i] += 1;
         }
         let a_msg = &out.attitude;
         let truth = &out.markers.context.truth;
-        let err = match (a_msg.valid, truth.attitude()) {
+        let err = match (a_msg.valid.get(), truth.attitude()) {
             (true, Some(t)) => {
                 let err = rpy_error_deg(&a_msg.rpy, &t);
                 accuracy.add(err);
@@ -135,9 +135,9 @@ pub fn run(a: RunArgs) -> Result<(), String> {
             }
             _ => None,
         };
-        estimated += usize::from(a_msg.valid);
+        estimated += usize::from(a_msg.valid.get());
         if a.every > 0 && frames % a.every == 1 {
-            let att = if a_msg.valid {
+            let att = if a_msg.valid.get() {
                 let [r, p, y] = a_msg.rpy.to_degrees();
                 format!("roll {r:+7.3} pitch {p:+7.3} yaw {y:+7.3} deg")
             } else {
@@ -152,9 +152,9 @@ pub fn run(a: RunArgs) -> Result<(), String> {
                 out.markers.context.source_timestamp_ns as f64 / 1e9,
                 set.status,
                 set.count,
-                if set.tracked { " (tracked)" } else { "" },
-                out.decision.state.name(),
-                out.decision.reason.name(),
+                if set.tracked.get() { " (tracked)" } else { "" },
+                out.decision.state.get().name(),
+                out.decision.reason.get().name(),
             );
         }
     }

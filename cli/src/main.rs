@@ -4,6 +4,7 @@
 //!   decide) on the simulator (default) or a recording, supervised, with a live status line.
 //! - `deckwatch latency RECORDING`: per-stage latency of the four processes on recorded frames.
 //! - `deckwatch inproc`: the same stages in one process, for profiling the algorithms.
+//! - `deckwatch soak`: a long run on full-size frames, watching memory and drops.
 //! - `deckwatch sim markers` / `deckwatch estimate-table`: the marker-table tools.
 //! - `deckwatch sweep`: simulate a scenario at the level of marker points and run every variant of
 //!   the paper's estimator on it, side by side (accuracy and per-frame cost).
@@ -41,6 +42,7 @@ mod eval;
 mod inproc;
 mod launch;
 mod pipeline;
+mod soak;
 mod tables;
 
 #[derive(Subcommand)]
@@ -55,6 +57,10 @@ enum Command {
     /// Detection and every estimator on recordings, against their ground truth: RMSE and max
     /// error of the angles (and altitude/offset), misses, attitudes without a deck, cost.
     Eval(eval::EvalArgs),
+    /// The pipeline for a long time (default 30 min) at camera rate on 3280x2464 frames (a looped
+    /// replay), printing each process's resident memory and the domain's shared memory as it
+    /// runs; fails if memory grows or frames are dropped.
+    Soak(soak::SoakArgs),
     /// Evaluate the landing decision on long simulated ship-motion series against the truth,
     /// beside the naive rule: unsafe clearances and availability.
     DecideEval(decide_eval::DecideEvalArgs),
@@ -389,6 +395,7 @@ fn main() -> ExitCode {
         Command::Latency(a) => pipeline::latency(a),
         Command::Inproc(a) => inproc::run(*a),
         Command::DecideEval(a) => decide_eval::run(a),
+        Command::Soak(a) => soak::run(a),
         Command::Eval(a) => eval::run(a),
         Command::EstimateTable(a) => match tables::estimate_table(a) {
             Ok(true) => Ok(()),

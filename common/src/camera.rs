@@ -8,7 +8,7 @@ use nalgebra::Vector3;
 /// Brown-Conrady coefficients in OpenCV's order `[k1, k2, p1, p2, k3]`, acting on normalised
 /// image coordinates (x/z, y/z).
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::AnyBitPattern)]
 #[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.Distortion.v1"))]
 pub struct Distortion {
     pub k1: f64,
@@ -96,7 +96,7 @@ impl Distortion {
 /// Intrinsics of a pinhole camera; distortion optional. `#[repr(C)]`: every pipeline message
 /// carries the camera its pixels belong to.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::AnyBitPattern)]
 #[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.CameraModel.v1"))]
 pub struct CameraModel {
     pub width: u32,

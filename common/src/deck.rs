@@ -19,7 +19,7 @@ pub const MAX_MARKERS: usize = MAX_RING_MARKERS + 1;
 /// Geometry of the deck's markers, in metres, in the deck frame (z = deck normal).
 /// `#[repr(C)]`: pipeline messages carry the layout their markers refer to.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::AnyBitPattern)]
 #[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.DeckLayout.v1"))]
 pub struct DeckLayout {
     /// Radius of the ring the ring markers' centres lie on (paper: 0.5 m).

@@ -7,7 +7,7 @@ use std::f64::consts::PI;
 /// An ellipse: centre, semi-axes (`semi_major >= semi_minor`) and the major axis's angle from +x
 /// in (-90, 90] degrees (radians here), measured toward +y of the coordinates it was fitted in.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::AnyBitPattern)]
 #[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.Ellipse.v1"))]
 pub struct Ellipse {
     pub centre: [f64; 2],

@@ -19,6 +19,7 @@ pub mod rotation;
 pub mod scene;
 pub mod stats;
 pub mod vehicle;
+pub mod wire;
 
 pub use camera::{CameraModel, Distortion};
 pub use deck::DeckLayout;
@@ -28,3 +29,4 @@ pub use markers::{DetectionStatus, Marker, MarkerSet};
 pub use recording::{GroundTruth, Recording, RecordingError, RecordingWriter};
 pub use rotation::{Attitude, Euler313, Quaternion, RotationMatrix, Rpy};
 pub use scene::{SceneGeometry, Viewpoint};
+pub use wire::{BadWireValue, WireBool, WireCheck, WireCode, WireEnum};

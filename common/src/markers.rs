@@ -1,16 +1,17 @@
 //! Detected markers: what detection hands to estimation, one fixed-size value per frame.
 
 use crate::deck::MAX_MARKERS;
+use crate::wire::{BadWireValue, WireBool, WireCheck, WireCode};
 #[cfg(feature = "shm")]
 use iceoryx2::prelude::ZeroCopySend;
 
 /// One detected marker.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::AnyBitPattern)]
 #[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.Marker.v1"))]
 pub struct Marker {
     /// Whether this marker was found; the other fields are meaningless when false.
-    pub valid: bool,
+    pub valid: WireBool,
     /// Subpixel centre: the image of the disc's centre (pixels, distorted as in the frame).
     pub u: f64,
     pub v: f64,
@@ -23,13 +24,7 @@ pub struct Marker {
 }
 
 /// Outcome of detecting the deck's markers in a frame.
-#[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(
-    feature = "shm",
-    derive(ZeroCopySend),
-    type_name("deckwatch.DetectionStatus.v1")
-)]
 pub enum DetectionStatus {
     /// Every marker found.
     Ok = 0,
@@ -42,9 +37,11 @@ pub enum DetectionStatus {
     BadFrame = 3,
 }
 
+crate::wire_enum!(DetectionStatus, on_bad_code: BadFrame, [Ok, Partial, NoDeck, BadFrame]);
+
 /// Why candidate blobs were not used.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, bytemuck::AnyBitPattern)]
 #[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.RejectCounts.v1"))]
 pub struct RejectCounts {
     /// Too small or too large for a marker at any plausible altitude.
@@ -62,16 +59,48 @@ pub struct RejectCounts {
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.MarkerSet.v1"))]
 pub struct MarkerSet {
-    pub status: DetectionStatus,
+    pub status: WireCode<DetectionStatus>,
     /// Number of valid markers.
     pub count: u32,
     /// Whether the markers were found by tracking (regions around the previous frame's).
-    pub tracked: bool,
+    pub tracked: WireBool,
     /// Whether the centres are free of the perspective bias of disc centroids (NOTES.md item 6);
     /// false: raw centroids, an estimator should correct them.
-    pub perspective_corrected: bool,
+    pub perspective_corrected: WireBool,
     pub markers: [Marker; MAX_MARKERS],
     pub rejected: RejectCounts,
+}
+
+// bytemuck has `AnyBitPattern` for arrays of `Pod` only, and `Marker` has padding (it is not
+// `Pod`), so the derive cannot see through `[Marker; MAX_MARKERS]`; the fields are checked here.
+const _: () = {
+    const fn any_bit_pattern<T: bytemuck::AnyBitPattern>() {}
+    any_bit_pattern::<WireCode<DetectionStatus>>();
+    any_bit_pattern::<u32>();
+    any_bit_pattern::<WireBool>();
+    any_bit_pattern::<Marker>();
+    any_bit_pattern::<RejectCounts>();
+};
+// SAFETY: `repr(C)` of fields that each accept any bytes (checked above): an array of such a
+// type does too, and so does the struct; zero is a value of each.
+unsafe impl bytemuck::Zeroable for MarkerSet {}
+// SAFETY: as above.
+unsafe impl bytemuck::AnyBitPattern for MarkerSet {}
+
+impl WireCheck for Marker {
+    fn check_wire(&self) -> Result<(), BadWireValue> {
+        crate::check_wire_fields!(self; codes: [valid]; parts: [])
+    }
+}
+
+impl WireCheck for MarkerSet {
+    fn check_wire(&self) -> Result<(), BadWireValue> {
+        crate::check_wire_fields!(self; codes: [status, tracked, perspective_corrected]; parts: [])?;
+        for (i, m) in self.markers.iter().enumerate() {
+            m.check_wire().map_err(|e| e.within(&format!("markers[{i}]")))?;
+        }
+        Ok(())
+    }
 }
 
 impl MarkerSet {
@@ -80,7 +109,7 @@ impl MarkerSet {
     pub fn pixels(&self, n: usize) -> Vec<Option<[f64; 2]>> {
         self.markers[..n.min(MAX_MARKERS)]
             .iter()
-            .map(|m| m.valid.then_some([m.u, m.v]))
+            .map(|m| m.valid.get().then_some([m.u, m.v]))
             .collect()
     }
 }

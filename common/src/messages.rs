@@ -16,6 +16,8 @@ use crate::markers::MarkerSet;
 use crate::recording::GroundTruth;
 use crate::rotation::{Euler313, Quaternion, Rpy};
 use crate::vehicle::Compensation;
+use crate::wire::{BadWireValue, WireBool, WireCheck, WireCode};
+use crate::wire_enum;
 #[cfg(feature = "shm")]
 use iceoryx2::prelude::ZeroCopySend;
 
@@ -33,7 +35,7 @@ pub fn monotonic_ns() -> u64 {
 
 /// When a frame passed each stage: `CLOCK_MONOTONIC` nanoseconds, 0 = not (yet) passed.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, bytemuck::AnyBitPattern)]
 #[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.StageTimes.v1"))]
 pub struct StageTimes {
     /// The frame was captured: exposure (camera), start of rendering (simulator), start of
@@ -105,7 +107,7 @@ impl StageTimes {
 /// Frames lost so far, by where (cumulative counts of the process that counted them; they
 /// restart at 0 when that stage is restarted).
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, bytemuck::AnyBitPattern)]
 #[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.DropCounts.v1"))]
 pub struct DropCounts {
     /// Frames the source delivered that capture could not publish (no free shared-memory
@@ -192,7 +194,7 @@ impl GapCounter {
 
 /// Identity and timing of one frame, at the start of every message.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, bytemuck::AnyBitPattern)]
 #[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.FrameStamp.v1"))]
 pub struct FrameStamp {
     /// Capture's count of published frames, from 0; consecutive unless frames were dropped.
@@ -202,10 +204,8 @@ pub struct FrameStamp {
 }
 
 /// Where frames come from (also `[source] kind` of the pipeline configuration).
-#[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
-#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.FrameSource.v1"))]
 pub enum FrameSource {
     #[default]
     #[serde(rename = "sim")]
@@ -213,6 +213,8 @@ pub enum FrameSource {
     Replay = 1,
     Libcamera = 2,
 }
+
+wire_enum!(FrameSource, on_bad_code: Simulator, [Simulator, Replay, Libcamera]);
 
 impl FrameSource {
     pub fn name(&self) -> &'static str {
@@ -225,23 +227,23 @@ impl FrameSource {
 }
 
 /// Layout of a frame's pixels.
-#[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.PixelFormat.v1"))]
 pub enum PixelFormat {
     /// 8-bit luminance, one byte a pixel, rows `stride` bytes apart.
     #[default]
     Gray8 = 0,
 }
 
+wire_enum!(PixelFormat, on_bad_code: Gray8, [Gray8]);
+
 /// Ground truth as plain data (NaN = unknown). All attitude angles NaN with `deck_in_view`
 /// true means "not known"; `deck_in_view` false means the frame shows no deck.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::AnyBitPattern)]
 #[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.Truth.v2"))]
 pub struct Truth {
     /// Whether the source knows the truth at all (simulator, recordings with truth columns).
-    pub known: bool,
+    pub known: WireBool,
     pub roll_deg: f64,
     pub pitch_deg: f64,
     pub yaw_deg: f64,
@@ -260,7 +262,7 @@ impl Default for Truth {
 
 impl Truth {
     pub const UNKNOWN: Self = Self {
-        known: false,
+        known: WireBool::FALSE,
         roll_deg: f64::NAN,
         pitch_deg: f64::NAN,
         yaw_deg: f64::NAN,
@@ -275,7 +277,7 @@ impl Truth {
     pub fn from_ground_truth(t: &GroundTruth, known: bool) -> Self {
         let f = |v: Option<f64>| v.unwrap_or(f64::NAN);
         Self {
-            known,
+            known: known.into(),
             roll_deg: f(t.roll_deg),
             pitch_deg: f(t.pitch_deg),
             yaw_deg: f(t.yaw_deg),
@@ -288,21 +290,21 @@ impl Truth {
 
     /// The true attitude, when known.
     pub fn attitude(&self) -> Option<Rpy> {
-        let ok = self.known && self.roll_deg.is_finite() && self.pitch_deg.is_finite();
+        let ok = self.known.get() && self.roll_deg.is_finite() && self.pitch_deg.is_finite();
         (ok && self.yaw_deg.is_finite())
             .then(|| Rpy::from_degrees(self.roll_deg, self.pitch_deg, self.yaw_deg))
     }
 
     /// The source knows that no deck is in view.
     pub fn no_deck(&self) -> bool {
-        self.known && self.attitude().is_none()
+        self.known.get() && self.attitude().is_none()
     }
 }
 
 /// The attitude of the vehicle that carried the camera when the frame was taken (`R_V`, body
 /// to world; NOTES.md item 8), and how it is known.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::AnyBitPattern)]
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
@@ -313,7 +315,7 @@ pub struct VehicleAttitude {
     /// `Frame`: the frame's own (simulator, recording columns); `Stream`: interpolated from a
     /// stream of samples (`vehicle.csv`, the autopilot); `Missing`: a stream with no sample close
     /// enough.
-    pub compensation: Compensation,
+    pub compensation: WireCode<Compensation>,
     pub rpy: Rpy,
     /// From the frame's instant to the nearest sample used (ms): 0 for the frame's own, NaN when
     /// there is none.
@@ -332,7 +334,7 @@ impl Default for VehicleAttitude {
 
 impl VehicleAttitude {
     pub const LEVEL: Self = Self {
-        compensation: Compensation::Level,
+        compensation: WireCode::from_code(Compensation::Level as u32),
         rpy: Rpy {
             roll: 0.0,
             pitch: 0.0,
@@ -343,7 +345,7 @@ impl VehicleAttitude {
     };
 
     pub const MISSING: Self = Self {
-        compensation: Compensation::Missing,
+        compensation: WireCode::from_code(Compensation::Missing as u32),
         ..Self::LEVEL
     };
 
@@ -351,7 +353,7 @@ impl VehicleAttitude {
     pub fn from_rpy(rpy: Option<Rpy>) -> Self {
         match rpy {
             Some(rpy) => Self {
-                compensation: Compensation::Frame,
+                compensation: Compensation::Frame.into(),
                 rpy,
                 age_ms: 0.0,
                 height_m: f64::NAN,
@@ -367,7 +369,10 @@ impl VehicleAttitude {
 
     /// Whether there is an attitude to compensate with (`Frame` or `Stream`).
     pub fn known(&self) -> bool {
-        matches!(self.compensation, Compensation::Frame | Compensation::Stream)
+        matches!(
+            self.compensation.get(),
+            Compensation::Frame | Compensation::Stream
+        )
     }
 
     /// `R_V` when known, else the identity (a level camera).
@@ -382,10 +387,10 @@ impl VehicleAttitude {
 
 /// What a frame's pixels mean, carried from capture to decide with every message.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::AnyBitPattern)]
 #[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.FrameContext.v4"))]
 pub struct FrameContext {
-    pub source: FrameSource,
+    pub source: WireCode<FrameSource>,
     /// Index of the frame at its source: recording frame index, camera sequence, simulator
     /// frame number (differs from `FrameStamp::seq` when replay loops or frames are skipped).
     pub source_index: u64,
@@ -402,7 +407,7 @@ pub struct FrameContext {
 
 /// The user header of a frame sample; the payload is the `[u8]` pixel buffer itself.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::AnyBitPattern)]
 #[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.FrameHeader.v4"))]
 pub struct FrameHeader {
     pub stamp: FrameStamp,
@@ -411,7 +416,7 @@ pub struct FrameHeader {
     pub height: u32,
     /// Bytes from one row to the next (>= width).
     pub stride: u32,
-    pub pixel_format: PixelFormat,
+    pub pixel_format: WireCode<PixelFormat>,
 }
 
 impl FrameHeader {
@@ -426,7 +431,7 @@ impl FrameHeader {
 
 /// Detect's output for one frame.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::AnyBitPattern)]
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
@@ -439,14 +444,8 @@ pub struct MarkerMessage {
 }
 
 /// Which estimator produced an attitude (also `[estimate] estimator`).
-#[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
-#[cfg_attr(
-    feature = "shm",
-    derive(ZeroCopySend),
-    type_name("deckwatch.EstimatorKind.v1")
-)]
 pub enum EstimatorKind {
     /// The paper's method (ellipse of the ring), `atan2` variant.
     #[default]
@@ -478,14 +477,14 @@ impl EstimatorKind {
     }
 }
 
+wire_enum!(
+    EstimatorKind,
+    on_bad_code: PaperAtan2,
+    [PaperAtan2, PaperPrinted, PaperFittedMajorAxis, FullPose]
+);
+
 /// Why an attitude is not valid.
-#[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(
-    feature = "shm",
-    derive(ZeroCopySend),
-    type_name("deckwatch.AttitudeFailure.v1")
-)]
 pub enum AttitudeFailure {
     /// The attitude is valid.
     #[default]
@@ -502,9 +501,15 @@ pub enum AttitudeFailure {
     Degenerate = 5,
 }
 
+wire_enum!(
+    AttitudeFailure,
+    on_bad_code: Degenerate,
+    [None, NoDeck, BadFrame, TooFewMarkers, NoAltitude, Degenerate]
+);
+
 /// Estimate's output for one frame.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::AnyBitPattern)]
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
@@ -513,16 +518,16 @@ pub enum AttitudeFailure {
 pub struct AttitudeMessage {
     pub stamp: FrameStamp,
     pub context: FrameContext,
-    pub estimator: EstimatorKind,
+    pub estimator: WireCode<EstimatorKind>,
     /// Whether the angles below mean anything; `failure` says why not.
-    pub valid: bool,
-    pub failure: AttitudeFailure,
+    pub valid: WireBool,
+    pub failure: WireCode<AttitudeFailure>,
     pub rpy: Rpy,
     pub quaternion: Quaternion,
     pub euler313: Euler313,
     /// The ring's fitted ellipse in undistorted pixel coordinates (for drawing), when
     /// `has_image_ellipse`.
-    pub has_image_ellipse: bool,
+    pub has_image_ellipse: WireBool,
     pub image_ellipse: Ellipse,
     /// Estimator-specific fit residual: the paper's method gives the RMS distance (m) of the
     /// corrected ring points from their ellipse.
@@ -556,13 +561,13 @@ impl Default for AttitudeMessage {
         Self {
             stamp: FrameStamp::default(),
             context: FrameContext::default(),
-            estimator: EstimatorKind::default(),
-            valid: false,
-            failure: AttitudeFailure::default(),
+            estimator: WireCode::default(),
+            valid: WireBool::FALSE,
+            failure: WireCode::default(),
             rpy: Rpy::default(),
             quaternion: Quaternion::default(),
             euler313: Euler313::default(),
-            has_image_ellipse: false,
+            has_image_ellipse: WireBool::FALSE,
             image_ellipse: Ellipse::default(),
             residual: f64::NAN,
             markers_used: 0,
@@ -578,7 +583,7 @@ impl Default for AttitudeMessage {
 
 /// A second estimator's attitude for the same frame.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::AnyBitPattern)]
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
@@ -586,20 +591,14 @@ impl Default for AttitudeMessage {
 )]
 pub struct AlternativeAttitude {
     /// Whether a second estimator ran.
-    pub present: bool,
-    pub estimator: EstimatorKind,
-    pub valid: bool,
+    pub present: WireBool,
+    pub estimator: WireCode<EstimatorKind>,
+    pub valid: WireBool,
     pub rpy: Rpy,
 }
 
 /// The decision state (see the decide crate for its meaning and transitions).
-#[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(
-    feature = "shm",
-    derive(ZeroCopySend),
-    type_name("deckwatch.DecisionState.v1")
-)]
 pub enum DecisionState {
     /// No valid attitude: do not land.
     #[default]
@@ -611,6 +610,8 @@ pub enum DecisionState {
     /// A committed landing became unsafe: abort.
     Abort = 3,
 }
+
+wire_enum!(DecisionState, on_bad_code: NoDeck, [NoDeck, Hold, ClearToLand, Abort]);
 
 impl DecisionState {
     /// Every state, in the order of their values.
@@ -627,13 +628,7 @@ impl DecisionState {
 }
 
 /// Why the decision is what it is.
-#[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(
-    feature = "shm",
-    derive(ZeroCopySend),
-    type_name("deckwatch.DecisionReason.v2")
-)]
 pub enum DecisionReason {
     /// Within capacity (ClearToLand).
     #[default]
@@ -668,6 +663,26 @@ pub enum DecisionReason {
     ClockJump = 12,
 }
 
+wire_enum!(
+    DecisionReason,
+    on_bad_code: InvalidAttitude,
+    [
+        WithinCapacity,
+        InvalidAttitude,
+        StaleData,
+        Gap,
+        Jump,
+        OutsideCapacity,
+        Warmup,
+        PredictionUnreliable,
+        PredictedOutside,
+        NoVehicleAttitude,
+        NoDeckHeave,
+        FrozenInput,
+        ClockJump,
+    ]
+);
+
 impl DecisionReason {
     pub fn name(&self) -> &'static str {
         match self {
@@ -689,9 +704,7 @@ impl DecisionReason {
 }
 
 /// How a vehicle sample's autopilot time was put on this machine's clock.
-#[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.ClockMethod.v1"))]
 pub enum ClockMethod {
     /// Not yet: no offset estimate.
     #[default]
@@ -702,10 +715,12 @@ pub enum ClockMethod {
     Arrival = 2,
 }
 
+wire_enum!(ClockMethod, on_bad_code: None, [None, Timesync, Arrival]);
+
 /// One attitude sample of the vehicle, from the autopilot (the `link` process), on this
 /// machine's `CLOCK_MONOTONIC`.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::AnyBitPattern)]
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
@@ -729,16 +744,16 @@ pub struct VehicleSample {
     pub height_m: f64,
     /// autopilot time - monotonic time (ns), and how it was estimated.
     pub clock_offset_ns: i64,
-    pub clock_method: ClockMethod,
+    pub clock_method: WireCode<ClockMethod>,
     /// Drift of the autopilot's clock against this machine's (parts per million).
     pub clock_drift_ppm: f64,
     /// The link: a heartbeat and attitude came within the configured time.
-    pub link_up: bool,
+    pub link_up: WireBool,
 }
 
 /// Decide's output for one frame.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::AnyBitPattern)]
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
@@ -749,8 +764,8 @@ pub struct LandingDecision {
     pub context: FrameContext,
     /// The attitude the decision was made on.
     pub attitude: AttitudeMessage,
-    pub state: DecisionState,
-    pub reason: DecisionReason,
+    pub state: WireCode<DecisionState>,
+    pub reason: WireCode<DecisionReason>,
     /// The next predicted calm window, relative to `stamp.times.captured_ns` (s); NaN when
     /// none is predicted.
     pub calm_window_start_s: f64,
@@ -760,7 +775,98 @@ pub struct LandingDecision {
     pub heave_rate_mps: f64,
     /// Issued by decide's watchdog because no attitude arrived in time (the stamp and attitude
     /// are the last ones received), not in answer to a frame.
-    pub watchdog: bool,
+    pub watchdog: WireBool,
+}
+
+/// "This process is alive and its loop turns": every stage process sends one at least every
+/// [`StageHeartbeat::PERIOD_NS`] from the loop that does its work (never from a helper thread,
+/// which would beat on while the loop hangs). The launcher restarts a stage whose beats stop.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, bytemuck::AnyBitPattern)]
+#[cfg_attr(
+    feature = "shm",
+    derive(ZeroCopySend),
+    type_name("deckwatch.StageHeartbeat.v1")
+)]
+pub struct StageHeartbeat {
+    /// The sender's process id (the launcher knows its children by it).
+    pub pid: u32,
+    /// The sender's count of beats, from 0.
+    pub seq: u64,
+    /// When it was sent (`CLOCK_MONOTONIC`, ns).
+    pub sent_ns: u64,
+}
+
+impl StageHeartbeat {
+    pub const PERIOD_NS: u64 = 100_000_000;
+}
+
+impl WireCheck for StageHeartbeat {
+    fn check_wire(&self) -> Result<(), BadWireValue> {
+        Ok(())
+    }
+}
+
+impl WireCheck for Truth {
+    fn check_wire(&self) -> Result<(), BadWireValue> {
+        crate::check_wire_fields!(self; codes: [known]; parts: [])
+    }
+}
+
+impl WireCheck for VehicleAttitude {
+    fn check_wire(&self) -> Result<(), BadWireValue> {
+        crate::check_wire_fields!(self; codes: [compensation]; parts: [])
+    }
+}
+
+impl WireCheck for FrameContext {
+    fn check_wire(&self) -> Result<(), BadWireValue> {
+        crate::check_wire_fields!(self; codes: [source]; parts: [truth, vehicle])
+    }
+}
+
+impl WireCheck for FrameHeader {
+    fn check_wire(&self) -> Result<(), BadWireValue> {
+        crate::check_wire_fields!(self; codes: [pixel_format]; parts: [context])
+    }
+}
+
+impl WireCheck for MarkerMessage {
+    fn check_wire(&self) -> Result<(), BadWireValue> {
+        crate::check_wire_fields!(self; codes: []; parts: [context, markers])
+    }
+}
+
+impl WireCheck for AlternativeAttitude {
+    fn check_wire(&self) -> Result<(), BadWireValue> {
+        crate::check_wire_fields!(self; codes: [present, estimator, valid]; parts: [])
+    }
+}
+
+impl WireCheck for AttitudeMessage {
+    fn check_wire(&self) -> Result<(), BadWireValue> {
+        crate::check_wire_fields!(
+            self;
+            codes: [estimator, valid, failure, has_image_ellipse];
+            parts: [context, alternative, vehicle]
+        )
+    }
+}
+
+impl WireCheck for VehicleSample {
+    fn check_wire(&self) -> Result<(), BadWireValue> {
+        crate::check_wire_fields!(self; codes: [clock_method, link_up]; parts: [])
+    }
+}
+
+impl WireCheck for LandingDecision {
+    fn check_wire(&self) -> Result<(), BadWireValue> {
+        crate::check_wire_fields!(
+            self;
+            codes: [state, reason, watchdog];
+            parts: [context, attitude]
+        )
+    }
 }
 
 #[cfg(test)]

@@ -50,7 +50,7 @@ pub fn wrap_pi(a: f64) -> f64 {
 /// Positive roll raises the port side, positive pitch lowers the bow, positive yaw turns the bow
 /// to port.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::AnyBitPattern)]
 #[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.Rpy.v1"))]
 pub struct Rpy {
     pub roll: f64,
@@ -114,7 +114,7 @@ impl Rpy {
 /// `(alpha + 180, -beta, gamma + 180)` are the same rotation; the canonical form picks the one
 /// with alpha in (-90, 90].
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::AnyBitPattern)]
 #[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.Euler313.v1"))]
 pub struct Euler313 {
     pub alpha: f64,
@@ -215,7 +215,7 @@ impl Euler313 {
 
 /// A Hamilton unit quaternion `w + x i + y j + z k` of a rotation matrix R.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::AnyBitPattern)]
 #[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.Quaternion.v1"))]
 pub struct Quaternion {
     pub w: f64,

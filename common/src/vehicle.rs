@@ -8,8 +8,6 @@
 
 use crate::error::InvalidField;
 use crate::rotation::{Quaternion, RotationMatrix, Rpy};
-#[cfg(feature = "shm")]
-use iceoryx2::prelude::ZeroCopySend;
 use std::collections::VecDeque;
 
 /// Where the estimate stage takes the vehicle's attitude from (`[vehicle] attitude`).
@@ -99,9 +97,7 @@ impl VehicleConfig {
 }
 
 /// How a frame's attitude was compensated for the vehicle's.
-#[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.Compensation.v1"))]
 pub enum Compensation {
     /// None needed: the camera is level (a gimbal, or a recording without a vehicle).
     #[default]
@@ -114,6 +110,8 @@ pub enum Compensation {
     /// to the camera only, and decide never clears on it.
     Missing = 3,
 }
+
+crate::wire_enum!(Compensation, on_bad_code: Missing, [Level, Frame, Stream, Missing]);
 
 impl Compensation {
     pub fn name(&self) -> &'static str {
@@ -230,7 +228,7 @@ impl VehicleTrack {
     pub fn vehicle_attitude_at(&self, t_ns: u64, max_gap_ns: u64) -> crate::messages::VehicleAttitude {
         match self.at(t_ns, max_gap_ns) {
             Ok(a) => crate::messages::VehicleAttitude {
-                compensation: Compensation::Stream,
+                compensation: Compensation::Stream.into(),
                 rpy: a.quaternion.to_rpy(),
                 age_ms: a.age_ns as f64 / 1e6,
                 height_m: a.height_m.unwrap_or(f64::NAN),

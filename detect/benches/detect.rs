@@ -17,7 +17,7 @@ use std::time::Instant;
 fn frames(n: u64) -> Vec<GrayImage> {
     let cam = CameraModel::rpi_v2();
     let r = Renderer::new(cam, DeckLayout::paper(), RenderOptions::realistic(), 3).unwrap();
-    let mut sim = FrameSimulator::new(Scenario::Ship.profile(3), r, 1.0, 0.0, 1, 3).unwrap();
+    let mut sim = FrameSimulator::new(Scenario::Ship.profile(3, 1.0), r, 1.0, 0.0, 1, 3).unwrap();
     (0..n)
         .map(|k| {
             let mut img = GrayImage::new(3280, 2464);
@@ -54,7 +54,7 @@ fn main() {
                 let t0 = Instant::now();
                 let set = det.detect(frames[k].view());
                 total += t0.elapsed();
-                assert!(set.tracked);
+                assert!(set.tracked.get());
             }
             total
         })

@@ -152,7 +152,7 @@ impl Detector {
         if (frame.width(), frame.height()) != (self.camera.width as usize, self.camera.height as usize) {
             self.previous = None;
             return MarkerSet {
-                status: DetectionStatus::BadFrame,
+                status: DetectionStatus::BadFrame.into(),
                 ..MarkerSet::default()
             };
         }
@@ -601,14 +601,14 @@ impl Detector {
     fn build(&self, assigned: &[(usize, Candidate)], rejected: RejectCounts, tracked: bool) -> MarkerSet {
         let mut set = MarkerSet {
             rejected,
-            tracked,
+            tracked: tracked.into(),
             ..MarkerSet::default()
         };
         let fit = self.correspondences(assigned).and_then(|(src, dst)| {
             let h = homography::fit(&src, &dst)?;
             Some((h, src, dst))
         });
-        set.perspective_corrected = self.config.correct_perspective && fit.is_some();
+        set.perspective_corrected = (self.config.correct_perspective && fit.is_some()).into();
         for (k, (m, c)) in assigned.iter().enumerate() {
             let (mut u, mut v) = (c.u, c.v);
             let mut residual = 0.0;
@@ -630,7 +630,7 @@ impl Detector {
             let contrast_score = (c.contrast / (4.0 * self.config.min_contrast)).min(1.0);
             let residual_score = 1.0 / (1.0 + residual * residual);
             set.markers[*m] = Marker {
-                valid: true,
+                valid: true.into(),
                 u,
                 v,
                 area_px: c.area,
@@ -640,9 +640,9 @@ impl Detector {
         }
         set.count = assigned.len() as u32;
         set.status = if set.count as usize == self.deck.marker_count() {
-            DetectionStatus::Ok
+            DetectionStatus::Ok.into()
         } else {
-            DetectionStatus::Partial
+            DetectionStatus::Partial.into()
         };
         set
     }
@@ -651,7 +651,7 @@ impl Detector {
         if set.status == DetectionStatus::Ok || set.status == DetectionStatus::Partial {
             let mut prev = [None; MAX_MARKERS];
             for (p, m) in prev.iter_mut().zip(&set.markers) {
-                if m.valid {
+                if m.valid.get() {
                     *p = Some((m.u, m.v, (m.area_px / std::f64::consts::PI).sqrt()));
                 }
             }
@@ -863,7 +863,7 @@ mod bad_input {
             match d.detect_bytes(&frame, w, h, stride) {
                 Ok(set) => {
                     prop_assert!(set.count as usize <= 9);
-                    prop_assert_eq!(set.markers.iter().filter(|m| m.valid).count(), set.count as usize);
+                    prop_assert_eq!(set.markers.iter().filter(|m| m.valid.get()).count(), set.count as usize);
                     if set.status == DetectionStatus::NoDeck || set.status == DetectionStatus::BadFrame {
                         prop_assert_eq!(set.count, 0);
                     }

@@ -224,9 +224,9 @@ impl Incoming {
             altitude_m: self.altitude_m,
             height_m: self.height_at(time_boot_ms),
             clock_offset_ns: clock.offset_at(local) as i64,
-            clock_method: clock.method,
+            clock_method: clock.method.into(),
             clock_drift_ppm: clock.drift_ppm,
-            link_up: self.state(now_ns) == LinkState::Up,
+            link_up: (self.state(now_ns) == LinkState::Up).into(),
         };
         self.seq += 1;
         self.newest = Some(sample);
@@ -290,7 +290,7 @@ mod tests {
         assert_eq!(i.autopilot, Some((1, 1)));
         assert_eq!(i.state(2_000), LinkState::NoAttitude);
         let s = i.handle(&ap, &attitude(5_000), 10_000_000).sample.unwrap();
-        assert!(s.link_up && s.clock_method == ClockMethod::Arrival);
+        assert!(s.link_up.get() && s.clock_method == ClockMethod::Arrival);
         assert_eq!(s.time_ns, 10_000_000, "arrival offset: taken at its arrival");
         assert_eq!(i.state(10_000_000 + 150_000_000), LinkState::Up);
         assert_eq!(i.state(10_000_000 + 250_000_000), LinkState::NoAttitude);

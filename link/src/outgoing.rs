@@ -40,7 +40,7 @@ pub fn reported_state(d: &LandingDecision, link: LinkState) -> DecisionState {
     if d.state == DecisionState::ClearToLand && link != LinkState::Up {
         DecisionState::Hold
     } else {
-        d.state
+        d.state.get()
     }
 }
 
@@ -49,12 +49,12 @@ pub fn reported_state(d: &LandingDecision, link: LinkState) -> DecisionState {
 /// decision the link cannot see renewed is not one to act on.
 pub fn stale_decision(last: Option<&LandingDecision>) -> LandingDecision {
     let mut d = last.copied().unwrap_or_default();
-    d.state = DecisionState::NoDeck;
-    d.reason = DecisionReason::StaleData;
+    d.state = DecisionState::NoDeck.into();
+    d.reason = DecisionReason::StaleData.into();
     d.calm_window_start_s = f64::NAN;
     d.calm_window_length_s = f64::NAN;
     d.heave_rate_mps = f64::NAN;
-    d.watchdog = true;
+    d.watchdog = true.into();
     d
 }
 
@@ -159,7 +159,7 @@ impl Outgoing {
         let remote = |local_ns: u64| clock.map(|c| c.to_remote_ns(local_ns as f64));
         let boot_ms = remote(now_ns).map_or(0, |t| (t / 1e6).max(0.0) as u32);
         let state = reported_state(d, link);
-        let status = (state, d.reason as u8, link);
+        let status = (state, d.reason.get() as u8, link);
         // The target goes first: it is what the autopilot acts on soonest.
         let mut status_text = None;
         if self.last_status != Some(status) {
@@ -169,7 +169,7 @@ impl Outgoing {
                 DecisionState::ClearToLand => MavSeverity::MAV_SEVERITY_NOTICE,
                 _ => MavSeverity::MAV_SEVERITY_INFO,
             };
-            let mut text = format!("deckwatch {}: {}", state.name(), d.reason.name());
+            let mut text = format!("deckwatch {}: {}", state.name(), d.reason.get().name());
             if link != LinkState::Up {
                 text = format!("deckwatch {}: link {}", state.name(), link.name());
             }
@@ -177,8 +177,8 @@ impl Outgoing {
         }
         // The target only when the deck is where the full pose says, in a compensated frame.
         let position = a.camera_position_m;
-        let usable = !d.watchdog
-            && a.valid
+        let usable = !d.watchdog.get()
+            && a.valid.get()
             && a.vehicle.compensation != Compensation::Missing
             && position.iter().all(|v| v.is_finite());
         let due = |last: Option<u64>, period: u64| last.is_none_or(|t| now_ns.saturating_sub(t) >= period);
@@ -212,7 +212,7 @@ impl Outgoing {
         out.extend(status_text);
         if due(self.last_telemetry_ns, self.telemetry_period_ns) || changed {
             self.last_telemetry_ns = Some(now_ns);
-            let [roll, pitch, _] = if a.valid {
+            let [roll, pitch, _] = if a.valid.get() {
                 a.rpy.to_degrees()
             } else {
                 [f64::NAN; 3]
@@ -221,7 +221,10 @@ impl Outgoing {
             for (name, value) in [
                 (names::ROLL, roll),
                 (names::PITCH, pitch),
-                (names::HEAVE, if a.valid { a.deck_height_m } else { f64::NAN }),
+                (
+                    names::HEAVE,
+                    if a.valid.get() { a.deck_height_m } else { f64::NAN },
+                ),
                 (names::HEAVE_RATE, d.heave_rate_mps),
                 (names::CALM_START, calm(d.calm_window_start_s)),
                 (names::CALM_LENGTH, calm(d.calm_window_length_s)),
@@ -234,7 +237,7 @@ impl Outgoing {
             }
             for (name, value) in [
                 (names::STATE, state as i32),
-                (names::REASON, d.reason as i32),
+                (names::REASON, d.reason.get() as i32),
                 (names::LINK, link_number(link)),
             ] {
                 out.push(MavMessage::NAMED_VALUE_INT(NAMED_VALUE_INT_DATA {
@@ -255,16 +258,16 @@ mod tests {
 
     fn decision(state: DecisionState) -> LandingDecision {
         let mut d = LandingDecision {
-            state,
-            reason: DecisionReason::WithinCapacity,
+            state: state.into(),
+            reason: DecisionReason::WithinCapacity.into(),
             calm_window_start_s: f64::NAN,
             calm_window_length_s: f64::NAN,
             ..Default::default()
         };
-        d.attitude.valid = true;
+        d.attitude.valid = true.into();
         d.attitude.rpy = Rpy::from_degrees(2.0, -1.0, 0.0);
         d.attitude.camera_position_m = [0.0, 0.0, 5.0];
-        d.attitude.vehicle.compensation = Compensation::Frame;
+        d.attitude.vehicle.compensation = Compensation::Frame.into();
         d.stamp.times.captured_ns = 1_000_000;
         d
     }
@@ -288,7 +291,7 @@ mod tests {
         o.decision(&d, LinkState::Up, None, 10);
         let stale = stale_decision(Some(&d));
         assert_eq!(
-            (stale.state, stale.reason),
+            (stale.state.get(), stale.reason.get()),
             (DecisionState::NoDeck, DecisionReason::StaleData)
         );
         let m = o.decision(&stale, LinkState::Up, None, 400_000_010);
@@ -344,7 +347,7 @@ mod tests {
             if v.name.to_str().unwrap() == names::STATE && v.value == DecisionState::Hold as i32)));
         // Not compensated: no target.
         let mut u = decision(DecisionState::Hold);
-        u.attitude.vehicle.compensation = Compensation::Missing;
+        u.attitude.vehicle.compensation = Compensation::Missing.into();
         let m = o.decision(&u, LinkState::Up, None, 3_000_010);
         assert!(!kinds(&m).contains(&"target"));
     }

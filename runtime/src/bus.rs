@@ -11,14 +11,19 @@
 //! loses its oldest sample, `send` never waits); stages take the newest input and count the
 //! sequence gaps as drops.
 //!
+//! Every message is checked as it is received ([`WireCheck`]: each enum and boolean holds one of
+//! its values); one that does not is counted in the subscriber's [`Rejections`] and skipped,
+//! never read, since the bytes come from another process.
+//!
 //! A *domain* isolates pipelines on one machine (tests run several at once): it prefixes every
 //! iceoryx2 file in `/dev/shm` and under `/tmp/iceoryx2`.
 
 use deckwatch_common::messages::{
-    monotonic_ns, AttitudeMessage, FrameHeader, LandingDecision, MarkerMessage, VehicleSample,
+    monotonic_ns, AttitudeMessage, FrameHeader, LandingDecision, MarkerMessage, StageHeartbeat, VehicleSample,
 };
+use deckwatch_common::wire::{BadWireValue, WireCheck};
 use iceoryx2::config::Config;
-use iceoryx2::node::{NodeState, NodeView};
+use iceoryx2::node::{NodeState, NodeView, NodeWaitFailure};
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
@@ -28,6 +33,7 @@ use iceoryx2::prelude::{
 };
 use iceoryx2::sample::Sample;
 use iceoryx2::waitset::WaitSetRunResult;
+use std::cell::{Cell, RefCell};
 use std::fmt::Debug;
 use std::time::Duration;
 
@@ -42,6 +48,8 @@ pub mod services {
     pub const DECISION: &str = "deckwatch/decision";
     /// The vehicle's attitude samples from the autopilot (the link process).
     pub const VEHICLE: &str = "deckwatch/vehicle";
+    /// Every stage process's heartbeat, which the launcher follows.
+    pub const HEARTBEAT: &str = "deckwatch/heartbeat";
 }
 
 /// The default domain.
@@ -196,17 +204,30 @@ pub struct CleanupReport {
     pub failed: u64,
 }
 
+// The frame header is read in place out of shared memory too.
+const _: () = {
+    const fn any_bit_pattern<T: bytemuck::AnyBitPattern>() {}
+    any_bit_pattern::<FrameHeader>();
+};
+
 /// One process's connection to a domain: an iceoryx2 node.
 pub struct Bus {
     node: Node<ipc::Service>,
     settings: BusSettings,
 }
 
-/// A small fixed-size message published on its own service.
-pub trait Message: Debug + Copy + Default + ZeroCopySend + 'static {
+/// A small fixed-size message published on its own service. Any bytes are a value of it
+/// (`AnyBitPattern`: its enums and booleans are `WireCode`s and `WireBool`s), so reading what
+/// another process wrote is never undefined behaviour; `WireCheck` then says whether they are
+/// values of their types.
+pub trait Message:
+    Debug + Copy + Default + ZeroCopySend + WireCheck + bytemuck::AnyBitPattern + 'static
+{
     const SERVICE: &'static str;
     /// Messages queued per subscriber before the oldest is dropped.
     const QUEUE: usize = MESSAGE_QUEUE;
+    /// Publishers the service accepts.
+    const PUBLISHERS: usize = 2;
 }
 
 impl Message for MarkerMessage {
@@ -217,6 +238,13 @@ impl Message for AttitudeMessage {
 }
 impl Message for LandingDecision {
     const SERVICE: &'static str = services::DECISION;
+}
+impl Message for StageHeartbeat {
+    const SERVICE: &'static str = services::HEARTBEAT;
+    // Six processes at 10 Hz, read by the launcher every 50 ms.
+    const QUEUE: usize = 64;
+    // Every stage process, and the one a restart starts while the old one is being removed.
+    const PUBLISHERS: usize = 12;
 }
 impl Message for VehicleSample {
     const SERVICE: &'static str = services::VEHICLE;
@@ -328,7 +356,7 @@ impl Bus {
         self.node
             .service_builder(&Self::service_name(M::SERVICE)?)
             .publish_subscribe::<M>()
-            .max_publishers(2)
+            .max_publishers(M::PUBLISHERS)
             .max_subscribers(MESSAGE_SUBSCRIBERS)
             .subscriber_max_buffer_size(M::QUEUE)
             .subscriber_max_borrowed_samples(2)
@@ -377,6 +405,7 @@ impl Bus {
         Ok(FrameSubscriber {
             subscriber,
             listener,
+            rejections: Rejections::new(services::FRAMES),
             _service: service,
         })
     }
@@ -412,6 +441,7 @@ impl Bus {
         Ok(MessageSubscriber {
             subscriber,
             listener,
+            rejections: Rejections::new(M::SERVICE),
             service,
         })
     }
@@ -438,7 +468,13 @@ impl Bus {
 
     /// Sleeps up to `timeout`; `false` when a termination signal (SIGINT, SIGTERM) arrived.
     pub fn sleep(&self, timeout: Duration) -> bool {
-        self.node.wait(timeout).is_ok()
+        match self.node.wait(timeout) {
+            Ok(()) => true,
+            // Any signal cuts the sleep short (SIGCONT after a SIGSTOP, SIGWINCH): only SIGINT
+            // and SIGTERM, which iceoryx2's handler recorded, mean stop.
+            Err(NodeWaitFailure::Interrupt) => self.node.wait(Duration::ZERO).is_ok(),
+            Err(_) => false,
+        }
     }
 }
 
@@ -536,10 +572,63 @@ impl FrameSample {
     }
 }
 
+/// Received messages (or frame headers) that were skipped because a field held no value of its
+/// type: how many, and what to say about them.
+#[derive(Debug)]
+pub struct Rejections {
+    service: &'static str,
+    count: Cell<u64>,
+    /// The newest rejection not yet reported.
+    unreported: RefCell<Option<BadWireValue>>,
+    reported_ns: Cell<u64>,
+}
+
+impl Rejections {
+    /// Reports of further rejections come at most this often (a corrupt publisher must not
+    /// flood the log at the frame rate).
+    pub const REPORT_INTERVAL_NS: u64 = 5_000_000_000;
+
+    fn new(service: &'static str) -> Self {
+        Self {
+            service,
+            count: Cell::new(0),
+            unreported: RefCell::new(None),
+            reported_ns: Cell::new(0),
+        }
+    }
+
+    fn reject(&self, e: BadWireValue) {
+        self.count.set(self.count.get().saturating_add(1));
+        *self.unreported.borrow_mut() = Some(e);
+    }
+
+    /// Messages skipped so far.
+    pub fn count(&self) -> u64 {
+        self.count.get()
+    }
+
+    /// A line about the newest unreported rejection, when one is due: the first at once, later
+    /// ones at most every [`Self::REPORT_INTERVAL_NS`].
+    pub fn report(&self, now_ns: u64) -> Option<String> {
+        let last = self.reported_ns.get();
+        if last != 0 && now_ns.saturating_sub(last) < Self::REPORT_INTERVAL_NS {
+            return None;
+        }
+        let e = self.unreported.borrow_mut().take()?;
+        self.reported_ns.set(now_ns.max(1));
+        Some(format!(
+            "skipped a bad message on `{}`: {e} ({} skipped so far)",
+            self.service,
+            self.count()
+        ))
+    }
+}
+
 /// A consumer of frames.
 pub struct FrameSubscriber {
     subscriber: Subscriber<ipc::Service, [u8], FrameHeader>,
     listener: Listener,
+    rejections: Rejections,
     _service: PubSub<[u8], FrameHeader>,
 }
 
@@ -549,16 +638,25 @@ impl FrameSubscriber {
     }
 
     /// The newest queued frame (older queued frames are released unprocessed: latest-frame
-    /// semantics) and how many were passed over.
+    /// semantics) and how many were passed over. A frame whose header holds a bad enum or
+    /// boolean is released unread and counted in [`Self::rejections`].
     pub fn receive_latest(&self) -> Result<Option<(FrameSample, u64)>, BusError> {
         let mut newest = None;
         let mut passed = 0u64;
         while let Some(sample) = self.subscriber.receive().map_err(context("receiving a frame"))? {
+            if let Err(e) = sample.user_header().check_wire() {
+                self.rejections.reject(e.within("FrameHeader"));
+                continue;
+            }
             if newest.replace(FrameSample { sample }).is_some() {
                 passed += 1;
             }
         }
         Ok(newest.map(|s| (s, passed)))
+    }
+
+    pub fn rejections(&self) -> &Rejections {
+        &self.rejections
     }
 }
 
@@ -588,6 +686,7 @@ impl<M: Message> MessagePublisher<M> {
 pub struct MessageSubscriber<M: Message> {
     subscriber: Subscriber<ipc::Service, M, ()>,
     listener: Listener,
+    rejections: Rejections,
     service: PubSub<M, ()>,
 }
 
@@ -596,19 +695,39 @@ impl<M: Message> MessageSubscriber<M> {
         &self.listener
     }
 
-    /// The next queued message, copied out of shared memory.
+    /// The next queued message whose every enum and boolean holds a value, copied out of shared
+    /// memory; the ones that do not are skipped and counted in [`Self::rejections`].
     pub fn receive(&self) -> Result<Option<M>, BusError> {
-        Ok(self
-            .subscriber
-            .receive()
-            .map_err(context(format!("receive on `{}`", M::SERVICE)))?
-            .map(|s| *s.payload()))
+        loop {
+            let Some(sample) = self
+                .subscriber
+                .receive()
+                .map_err(context(format!("receive on `{}`", M::SERVICE)))?
+            else {
+                return Ok(None);
+            };
+            // Checked in place: only a message that passes is copied out and read.
+            match sample.payload().check_wire() {
+                Ok(()) => return Ok(Some(*sample.payload())),
+                Err(e) => self.rejections.reject(e.within(short_type_name::<M>())),
+            }
+        }
+    }
+
+    pub fn rejections(&self) -> &Rejections {
+        &self.rejections
     }
 
     /// Publishers currently connected.
     pub fn publisher_count(&self) -> usize {
         self.service.dynamic_config().number_of_publishers()
     }
+}
+
+/// `LandingDecision` for `deckwatch_common::messages::LandingDecision`: the name in errors.
+fn short_type_name<T>() -> &'static str {
+    let full = std::any::type_name::<T>();
+    full.rsplit("::").next().unwrap_or(full)
 }
 
 /// Why a stage's event loop was woken.
@@ -667,7 +786,7 @@ where
     };
     let mut failure = None;
     let mut stopped = false;
-    let result = waitset.wait_and_process(|id| {
+    let mut on_event = |id: iceoryx2::waitset::WaitSetAttachmentId<ipc::Service>| {
         let mut wakes = Vec::with_capacity(2);
         for (i, g) in guards.iter().enumerate() {
             if id.has_event_from(g) {
@@ -693,12 +812,21 @@ where
             }
         }
         CallbackProgression::Continue
-    });
+    };
+    let result = loop {
+        match waitset.wait_and_process(&mut on_event) {
+            // Any signal interrupts the wait (SIGCONT after a SIGSTOP, too). SIGINT and SIGTERM
+            // were recorded by iceoryx2's handler: the next call reports them as a termination
+            // request; any other signal is no reason to stop.
+            Ok(WaitSetRunResult::Interrupt) => continue,
+            other => break other,
+        }
+    };
     if let Some(e) = failure {
         return Err(e);
     }
     match result {
-        Ok(WaitSetRunResult::TerminationRequest | WaitSetRunResult::Interrupt) => Ok(LoopEnd::Signal),
+        Ok(WaitSetRunResult::TerminationRequest) => Ok(LoopEnd::Signal),
         Ok(_) => {
             debug_assert!(stopped);
             Ok(LoopEnd::Stopped)
@@ -710,7 +838,8 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
-    use deckwatch_common::messages::DecisionState;
+    use deckwatch_common::messages::{DecisionState, FrameStamp};
+    use deckwatch_common::wire::{WireBool, WireCode};
 
     #[test]
     fn domains_and_settings_are_checked() {
@@ -752,6 +881,47 @@ mod tests {
         assert!(matches!(e, BusError::Settings(_)), "{e}");
     }
 
+    /// A signal that is not a stop request interrupts the wait (as SIGCONT does after a SIGSTOP;
+    /// here SIGUSR1 with a handler that does nothing) but ends neither the loop nor a sleep.
+    #[test]
+    fn other_signals_do_not_stop_the_loop() {
+        quiet_logging();
+        let domain = format!("unit-sig-{}", std::process::id());
+        let settings = BusConfig {
+            domain: domain.clone(),
+            ..Default::default()
+        }
+        .settings(64);
+        extern "C" fn ignore(_: libc::c_int) {}
+        // SAFETY: installs a handler that does nothing (async-signal-safe) for SIGUSR1, which
+        // nothing else in this test binary uses.
+        unsafe { libc::signal(libc::SIGUSR1, ignore as *const () as libc::sighandler_t) };
+        let (tx, rx) = std::sync::mpsc::channel();
+        let waiter = std::thread::spawn(move || {
+            let bus = Bus::join(&settings, "unit-sig").unwrap();
+            let sub = bus.subscriber::<LandingDecision>().unwrap();
+            // SAFETY: pthread_self has no preconditions.
+            tx.send(unsafe { libc::pthread_self() } as usize).unwrap();
+            let mut ticks = 0;
+            let end = event_loop(&[sub.listener()], Some(Duration::from_millis(20)), |_| {
+                ticks += 1;
+                Ok::<_, BusError>(if ticks >= 25 { Flow::Stop } else { Flow::Continue })
+            })
+            .unwrap();
+            let slept = bus.sleep(Duration::from_millis(200));
+            (end, slept)
+        });
+        let thread = rx.recv().unwrap() as libc::pthread_t;
+        for _ in 0..30 {
+            std::thread::sleep(Duration::from_millis(10));
+            // SAFETY: the waiter thread is alive until it has ticked 25 times and slept (it
+            // does not end before we stop signalling: 30 x 10 ms < 25 x 20 ms + 200 ms).
+            unsafe { libc::pthread_kill(thread, libc::SIGUSR1) };
+        }
+        assert_eq!(waiter.join().unwrap(), (LoopEnd::Stopped, true));
+        Bus::remove_idle_domain(&domain).unwrap();
+    }
+
     /// One process, real shared memory: a message and a frame go through, the frame in place.
     #[test]
     fn messages_and_frames_round_trip() {
@@ -769,12 +939,40 @@ mod tests {
             assert_eq!(bus.subscriber_count(services::DECISION).unwrap(), 1);
             assert!(bus.subscriber_count("nope").is_err());
             let d = LandingDecision {
-                state: DecisionState::Hold,
+                state: DecisionState::Hold.into(),
                 ..Default::default()
             };
             assert_eq!(publisher.send(&d).unwrap(), 1);
             assert_eq!(sub.receive().unwrap().unwrap().state, DecisionState::Hold);
             assert!(sub.receive().unwrap().is_none());
+            // A bad code and a bad boolean (what a corrupt process could write) are skipped and
+            // counted; the good message behind them comes through.
+            let bad_state = LandingDecision {
+                state: WireCode::from_code(7),
+                ..d
+            };
+            let mut bad_valid = d;
+            bad_valid.attitude.valid = WireBool::from_byte(2);
+            let good = LandingDecision {
+                stamp: FrameStamp {
+                    seq: 9,
+                    ..Default::default()
+                },
+                ..d
+            };
+            for m in [bad_state, bad_valid, good] {
+                publisher.send(&m).unwrap();
+            }
+            assert_eq!(sub.receive().unwrap().unwrap().stamp.seq, 9);
+            assert!(sub.receive().unwrap().is_none());
+            assert_eq!(sub.rejections().count(), 2);
+            let line = sub.rejections().report(1).unwrap();
+            assert!(
+                line.contains("`LandingDecision.attitude.valid` holds 2, which is no bool")
+                    && line.contains("2 skipped so far"),
+                "{line}"
+            );
+            assert!(sub.rejections().report(2).is_none());
             assert_eq!(sub.publisher_count(), 1);
 
             let frames = bus.frame_subscriber().unwrap();
@@ -810,6 +1008,17 @@ mod tests {
             assert!(matches!(e, PublishError::TooLarge { .. }), "{e}");
             let e = fp.publish(header, |_, _| Err("bad file")).err().unwrap();
             assert!(matches!(e, PublishError::Fill("bad file")));
+            // A frame header with a pixel format that is none is released unread.
+            let mut bad = header;
+            bad.pixel_format = WireCode::from_code(9);
+            fp.publish(bad, |_, _| Ok::<(), String>(())).unwrap();
+            assert!(frames.receive_latest().unwrap().is_none());
+            assert_eq!(frames.rejections().count(), 1);
+            let line = frames.rejections().report(1).unwrap();
+            assert!(
+                line.contains("`FrameHeader.pixel_format` holds 9, which is no PixelFormat"),
+                "{line}"
+            );
             assert_eq!(Bus::live_nodes(&domain).unwrap(), vec!["unit".to_string()]);
             assert!(!Bus::remove_idle_domain(&domain).unwrap());
         }

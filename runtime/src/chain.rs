@@ -133,7 +133,7 @@ mod tests {
         for out in chain.by_ref() {
             let out = out.unwrap();
             assert_eq!(out.decision.stamp.seq, n);
-            assert!(out.attitude.valid, "frame {n}: {:?}", out.attitude.failure);
+            assert!(out.attitude.valid.get(), "frame {n}: {:?}", out.attitude.failure);
             assert_eq!(out.decision.state, DecisionState::Hold);
             let t = out.decision.stamp.times;
             assert!(t.captured_ns <= t.published_ns && t.published_ns <= t.decide_finished_ns);

@@ -32,8 +32,12 @@ pub struct SupervisorConfig {
     pub restart_window_ms: u64,
     /// A stage that ran this long before crashing starts its backoff afresh.
     pub healthy_after_ms: u64,
-    /// How long a stage may take to connect at start.
+    /// How long a stage may take to connect at start (and to send its first heartbeat after a
+    /// restart).
     pub ready_timeout_ms: u64,
+    /// A stage whose heartbeats stop for this long (stopped, deadlocked, stuck in a step) is
+    /// killed and restarted.
+    pub hang_timeout_ms: u64,
     /// How long a stage may take to exit after SIGTERM before it is killed.
     pub stop_timeout_ms: u64,
     /// After the source is exhausted: stop once no decision came for this long.
@@ -51,6 +55,7 @@ impl Default for SupervisorConfig {
             restart_window_ms: 600_000,
             healthy_after_ms: 10_000,
             ready_timeout_ms: 10_000,
+            hang_timeout_ms: 1000,
             stop_timeout_ms: 3000,
             drain_ms: 500,
             status_interval_ms: 1000,
@@ -184,6 +189,14 @@ impl PipelineConfig {
             other => invalid("rerun".into(), other.to_string()),
         })?;
         let s = &self.supervisor;
+        // Two heartbeat periods at least, or a busy machine looks hung.
+        let min_hang_ms = 2 * deckwatch_common::messages::StageHeartbeat::PERIOD_NS / 1_000_000;
+        if s.hang_timeout_ms < min_hang_ms {
+            return Err(invalid(
+                "supervisor.hang_timeout_ms".into(),
+                format!("must be at least {min_hang_ms} (two heartbeat periods)"),
+            ));
+        }
         for (k, v) in [
             ("ready_timeout_ms", s.ready_timeout_ms),
             ("stop_timeout_ms", s.stop_timeout_ms),

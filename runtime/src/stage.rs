@@ -10,10 +10,10 @@
 
 use crate::bus::{
     event_loop, quiet_logging, services, Bus, BusError, Flow, FrameSubscriber, Listener, Message,
-    MessageSubscriber, Wake,
+    MessagePublisher, MessageSubscriber, Rejections, Wake,
 };
 use crate::config::{ConfigError, PipelineConfig, DEFAULTS};
-use deckwatch_common::messages::{monotonic_ns, FrameHeader, LandingDecision, VehicleSample};
+use deckwatch_common::messages::{monotonic_ns, FrameHeader, LandingDecision, StageHeartbeat, VehicleSample};
 use deckwatch_viz::{Item, Logger};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -88,6 +88,8 @@ pub trait Input {
 /// The receiving end of an [`Input`].
 pub trait InputPort<I: Input + ?Sized> {
     fn listener(&self) -> &Listener;
+    /// The inputs skipped because they held a bad enum or boolean.
+    fn rejections(&self) -> &Rejections;
     /// Hands every input due now to `step`, and each result to `emit` once the input is
     /// released (a frame goes back to shared memory before anything is published).
     fn drain<O>(
@@ -112,6 +114,10 @@ impl Input for Frames {
 impl InputPort<Frames> for FrameSubscriber {
     fn listener(&self) -> &Listener {
         FrameSubscriber::listener(self)
+    }
+
+    fn rejections(&self) -> &Rejections {
+        FrameSubscriber::rejections(self)
     }
 
     /// Latest-frame semantics: only the newest queued frame; the ones passed over show up as
@@ -145,6 +151,10 @@ impl<M: Message> Input for M {
 impl<M: Message> InputPort<M> for MessageSubscriber<M> {
     fn listener(&self) -> &Listener {
         MessageSubscriber::listener(self)
+    }
+
+    fn rejections(&self) -> &Rejections {
+        MessageSubscriber::rejections(self)
     }
 
     /// Every queued message, in order.
@@ -247,6 +257,38 @@ impl StageArgs {
     }
 }
 
+/// The stage processes running on this machine in `domain`, as (stage name, process id): every
+/// `deckwatch-<stage> ... --domain <domain>` in /proc (for tools and tests that watch or signal
+/// them; the launcher knows its own children).
+pub fn stage_processes(domain: &str) -> Vec<(String, u32)> {
+    let Ok(entries) = std::fs::read_dir("/proc") else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for entry in entries.flatten() {
+        let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(cmdline) = std::fs::read(entry.path().join("cmdline")) else {
+            continue;
+        };
+        let args: Vec<String> = cmdline
+            .split(|&b| b == 0)
+            .map(|a| String::from_utf8_lossy(a).into_owned())
+            .collect();
+        let ours = args.windows(2).any(|w| w[0] == "--domain" && w[1] == domain);
+        let stage = args
+            .first()
+            .and_then(|a| std::path::Path::new(a).file_name())
+            .and_then(|n| n.to_str())
+            .and_then(|n| n.strip_prefix("deckwatch-"));
+        if let (true, Some(stage)) = (ours, stage) {
+            out.push((stage.to_string(), pid));
+        }
+    }
+    out
+}
+
 /// Why a stage process stopped with an error.
 #[derive(Debug, thiserror::Error)]
 pub enum RunError {
@@ -300,10 +342,49 @@ pub(crate) fn setup(
     config: &PipelineConfig,
     max_frame_bytes: usize,
 ) -> Result<(Option<Logger>, Bus), RunError> {
-    let logger = Logger::start(&config.rerun, name)?;
+    // Its own part file per process: a restarted stage must not overwrite its predecessor's.
+    let logger = Logger::start(&config.rerun, &format!("{name}-{}", std::process::id()))?;
     quiet_logging();
     let bus = Bus::join(&config.bus.settings(max_frame_bytes), name)?;
     Ok((logger, bus))
+}
+
+/// This process's heartbeat ([`StageHeartbeat`]): call [`Self::beat`] from the loop that does
+/// the work, as often as convenient; it sends at most every half period.
+pub struct Heartbeat {
+    publisher: MessagePublisher<StageHeartbeat>,
+    pid: u32,
+    seq: u64,
+    last_ns: u64,
+}
+
+impl Heartbeat {
+    /// How often a loop must turn (at the latest) for its beats to be on time.
+    pub const PERIOD: Duration = Duration::from_nanos(StageHeartbeat::PERIOD_NS);
+
+    pub fn new(bus: &Bus) -> Result<Self, BusError> {
+        Ok(Self {
+            publisher: bus.publisher()?,
+            pid: std::process::id(),
+            seq: 0,
+            last_ns: 0,
+        })
+    }
+
+    pub fn beat(&mut self) {
+        let now = monotonic_ns();
+        if self.seq > 0 && now.saturating_sub(self.last_ns) < StageHeartbeat::PERIOD_NS / 2 {
+            return;
+        }
+        // A lost beat is not an error here: the launcher notices if they all stop.
+        let _ = self.publisher.send(&StageHeartbeat {
+            pid: self.pid,
+            seq: self.seq,
+            sent_ns: now,
+        });
+        self.seq += 1;
+        self.last_ns = now;
+    }
 }
 
 /// The stage's life in its process: until SIGINT/SIGTERM, wake on input (or the tick), step,
@@ -320,7 +401,14 @@ pub fn run<S: Stage>(args: &StageArgs) -> Result<String, RunError> {
             items.into_iter().for_each(|i| l.log(i));
         }
     };
-    let period = stage.tick_period();
+    let mut heartbeat = Heartbeat::new(&bus)?;
+    heartbeat.beat();
+    // The loop turns at least every heartbeat period; the stage's own tick may be faster.
+    let period = Some(
+        stage
+            .tick_period()
+            .map_or(Heartbeat::PERIOD, |p| p.min(Heartbeat::PERIOD)),
+    );
     let vehicle = if stage.wants_vehicle() {
         Some(bus.subscriber::<VehicleSample>()?)
     } else {
@@ -329,6 +417,7 @@ pub fn run<S: Stage>(args: &StageArgs) -> Result<String, RunError> {
     let mut listeners = vec![input.listener()];
     listeners.extend(vehicle.as_ref().map(|v| v.listener()));
     event_loop(&listeners, period, |wake| {
+        heartbeat.beat();
         if let Some(v) = &vehicle {
             while let Some(sample) = v.receive()? {
                 stage.vehicle_sample(&sample);
@@ -360,8 +449,18 @@ pub fn run<S: Stage>(args: &StageArgs) -> Result<String, RunError> {
                 Ok(())
             },
         )?;
+        let rejections = std::iter::once(input.rejections()).chain(vehicle.as_ref().map(|v| v.rejections()));
+        for r in rejections {
+            if let Some(line) = r.report(monotonic_ns()) {
+                eprintln!("deckwatch-{}: {line}", S::NAME);
+            }
+        }
         Ok::<Flow, BusError>(Flow::Continue)
     })?;
     let dropped_items = logger.as_ref().map_or(0, |l| l.dropped());
-    Ok(format!("{}; {dropped_items} log items dropped", stage.summary()))
+    let bad_messages = input.rejections().count() + vehicle.as_ref().map_or(0, |v| v.rejections().count());
+    Ok(format!(
+        "{}; {dropped_items} log items dropped; {bad_messages} bad messages skipped",
+        stage.summary()
+    ))
 }

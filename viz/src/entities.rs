@@ -76,7 +76,13 @@ fn item(seq: u64, captured_ns: u64, kind: ItemKind) -> Item {
 /// The detected markers as labelled points.
 pub fn marker_items(m: &MarkerMessage) -> Vec<Item> {
     let (mut points, mut labels) = (Vec::new(), Vec::new());
-    for (i, mk) in m.markers.markers.iter().enumerate().filter(|(_, mk)| mk.valid) {
+    for (i, mk) in m
+        .markers
+        .markers
+        .iter()
+        .enumerate()
+        .filter(|(_, mk)| mk.valid.get())
+    {
         points.push([mk.u as f32, mk.v as f32]);
         labels.push(marker_label(i));
     }
@@ -91,7 +97,7 @@ pub fn marker_items(m: &MarkerMessage) -> Vec<Item> {
 
 /// The true angles of a frame, when its source knows them.
 pub fn truth_items(seq: u64, captured_ns: u64, truth: &Truth) -> Vec<Item> {
-    if !truth.known {
+    if !truth.known.get() {
         return Vec::new();
     }
     let values = [truth.roll_deg, truth.pitch_deg, truth.yaw_deg];
@@ -112,23 +118,23 @@ pub fn attitude_items(a: &AttitudeMessage) -> Vec<Item> {
     let (seq, captured_ns) = (a.stamp.seq, a.stamp.times.captured_ns);
     let mut out = Vec::with_capacity(4);
     let mut scalars = Vec::new();
-    if a.valid {
+    if a.valid.get() {
         for (axis, v) in AXES.iter().zip(a.rpy.to_degrees()) {
-            scalars.push((attitude_path(axis, a.estimator.name()), v));
+            scalars.push((attitude_path(axis, a.estimator.get().name()), v));
         }
         if a.deck_height_m.is_finite() {
             scalars.push((HEAVE_MEASURED.into(), a.deck_height_m));
         }
     }
     let alt = &a.alternative;
-    if alt.present && alt.valid {
+    if alt.present.get() && alt.valid.get() {
         for (axis, v) in AXES.iter().zip(alt.rpy.to_degrees()) {
-            scalars.push((attitude_path(axis, alt.estimator.name()), v));
+            scalars.push((attitude_path(axis, alt.estimator.get().name()), v));
         }
     }
     out.push(item(seq, captured_ns, ItemKind::Scalars(scalars)));
     let camera = &a.context.camera;
-    if a.has_image_ellipse {
+    if a.has_image_ellipse.get() {
         let strip = a
             .image_ellipse
             .boundary(64)
@@ -144,7 +150,7 @@ pub fn attitude_items(a: &AttitudeMessage) -> Vec<Item> {
         out.push(item(seq, captured_ns, kind));
     }
     let [x, y, z] = a.camera_position_m;
-    if a.valid && z.is_finite() {
+    if a.valid.get() && z.is_finite() {
         let scene = SceneGeometry {
             attitude: a.rpy.to_matrix(),
             viewpoint: Viewpoint::level(x, y, z).with_vehicle_attitude(a.context.vehicle.matrix()),
@@ -200,7 +206,7 @@ pub fn vehicle_items(v: &deckwatch_common::messages::VehicleSample) -> Vec<Item>
             (VEHICLE_ROLL.into(), roll),
             (VEHICLE_PITCH.into(), pitch),
             (LINK_CLOCK_OFFSET.into(), v.clock_offset_ns as f64 / 1e6),
-            (LINK_UP.into(), f64::from(u8::from(v.link_up))),
+            (LINK_UP.into(), f64::from(u8::from(v.link_up.get()))),
         ]),
     )]
 }
@@ -212,14 +218,14 @@ pub fn decision_items(d: &LandingDecision, state_changed: bool) -> Vec<Item> {
         seq,
         captured_ns,
         ItemKind::Scalars(vec![
-            (DECISION_STATE.into(), d.state as u32 as f64),
+            (DECISION_STATE.into(), d.state.get() as u32 as f64),
             (CALM_WINDOW_START.into(), d.calm_window_start_s),
             (CALM_WINDOW_LENGTH.into(), d.calm_window_length_s),
             (HEAVE_RATE.into(), d.heave_rate_mps),
         ]),
     )];
     if state_changed {
-        let text = format!("{} ({})", d.state.name(), d.reason.name());
+        let text = format!("{} ({})", d.state.get().name(), d.reason.get().name());
         out.push(item(seq, captured_ns, ItemKind::Text(text)));
     }
     out
@@ -237,7 +243,7 @@ mod tests {
         assert!(MARKERS.starts_with(IMAGE) && DECISION_STATE.starts_with(DECISION));
         let mut truth = Truth::UNKNOWN;
         assert!(truth_items(0, 0, &truth).is_empty());
-        truth.known = true;
+        truth.known = true.into();
         assert_eq!(truth_items(3, 7, &truth).len(), 1);
     }
 }

@@ -139,11 +139,55 @@ impl RerunConfig {
         Ok(())
     }
 
-    /// The part file a process writes in `save` mode.
-    pub fn part_path(path: &Path, stage: &str) -> PathBuf {
+    /// The part file a process writes in `save` mode: `FILE.rrd.<part>.part`, where a stage
+    /// process's part is `<stage>-<pid>` (a restarted stage writes a new part instead of
+    /// overwriting its predecessor's) and the launcher's is `launcher`.
+    pub fn part_path(path: &Path, part: &str) -> PathBuf {
         let mut p = path.as_os_str().to_owned();
-        p.push(format!(".{stage}.part"));
+        p.push(format!(".{part}.part"));
         PathBuf::from(p)
+    }
+
+    /// Every part file of `stage` beside `path` (`FILE.rrd.<stage>.part` and
+    /// `FILE.rrd.<stage>-<pid>.part`), oldest first.
+    pub fn parts_of(path: &Path, stage: &str) -> Vec<PathBuf> {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let Some(file) = path.file_name().and_then(|f| f.to_str()) else {
+            return Vec::new();
+        };
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            return Vec::new();
+        };
+        let ours = |name: &str| {
+            let Some(rest) = name
+                .strip_prefix(file)
+                .and_then(|r| r.strip_prefix('.'))
+                .and_then(|r| r.strip_prefix(stage))
+                .and_then(|r| r.strip_suffix(".part"))
+            else {
+                return false;
+            };
+            rest.is_empty()
+                || rest
+                    .strip_prefix('-')
+                    .is_some_and(|pid| !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()))
+        };
+        let mut parts: Vec<(std::time::SystemTime, PathBuf)> = entries
+            .flatten()
+            .filter(|e| e.file_name().to_str().is_some_and(ours))
+            .map(|e| {
+                let modified = e
+                    .metadata()
+                    .and_then(|m| m.modified())
+                    .unwrap_or(std::time::UNIX_EPOCH);
+                (modified, e.path())
+            })
+            .collect();
+        parts.sort();
+        parts.into_iter().map(|(_, p)| p).collect()
     }
 }
 
@@ -272,5 +316,42 @@ impl Drop for Logger {
         if let Some(t) = self.thread.take() {
             let _ = t.join();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_stage_has_a_part_per_process() {
+        let dir = std::env::temp_dir().join(format!("deckwatch-viz-parts-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let rrd = dir.join("run.rrd");
+        for part in [
+            "detect-10",
+            "detect-9",
+            "detect",
+            "detect-x",
+            "detector-1",
+            "estimate-3",
+        ] {
+            std::fs::write(RerunConfig::part_path(&rrd, part), b"").unwrap();
+        }
+        std::fs::write(dir.join("other.rrd.detect-1.part"), b"").unwrap();
+        let mut names: Vec<String> = RerunConfig::parts_of(&rrd, "detect")
+            .iter()
+            .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        assert_eq!(
+            names,
+            [
+                "run.rrd.detect-10.part",
+                "run.rrd.detect-9.part",
+                "run.rrd.detect.part"
+            ]
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

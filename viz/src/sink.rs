@@ -222,11 +222,7 @@ fn merge_into(
     .map_err(|e| file_error(path, e))?;
     let mut n = 0u64;
     let mut parts = Vec::new();
-    for stage in stages {
-        let part = RerunConfig::part_path(path, stage);
-        if !part.exists() {
-            continue;
-        }
+    for part in stages.iter().flat_map(|stage| RerunConfig::parts_of(path, stage)) {
         let file = std::fs::File::open(&part).map_err(|e| file_error(&part, e))?;
         let decoder = enc::Decoder::<LogMsg>::decode_eager(std::io::BufReader::new(file))
             .map_err(|e| file_error(&part, e))?;

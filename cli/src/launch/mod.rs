@@ -165,7 +165,7 @@ pub fn clean(domain: &str, rrd: Option<&Path>) -> Result<Cleaned, String> {
         merging.push(".merging");
         let parts = std::iter::once(LAUNCHER)
             .chain(deckwatch_runtime::stage::STAGES.iter().map(|s| s.name))
-            .map(|stage| deckwatch_viz::RerunConfig::part_path(rrd, stage))
+            .flat_map(|stage| deckwatch_viz::RerunConfig::parts_of(rrd, stage))
             .chain(std::iter::once(PathBuf::from(merging)));
         for p in parts {
             if std::fs::remove_file(&p).is_ok() {

@@ -187,7 +187,7 @@ impl Observer {
             }
         }
         self.last = Some(*d);
-        if d.watchdog {
+        if d.watchdog.get() {
             self.watchdog += 1;
             return;
         }
@@ -202,7 +202,7 @@ impl Observer {
             self.states[i] += 1;
         }
         let a = &d.attitude;
-        if a.valid {
+        if a.valid.get() {
             self.valid += 1;
             if let Some(t) = d.context.truth.attitude() {
                 self.errors.add(rpy_error_deg(&a.rpy, &t));
@@ -225,15 +225,15 @@ impl Observer {
         let fps = self.recent_count as f64 / period;
         let h = &self.recent;
         let decision = match &self.last {
-            Some(d) if d.attitude.valid => {
+            Some(d) if d.attitude.valid.get() => {
                 let [r, p, y] = d.attitude.rpy.to_degrees();
                 format!(
                     "{} {} | r {r:+.2} p {p:+.2} y {y:+.1} deg",
-                    d.state.name(),
-                    d.reason.name()
+                    d.state.get().name(),
+                    d.reason.get().name()
                 )
             }
-            Some(d) => format!("{} {}", d.state.name(), d.reason.name()),
+            Some(d) => format!("{} {}", d.state.get().name(), d.reason.get().name()),
             None => "no decision yet".into(),
         };
         let line = format!(
@@ -274,6 +274,7 @@ impl Observer {
                 .csv_error
                 .as_ref()
                 .map(|(e, rows)| format!("incomplete after {rows} rows: {e}")),
+            bad_decisions_skipped: 0,
         }
     }
 }
@@ -299,8 +300,8 @@ mod tests {
 
     fn decision(seq: u64, state: DecisionState, capture_drops: u64) -> LandingDecision {
         let mut d = LandingDecision {
-            state,
-            reason: DecisionReason::Warmup,
+            state: state.into(),
+            reason: DecisionReason::Warmup.into(),
             ..Default::default()
         };
         d.stamp.seq = seq;
@@ -311,10 +312,10 @@ mod tests {
         d.stamp.times.detect_finished_ns = 3_000_000;
         d.stamp.times.estimate_finished_ns = 4_000_000;
         d.stamp.times.decide_finished_ns = 5_000_000;
-        d.attitude.valid = true;
+        d.attitude.valid = true.into();
         d.attitude.rpy = Rpy::from_degrees(1.0, 2.0, 3.0);
         d.context.truth = Truth {
-            known: true,
+            known: true.into(),
             roll_deg: 1.5,
             pitch_deg: 2.0,
             yaw_deg: 3.0,
@@ -331,7 +332,7 @@ mod tests {
         o.observe(&decision(2, DecisionState::ClearToLand, 1));
         o.observe(&decision(4, DecisionState::Hold, 1));
         let mut w = decision(4, DecisionState::NoDeck, 1);
-        w.watchdog = true;
+        w.watchdog = true.into();
         o.observe(&w);
         let r = o.report(1.0, vec![("detect".into(), 2)], false);
         assert_eq!((r.decisions, r.watchdog_decisions, r.valid_attitudes), (3, 1, 3));

@@ -44,6 +44,9 @@ pub struct RunReport {
     pub interrupted: bool,
     /// The decisions CSV could not be written to the end (it is incomplete): why.
     pub decisions_csv_error: Option<String>,
+    /// Decisions the launcher received with a bad enum or boolean (a corrupt publisher):
+    /// skipped, not counted above.
+    pub bad_decisions_skipped: u64,
 }
 
 /// The report as a table for people.
@@ -75,9 +78,10 @@ pub fn print_report(r: &RunReport) {
     );
     let states: Vec<String> = r.states.iter().map(|(n, c)| format!("{n} {c}")).collect();
     println!(
-        "decisions: {}; watchdog (stale) decisions: {}",
+        "decisions: {}; watchdog (stale) decisions: {}; bad decisions skipped: {}",
         states.join(", "),
-        r.watchdog_decisions
+        r.watchdog_decisions,
+        r.bad_decisions_skipped
     );
     let restarts: Vec<String> = r.restarts.iter().map(|(n, c)| format!("{n} {c}")).collect();
     println!("restarts: {}", restarts.join(", "));

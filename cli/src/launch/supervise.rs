@@ -10,7 +10,7 @@ use super::observe::Observer;
 use super::process::{describe, Poll, StageProcess};
 use super::report::RunReport;
 use super::say;
-use deckwatch_common::messages::LandingDecision;
+use deckwatch_common::messages::{monotonic_ns, LandingDecision, StageHeartbeat};
 use deckwatch_runtime::bus::{event_loop, Bus, BusError, Flow, LoopEnd, Wake};
 use deckwatch_runtime::config::{PipelineConfig, SupervisorConfig};
 use deckwatch_runtime::stage::active_stages;
@@ -100,6 +100,10 @@ pub struct Supervised {
     pub process: StageProcess,
     pub history: CrashHistory,
     restart_at: Option<Instant>,
+    /// The newest heartbeat of the current process.
+    last_beat: Option<Instant>,
+    /// Killed by the launcher because its heartbeats stopped (for the restart message).
+    hung: Option<Duration>,
 }
 
 impl Supervised {
@@ -108,7 +112,21 @@ impl Supervised {
             process,
             history: CrashHistory::default(),
             restart_at: None,
+            last_beat: None,
+            hung: None,
         }
+    }
+
+    /// Whether the running process has gone silent: no heartbeat for `hang` (or none at all
+    /// within `startup` of its start). How long, if so.
+    fn silent_for(&self, now: Instant, hang: Duration, startup: Duration) -> Option<Duration> {
+        self.process.pid()?;
+        let (since, limit) = match self.last_beat {
+            Some(t) => (t, hang),
+            None => (self.process.started, startup),
+        };
+        let silent = now.saturating_duration_since(since);
+        (silent > limit).then_some(silent)
     }
 
     fn spawn(&mut self, config: &Path, domain: &str) -> Result<(), String> {
@@ -116,6 +134,8 @@ impl Supervised {
         let pid = self.process.spawn(config, domain)?;
         say(format_args!("started {} (pid {pid})", self.process.name));
         self.restart_at = None;
+        self.last_beat = None;
+        self.hung = None;
         Ok(())
     }
 }
@@ -135,6 +155,9 @@ pub fn supervise(
     let domain = &config.bus.domain;
     let bus = Bus::join(&config.bus.settings(1), super::LAUNCHER).map_err(|e| e.to_string())?;
     let decisions = bus.subscriber::<LandingDecision>().map_err(|e| e.to_string())?;
+    let heartbeats = bus.subscriber::<StageHeartbeat>().map_err(|e| e.to_string())?;
+    let hang = Duration::from_millis(sup.hang_timeout_ms);
+    let startup = Duration::from_millis(sup.ready_timeout_ms);
     let mut observer = Observer::new(options.decisions_csv.as_deref())?;
     let start = Instant::now();
 
@@ -170,9 +193,31 @@ pub fn supervise(
             while let Some(d) = decisions.receive()? {
                 observer.observe(&d);
             }
+            if let Some(line) = decisions.rejections().report(monotonic_ns()) {
+                say(line);
+            }
             return Ok(Flow::Continue);
         }
         let now = Instant::now();
+        while let Some(beat) = heartbeats.receive()? {
+            if let Some(s) = stages.iter_mut().find(|s| s.process.pid() == Some(beat.pid)) {
+                s.last_beat = Some(now);
+            }
+        }
+        for s in stages.iter_mut() {
+            // Stopped (SIGSTOP), deadlocked or stuck: killed here, restarted below like a crash.
+            if s.hung.is_none() {
+                if let Some(silent) = s.silent_for(now, hang, startup) {
+                    say(format_args!(
+                        "{} is not responding (no heartbeat for {} ms); killing it",
+                        s.process.name,
+                        silent.as_millis()
+                    ));
+                    s.hung = Some(silent);
+                    s.process.kill();
+                }
+            }
+        }
         for s in stages.iter_mut() {
             if let Poll::Exited(status) = s.process.poll() {
                 if s.process.name == capture::NAME && status.success() {
@@ -180,12 +225,16 @@ pub fn supervise(
                     source_done = Some(now);
                     continue;
                 }
+                let why = match s.hung {
+                    Some(silent) => format!("not responding for {} ms, killed", silent.as_millis()),
+                    None => describe(status),
+                };
                 match policy.on_crash(&mut s.history, s.process.started.elapsed(), run_started.elapsed()) {
                     CrashVerdict::GiveUp => {
                         failure = Some(format!(
                             "{} stopped ({}) and has used its {} restarts within {} s",
                             s.process.name,
-                            describe(status),
+                            why,
                             policy.max_restarts,
                             policy.window.as_secs()
                         ));
@@ -195,7 +244,7 @@ pub fn supervise(
                         say(format_args!(
                             "{} stopped ({}); restarting in {} ms (restart {}; {} of {} within {} s)",
                             s.process.name,
-                            describe(status),
+                            why,
                             backoff.as_millis(),
                             s.history.restarts,
                             s.history.recent.len(),
@@ -244,11 +293,13 @@ pub fn supervise(
         .iter()
         .map(|s| (s.process.name.to_string(), s.history.restarts))
         .collect();
-    Ok(observer.report(
+    let mut report = observer.report(
         start.elapsed().as_secs_f64(),
         restarts,
         matches!(end, LoopEnd::Signal),
-    ))
+    );
+    report.bad_decisions_skipped = decisions.rejections().count();
+    Ok(report)
 }
 
 #[cfg(test)]

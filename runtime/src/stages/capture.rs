@@ -9,7 +9,7 @@
 //! [`complete_header`]) and used by the in-process chain too.
 
 use crate::bus::PublishError;
-use crate::stage::{checked_config, exit_code, setup, RunError, StageArgs};
+use crate::stage::{checked_config, exit_code, setup, Heartbeat, RunError, StageArgs};
 use deckwatch_capture::source::{CaptureSource, CapturedFrame, SourceError};
 use deckwatch_common::messages::{
     monotonic_ns, DropCounts, FrameContext, FrameHeader, FrameStamp, PixelFormat, StageTimes, Truth,
@@ -36,7 +36,7 @@ pub fn new_header(source: &CaptureSource, seq: u64, drops: DropCounts) -> FrameH
             drops,
         },
         context: FrameContext {
-            source: source.kind(),
+            source: source.kind().into(),
             camera,
             deck: *source.deck(),
             ..Default::default()
@@ -44,7 +44,7 @@ pub fn new_header(source: &CaptureSource, seq: u64, drops: DropCounts) -> FrameH
         width: camera.width,
         height: camera.height,
         stride: camera.width,
-        pixel_format: PixelFormat::Gray8,
+        pixel_format: PixelFormat::Gray8.into(),
     }
 }
 
@@ -76,10 +76,26 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
     let publisher = bus.frame_publisher()?;
     let (width, height) = (source.camera().width as usize, source.camera().height as usize);
 
+    let mut heartbeat = Heartbeat::new(&bus)?;
+    // Sleeps (signal-aware) in slices short enough for the heartbeat; false on a stop request.
+    let sleep = |d: Duration, heartbeat: &mut Heartbeat| {
+        let end = monotonic_ns().saturating_add(d.as_nanos().min(u64::MAX as u128) as u64);
+        loop {
+            heartbeat.beat();
+            let left = end.saturating_sub(monotonic_ns());
+            if !bus.sleep(Duration::from_nanos(left).min(Heartbeat::PERIOD)) {
+                return false;
+            }
+            if left <= Heartbeat::PERIOD.as_nanos() as u64 {
+                return true;
+            }
+        }
+    };
     let start = monotonic_ns();
     let mut drops = DropCounts::default();
     let (mut seq, mut k) = (0u64, 0u64);
     loop {
+        heartbeat.beat();
         if source.len().is_some_and(|n| k >= n) {
             break;
         }
@@ -97,7 +113,7 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
         if let Some(due) = source.due_ns(k) {
             let now = monotonic_ns() - start;
             if now < due {
-                if !bus.sleep(Duration::from_nanos(due - now)) {
+                if !sleep(Duration::from_nanos(due - now), &mut heartbeat) {
                     break;
                 }
             } else {
@@ -155,7 +171,7 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
     }
     // Frames still queued vanish with the publisher: give the consumers time to take them.
     if source.len().is_some_and(|n| k >= n) {
-        bus.sleep(Duration::from_millis(LINGER_MS));
+        sleep(Duration::from_millis(LINGER_MS), &mut heartbeat);
     }
     Ok(format!(
         "{seq} frames published, {} dropped, {} bad; {} log items dropped",

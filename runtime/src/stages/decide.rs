@@ -63,7 +63,7 @@ impl DecideStage {
     pub fn process(&mut self, a: &AttitudeMessage, received_ns: u64) -> LandingDecision {
         self.dropped += self.gaps.observe(a.stamp.seq, a.stamp.drops.total());
         self.processed += 1;
-        let deck = a.valid.then(|| {
+        let deck = a.valid.get().then(|| {
             let [r, p, _] = a.rpy.to_degrees();
             DeckObservation::new(r, p, a.deck_height_m)
         });
@@ -75,7 +75,7 @@ impl DecideStage {
             received_ns as f64 / 1e9 - seconds(captured)
         };
         let t = frame_time_s(a);
-        let d = if a.valid && a.vehicle.compensation == Compensation::Missing {
+        let d = if a.valid.get() && a.vehicle.compensation == Compensation::Missing {
             // The deck relative to a tilted camera is not the deck.
             self.decider.refuse(t, DecisionReason::NoVehicleAttitude)
         } else {
@@ -87,12 +87,12 @@ impl DecideStage {
             stamp: a.stamp,
             context: a.context,
             attitude: *a,
-            state: d.state,
-            reason: d.reason,
+            state: d.state.into(),
+            reason: d.reason.into(),
             calm_window_start_s: start,
             calm_window_length_s: length,
             heave_rate_mps: d.heave_rate_mps,
-            watchdog: false,
+            watchdog: false.into(),
         };
         out.stamp.drops.decide = self.dropped;
         out.stamp.times.decide_received_ns = received_ns;
@@ -108,12 +108,12 @@ impl DecideStage {
         let now = t + now_ns.saturating_sub(received_ns) as f64 / 1e9;
         let d = self.decider.timeout(now)?;
         let mut out = self.last?;
-        out.state = d.state;
-        out.reason = d.reason;
+        out.state = d.state.into();
+        out.reason = d.reason.into();
         out.calm_window_start_s = f64::NAN;
         out.calm_window_length_s = f64::NAN;
         out.heave_rate_mps = f64::NAN;
-        out.watchdog = true;
+        out.watchdog = true.into();
         out.stamp.times.decide_received_ns = now_ns;
         out.stamp.times.decide_finished_ns = monotonic_ns();
         self.watchdog_decisions += 1;
@@ -149,8 +149,8 @@ impl Stage for DecideStage {
 
     /// The plot gets every decision; the text log only the changes.
     fn viewer_items(&mut self, d: &LandingDecision) -> Vec<Item> {
-        let changed = self.last_logged != Some((d.state, d.reason));
-        self.last_logged = Some((d.state, d.reason));
+        let changed = self.last_logged != Some((d.state.get(), d.reason.get()));
+        self.last_logged = Some((d.state.get(), d.reason.get()));
         deckwatch_viz::entities::decision_items(d, changed)
     }
 
@@ -172,34 +172,37 @@ mod tests {
     fn invalid_stale_and_silence_never_clear() {
         let mut s = DecideStage::new(DecisionConfig::default(), false).unwrap();
         let mut a = AttitudeMessage {
-            valid: true,
+            valid: true.into(),
             rpy: Rpy::from_degrees(1.0, 1.0, 0.0),
             deck_height_m: 0.0,
             ..Default::default()
         };
         a.stamp.times.captured_ns = 1_000_000_000;
         let d = s.process(&a, 1_010_000_000);
-        assert_eq!((d.state, d.reason), (DecisionState::Hold, DecisionReason::Warmup));
+        assert_eq!(
+            (d.state.get(), d.reason.get()),
+            (DecisionState::Hold, DecisionReason::Warmup)
+        );
         // 900 ms old on arrival: stale.
         a.stamp.seq = 1;
         a.stamp.times.captured_ns = 1_100_000_000;
         let d = s.process(&a, 2_000_000_000);
         assert_eq!(
-            (d.state, d.reason),
+            (d.state.get(), d.reason.get()),
             (DecisionState::NoDeck, DecisionReason::StaleData)
         );
-        a.valid = false;
+        a.valid = false.into();
         a.stamp.seq = 2;
         assert_eq!(s.process(&a, 1_210_000_000).state, DecisionState::NoDeck);
         // No capture time: never fresh.
-        a.valid = true;
+        a.valid = true.into();
         a.stamp.seq = 3;
         a.stamp.times.captured_ns = 0;
         assert_eq!(s.process(&a, 1_220_000_000).reason, DecisionReason::StaleData);
         // Silence: the watchdog speaks once.
         assert!(s.watchdog(1_300_000_000).is_none());
         let w = s.watchdog(2_300_000_000).unwrap();
-        assert!(w.watchdog && w.reason == DecisionReason::StaleData);
+        assert!(w.watchdog.get() && w.reason == DecisionReason::StaleData);
         assert!(s.watchdog(2_400_000_000).is_none());
         let e = PipelineConfig::from_toml("d.toml", "[decide]\nmax_age_ms = -1\n").unwrap();
         let e = DecideStage::from_config(&e, false).err().unwrap().to_string();
@@ -212,9 +215,9 @@ mod tests {
     fn an_uncompensated_frame_never_clears() {
         let mut s = DecideStage::new(DecisionConfig::default(), false).unwrap();
         let mut a = AttitudeMessage {
-            valid: true,
+            valid: true.into(),
             vehicle: VehicleAttitude {
-                compensation: Compensation::Stream,
+                compensation: Compensation::Stream.into(),
                 ..Default::default()
             },
             ..Default::default()
@@ -233,7 +236,7 @@ mod tests {
             }
         }
         let k = cleared_at.expect("a calm sea clears");
-        a.vehicle.compensation = Compensation::Missing;
+        a.vehicle.compensation = Compensation::Missing.into();
         a.stamp.seq = k + 1;
         a.context.source_timestamp_ns = (k + 1) * 100_000_000;
         a.stamp.times.captured_ns += 100_000_000;
@@ -251,7 +254,7 @@ mod tests {
                 .map(|k| {
                     let t = k as f64 * 0.1;
                     let mut a = AttitudeMessage {
-                        valid: true,
+                        valid: true.into(),
                         rpy: Rpy::from_degrees(2.0 * (0.7 * t).sin(), 1.5 * (0.5 * t + 1.0).sin(), 0.0),
                         deck_height_m: 0.4 * (0.6 * t).sin(),
                         ..Default::default()

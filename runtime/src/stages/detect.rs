@@ -78,7 +78,7 @@ impl DetectStage {
             Err(e) => {
                 self.bad_frames += 1;
                 let set = MarkerSet {
-                    status: DetectionStatus::BadFrame,
+                    status: DetectionStatus::BadFrame.into(),
                     ..MarkerSet::default()
                 };
                 (set, Some(format!("frame {}: {e}", header.stamp.seq)))

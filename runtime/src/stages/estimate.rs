@@ -64,7 +64,7 @@ impl Estimate {
         out.rpy = self.attitude.rpy;
         out.quaternion = self.attitude.quaternion;
         out.euler313 = self.attitude.euler313;
-        out.has_image_ellipse = self.image_ellipse.is_some();
+        out.has_image_ellipse = self.image_ellipse.is_some().into();
         out.image_ellipse = self.image_ellipse.unwrap_or_default();
         out.residual = self.residual;
         out.markers_used = self.markers_used;
@@ -126,7 +126,7 @@ impl EstimateStage {
         let mut out = AttitudeMessage {
             stamp: m.stamp,
             context: m.context,
-            estimator: self.primary,
+            estimator: self.primary.into(),
             rpy_std_deg: [f64::NAN; 3],
             camera_position_m: [f64::NAN; 3],
             residual: f64::NAN,
@@ -167,15 +167,15 @@ impl EstimateStage {
                 out.deck_height_m = deck_height_m(&vehicle, &e);
                 e.write(&mut out)
             }
-            Err(f) => out.failure = f,
+            Err(f) => out.failure = f.into(),
         }
-        out.valid = out.failure == AttitudeFailure::None;
+        out.valid = (out.failure == AttitudeFailure::None).into();
         if let Some(kind) = self.secondary {
             let mut second = self.run(kind, m, &camera);
             if let Ok(e) = &mut second.result {
                 e.attitude = Attitude::from_matrix(to_w * e.attitude.matrix);
                 // The paper's method has no position: the full pose beside it gives the heave.
-                if out.valid && !out.deck_height_m.is_finite() {
+                if out.valid.get() && !out.deck_height_m.is_finite() {
                     out.deck_height_m = deck_height_m(&vehicle, e);
                 }
             }
@@ -185,24 +185,24 @@ impl EstimateStage {
                 ..
             }) = &second.result
             {
-                out.has_image_ellipse = true;
+                out.has_image_ellipse = true.into();
                 out.image_ellipse = *el;
             }
             out.alternative = AlternativeAttitude {
-                present: true,
-                estimator: second.kind,
-                valid: second.result.is_ok(),
+                present: true.into(),
+                estimator: second.kind.into(),
+                valid: second.result.is_ok().into(),
                 rpy: second.result.map(|e| e.attitude.rpy).unwrap_or_default(),
             };
         }
-        self.estimated += out.valid as u64;
+        self.estimated += out.valid.get() as u64;
         out.stamp.times.estimate_finished_ns = monotonic_ns();
         out
     }
 
     /// A vehicle attitude sample from the autopilot (kept for the frames to come).
     pub fn observe_vehicle(&mut self, sample: &VehicleSample) {
-        if sample.link_up {
+        if sample.link_up.get() {
             self.track.push(VehicleStateSample {
                 time_ns: sample.time_ns,
                 quaternion: sample.quaternion,
@@ -229,7 +229,7 @@ impl EstimateStage {
             kind,
             result: Err(failure),
         };
-        match m.markers.status {
+        match m.markers.status.get() {
             DetectionStatus::NoDeck => return fail(AttitudeFailure::NoDeck),
             DetectionStatus::BadFrame => return fail(AttitudeFailure::BadFrame),
             DetectionStatus::Ok | DetectionStatus::Partial => {}
@@ -279,27 +279,29 @@ impl EstimateStage {
                     Err(e) => fail(paper_failure(&e)),
                 }
             }
-            None => match est
-                .pose
-                .estimate_with_vehicle(&pixels, m.markers.perspective_corrected, &vehicle)
-            {
-                Ok(e) => Outcome {
-                    kind,
-                    result: Ok(Estimate {
-                        attitude: e.attitude,
-                        image_ellipse: None,
-                        residual: e.reprojection_rms_px,
-                        markers_used: e.markers_used(),
-                        rpy_std_deg: e.rpy_std_deg(),
-                        camera_position_m: [
-                            e.viewpoint.offset_x_m,
-                            e.viewpoint.offset_y_m,
-                            e.viewpoint.altitude_m,
-                        ],
-                    }),
-                },
-                Err(e) => fail(pose_failure(&e)),
-            },
+            None => {
+                match est
+                    .pose
+                    .estimate_with_vehicle(&pixels, m.markers.perspective_corrected.get(), &vehicle)
+                {
+                    Ok(e) => Outcome {
+                        kind,
+                        result: Ok(Estimate {
+                            attitude: e.attitude,
+                            image_ellipse: None,
+                            residual: e.reprojection_rms_px,
+                            markers_used: e.markers_used(),
+                            rpy_std_deg: e.rpy_std_deg(),
+                            camera_position_m: [
+                                e.viewpoint.offset_x_m,
+                                e.viewpoint.offset_y_m,
+                                e.viewpoint.altitude_m,
+                            ],
+                        }),
+                    },
+                    Err(e) => fail(pose_failure(&e)),
+                }
+            }
         }
     }
 }
@@ -350,14 +352,14 @@ mod tests {
         m.context.camera = camera;
         m.context.deck = deck;
         m.markers = MarkerSet {
-            status: DetectionStatus::Ok,
-            perspective_corrected: true,
+            status: DetectionStatus::Ok.into(),
+            perspective_corrected: true.into(),
             ..Default::default()
         };
         for (i, p) in scene.project_markers(&camera, &deck).iter().enumerate() {
             let [u, v] = p.unwrap();
             m.markers.markers[i] = Marker {
-                valid: true,
+                valid: true.into(),
                 u,
                 v,
                 ..Default::default()
@@ -379,15 +381,15 @@ mod tests {
         m.context.altitude_m = 5.0;
         let mut s = EstimateStage::new(&EstimateConfig::default(), &VehicleConfig::default(), false);
         let a = s.process(&m, 7);
-        assert!(a.valid && a.estimator == EstimatorKind::FullPose);
+        assert!(a.valid.get() && a.estimator == EstimatorKind::FullPose);
         assert!(rpy_error_deg(&a.rpy, &truth).iter().all(|e| *e < 1e-8));
         assert!((a.camera_position_m[2] - 5.0).abs() < 1e-9 && (a.camera_position_m[0] - 0.1).abs() < 1e-9);
-        assert!(a.alternative.present && a.alternative.valid);
+        assert!(a.alternative.present.get() && a.alternative.valid.get());
         assert_eq!(a.alternative.estimator, EstimatorKind::PaperAtan2);
-        m.markers.status = DetectionStatus::NoDeck;
+        m.markers.status = DetectionStatus::NoDeck.into();
         let a = s.process(&m, 8);
-        assert!(!a.valid && a.failure == AttitudeFailure::NoDeck);
-        assert!(a.alternative.present && !a.alternative.valid);
+        assert!(!a.valid.get() && a.failure == AttitudeFailure::NoDeck);
+        assert!(a.alternative.present.get() && !a.alternative.valid.get());
     }
 
     /// With the autopilot's stream: samples around the capture instant are interpolated and the
@@ -420,7 +422,7 @@ mod tests {
             s.vehicle_sample(&VehicleSample {
                 time_ns: 1_000_000_000 + (t_ms * 1e6) as u64,
                 quaternion: Quaternion::from_matrix(&vehicle_at(t_ms).to_matrix()),
-                link_up: true,
+                link_up: true.into(),
                 ..Default::default()
             });
         }
@@ -436,7 +438,7 @@ mod tests {
         let mut t = EstimateStage::new(&EstimateConfig::default(), &vehicle, false);
         t.vehicle_sample(&VehicleSample {
             time_ns: 1_200_000_000,
-            link_up: false,
+            link_up: false.into(),
             ..Default::default()
         });
         assert_eq!(t.process(&m, 0).vehicle.compensation, Compensation::Missing);

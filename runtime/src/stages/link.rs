@@ -8,7 +8,7 @@
 //! bus but the vehicle samples.
 
 use crate::bus::{event_loop, Bus, BusError, Flow, Wake};
-use crate::stage::{checked_config, exit_code, setup, RunError, StageArgs};
+use crate::stage::{checked_config, exit_code, setup, Heartbeat, RunError, StageArgs};
 use deckwatch_common::messages::{monotonic_ns, LandingDecision, VehicleSample};
 use deckwatch_common::stats::Percentiles;
 use deckwatch_link::incoming::{Incoming, LinkState};
@@ -153,7 +153,10 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
     let mut newest_decision: Option<(LandingDecision, u64)> = None;
     let stale_after_ns = (config.decide.max_age_ms * 1e6) as u64;
     let tick = Duration::from_millis(50);
+    // deckwatch's own heartbeat to the launcher (not MAVLink's HEARTBEAT to the autopilot).
+    let mut alive = Heartbeat::new(&bus)?;
     event_loop(&[decisions.listener()], Some(tick), |wake| {
+        alive.beat();
         let now = monotonic_ns();
         let (state, clock, autopilot, newest) = {
             let i = incoming.lock().unwrap_or_else(|p| p.into_inner());
@@ -206,12 +209,15 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
             sent_decisions += 1;
             newest_decision = Some((d, received));
             let made = d.stamp.times.decide_finished_ns;
-            if made != 0 && !d.watchdog {
+            if made != 0 && !d.watchdog.get() {
                 let since = |t: u64| t.saturating_sub(made) as f64;
                 hop_ns.push(since(received));
                 first_ns.push(since(first.unwrap_or(received)));
                 all_ns.push(since(monotonic_ns()));
             }
+        }
+        if let Some(line) = decisions.rejections().report(monotonic_ns()) {
+            eprintln!("deckwatch-{NAME}: {line}");
         }
         Ok::<Flow, BusError>(Flow::Continue)
     })?;
@@ -243,13 +249,14 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
         pct(&mut all_ns)
     );
     Ok(format!(
-        "{} heartbeats, {} attitudes ({} refused), {} timesyncs, {} ranges, {} local positions in; {sent_decisions} decisions, {} landing targets out ({} sends failed); {latency}; {clock}",
+        "{} heartbeats, {} attitudes ({} refused), {} timesyncs, {} ranges, {} local positions in; {sent_decisions} decisions ({} bad ones skipped), {} landing targets out ({} sends failed); {latency}; {clock}",
         c.heartbeats,
         c.attitudes,
         c.refused,
         c.timesyncs,
         c.heights,
         c.positions,
+        decisions.rejections().count(),
         outgoing.landing_targets,
         failed.load(Ordering::Relaxed)
     ))

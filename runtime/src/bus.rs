@@ -672,11 +672,11 @@ impl<M: Message> MessagePublisher<M> {
         let sample = self
             .publisher
             .loan_uninit()
-            .map_err(context(format!("loan on `{}`", M::SERVICE)))?;
+            .map_err(|e| context(format!("loan on `{}`", M::SERVICE))(e))?;
         let delivered = sample
             .write_payload(*message)
             .send()
-            .map_err(context(format!("send on `{}`", M::SERVICE)))?;
+            .map_err(|e| context(format!("send on `{}`", M::SERVICE))(e))?;
         let _ = self.notifier.notify();
         Ok(delivered)
     }
@@ -702,7 +702,7 @@ impl<M: Message> MessageSubscriber<M> {
             let Some(sample) = self
                 .subscriber
                 .receive()
-                .map_err(context(format!("receive on `{}`", M::SERVICE)))?
+                .map_err(|e| context(format!("receive on `{}`", M::SERVICE))(e))?
             else {
                 return Ok(None);
             };

@@ -702,6 +702,15 @@ fn shared_memory_holds(n: u32) {
                 estimate.vehicle_sample(&v);
                 let _ = estimate.process(&MarkerMessage::default(), 0);
             }
+            // A log line, as the recorder writes it: lengths past the arrays, bytes that are not
+            // UTF-8.
+            let mut l: deckwatch_common::messages::StageLog = message_from_bytes(&raw);
+            let mut r = Repair { spare, at: 0 };
+            r.code(&mut l.level, 5);
+            if l.check_wire().is_ok() {
+                prop_assert!(l.text().len() <= 4 * deckwatch_common::messages::StageLog::TEXT_BYTES);
+                let _ = (l.name(), l.level.get());
+            }
             Ok(())
         },
     );
@@ -726,6 +735,101 @@ fn shared_memory_bytes_never_panic() {
 #[ignore = "a million byte strings per message: cargo test --test fuzz -- --ignored --nocapture"]
 fn shared_memory_bytes_never_panic_many() {
     shared_memory_holds(1_000_000);
+}
+
+/// A flight recording as a killed recorder, a bad disk or anyone else may leave it: a valid
+/// file cut anywhere, with bytes changed anywhere, or just bytes. Reading (messages, frames,
+/// recovery, replay's view of it) gives records or an error naming the file, never a panic.
+fn flight_files_hold(n: u32) {
+    use deckwatch_flight::reader::{read_frames, FlightMessages, FlightReader};
+    use deckwatch_flight::{FlightWriter, FrameEncoding, WriterOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let valid = dir.path().join("valid.mcap");
+    {
+        let mut w = FlightWriter::create(
+            &valid,
+            WriterOptions {
+                chunk_bytes: 2048,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        for seq in 0..4u64 {
+            let mut h = deckwatch_common::messages::FrameHeader::default();
+            h.stamp.seq = seq;
+            (h.width, h.height, h.stride) = (32, 24, 32);
+            w.write(&h).unwrap();
+            let px: Vec<u8> = (0..32 * 24).map(|i| (i * 7 + seq as usize) as u8).collect();
+            let encoding = if seq % 2 == 0 {
+                FrameEncoding::Raw
+            } else {
+                FrameEncoding::Png
+            };
+            w.write_frame(&h, &px, encoding, 90).unwrap();
+            let a = deckwatch_common::messages::AttitudeMessage {
+                stamp: h.stamp,
+                ..Default::default()
+            };
+            w.write(&a).unwrap();
+            w.write_log(seq, 2, "fuzz", "a line").unwrap();
+        }
+        w.finish().unwrap();
+    }
+    let good = std::fs::read(&valid).unwrap();
+    let path = dir.path().join("f.mcap");
+    let edits = prop::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 0..8);
+    fuzz(
+        "flight recordings",
+        n,
+        (
+            any::<prop::sample::Index>(),
+            edits,
+            any::<bool>(),
+            prop::collection::vec(any::<u8>(), 0..512),
+        ),
+        |(cut, edits, mangle, junk)| {
+            let mut bytes = if mangle && !junk.is_empty() {
+                junk.clone()
+            } else {
+                good.clone()
+            };
+            for (at, b) in &edits {
+                let i = at.index(bytes.len().max(1));
+                if i < bytes.len() {
+                    bytes[i] = *b;
+                }
+            }
+            bytes.truncate(cut.index(bytes.len() + 1));
+            std::fs::write(&path, &bytes).unwrap();
+            if let Ok(reader) = FlightReader::open(&path) {
+                for record in reader {
+                    if record.is_err() {
+                        break;
+                    }
+                }
+            }
+            let _ = FlightMessages::read(&path);
+            let _ = read_frames(&path, 1 << 20);
+            let _ = deckwatch_flight::convert::recording_of(&path, 1 << 20);
+            let _ = deckwatch_flight::convert::recover(
+                &path,
+                &dir.path().join("r.mcap"),
+                WriterOptions::default(),
+            );
+            Ok(())
+        },
+    );
+}
+
+#[test]
+fn flight_recordings_never_panic() {
+    flight_files_hold(cases(300));
+}
+
+#[test]
+#[ignore = "a hundred thousand cut and changed recordings: cargo test --test fuzz -- --ignored --nocapture"]
+fn flight_recordings_never_panic_many() {
+    flight_files_hold(100_000);
 }
 
 #[test]

@@ -21,24 +21,9 @@ const TILT_DEG: [f64; 3] = [4.0, -3.0, 0.0];
 const CLOCK_OFFSET_S: f64 = 1234.5;
 const RATE_HZ: f64 = 10.0;
 
-/// The interpreter with pymavlink: `DECKWATCH_PYTHON`, the venv `ci/peers.sh` makes, or python3.
+/// The interpreter with pymavlink.
 fn python() -> PathBuf {
-    let candidates = [
-        std::env::var_os("DECKWATCH_PYTHON").map(PathBuf::from),
-        std::env::var_os("HOME").map(|h| Path::new(&h).join(".cache/deckwatch-venv/bin/python3")),
-        Some(PathBuf::from("python3")),
-    ];
-    for p in candidates.into_iter().flatten() {
-        let ok = Command::new(&p)
-            .args(["-c", "import pymavlink"])
-            .stderr(Stdio::null())
-            .status()
-            .is_ok_and(|s| s.success());
-        if ok {
-            return p;
-        }
-    }
-    panic!("no python3 with pymavlink: run ci/peers.sh (or set DECKWATCH_PYTHON)");
+    deckwatch_tests::peer_python("pymavlink")
 }
 
 fn free_udp_port() -> u16 {
@@ -85,7 +70,9 @@ fn pymavlink_autopilot_and_ground_station() {
              [sim]\nvehicle = \"tilted\"\nvehicle_tilt_deg = [{r}, {p}, {y}]\nframes = 170\nrate = {RATE_HZ}\n\
              [vehicle]\nattitude = \"autopilot\"\n\
              [link]\nenabled = true\naddress = \"udpin:127.0.0.1:{port}\"\n\
-             [rerun]\nsink = \"off\"\n"
+             [rerun]\nsink = \"off\"\n\
+             [record]\npath = \"{}\"\nframes = \"none\"\n",
+            dir.path().join("flight.mcap").display()
         ),
     )
     .unwrap();
@@ -282,6 +269,38 @@ fn pymavlink_autopilot_and_ground_station() {
         assert!(n > 0, "mavlogdump found no {kind}");
     }
     assert!(text.contains("name : dw_state") && text.contains("frame : 12"));
+
+    // The flight recording kept the link's traffic both ways, frame for frame: pymavlink decodes
+    // every recorded frame as the message it is named.
+    let traffic = Command::new(&python)
+        .arg(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tests/peers/link_traffic.py"
+        ))
+        .arg(dir.path().join("flight.mcap"))
+        .output()
+        .unwrap();
+    assert!(
+        traffic.status.success(),
+        "{}",
+        String::from_utf8_lossy(&traffic.stderr)
+    );
+    let t: serde_json::Value = serde_json::from_slice(&traffic.stdout).unwrap();
+    assert_eq!(t["undecoded"], 0, "{t}");
+    assert_eq!(t["misnamed"], serde_json::json!([]), "{t}");
+    for kind in ["HEARTBEAT", "LANDING_TARGET", "TIMESYNC", "NAMED_VALUE_FLOAT"] {
+        assert!(t["out"][kind].as_u64().unwrap_or(0) > 0, "sent {kind}: {t}");
+    }
+    for kind in ["HEARTBEAT", "ATTITUDE_QUATERNION", "TIMESYNC"] {
+        assert!(t["in"][kind].as_u64().unwrap_or(0) > 0, "received {kind}: {t}");
+    }
+    // Every LANDING_TARGET the autopilot received is in the recording.
+    assert!(
+        t["out"]["LANDING_TARGET"].as_u64().unwrap() >= targets.len() as u64,
+        "{t} vs {} received",
+        targets.len()
+    );
+    assert!(t["vehicle_samples"].as_u64().unwrap() > 100, "{t}");
     // The pipeline left nothing in shared memory.
     let prefix = domain_prefix(&domain);
     let left = std::fs::read_dir("/dev/shm")

@@ -115,7 +115,14 @@ impl CaptureConfig {
                 Ok(())
             }
             FrameSource::Replay => {
-                Recording::open(self.recording()?)?;
+                let path = self.recording()?;
+                if is_flight_recording(path) {
+                    // Only that it is one: its frames are read when the source opens.
+                    deckwatch_flight::FlightReader::open(path)
+                        .map_err(|e| config_error("replay.recording", e.to_string()))?;
+                } else {
+                    Recording::open(path)?;
+                }
                 self.replay_pace()?;
                 Ok(())
             }
@@ -233,6 +240,24 @@ impl CaptureConfig {
     fn open_replay(&self) -> Result<CaptureSource, SourceError> {
         let r = &self.replay;
         let dir = self.recording()?;
+        if is_flight_recording(dir) {
+            // A flight recording's frames are in memory once read.
+            let deckwatch_flight::convert::ReplayableFlight {
+                recording: rec,
+                images,
+                ended_early,
+            } = deckwatch_flight::convert::recording_of(dir, r.preload_limit_mib.saturating_mul(1 << 20))
+                .map_err(|e| config_error("replay.recording", e.to_string()))?;
+            if let Some(why) = ended_early {
+                eprintln!(
+                    "{}: the recording ends early ({why}); replaying its {} frames",
+                    dir.display(),
+                    rec.frames.len()
+                );
+            }
+            let preloaded = Some(images.into_iter().map(Ok).collect());
+            return self.replay_source(rec, preloaded);
+        }
         let rec = Recording::open(dir)?;
         if rec.frames.is_empty() {
             return Err(config_error(
@@ -240,7 +265,6 @@ impl CaptureConfig {
                 format!("{}: the recording has no frames", dir.display()),
             ));
         }
-        let pace = self.replay_pace()?;
         let frame_bytes = rec.camera.width as u64 * rec.camera.height as u64;
         let preloaded = if r.preload {
             let mib = (frame_bytes * rec.frames.len() as u64).div_ceil(1 << 20);
@@ -265,6 +289,16 @@ impl CaptureConfig {
         } else {
             None
         };
+        self.replay_source(rec, preloaded)
+    }
+
+    fn replay_source(
+        &self,
+        rec: Recording,
+        preloaded: Option<Vec<Result<Vec<u8>, String>>>,
+    ) -> Result<CaptureSource, SourceError> {
+        let r = &self.replay;
+        let pace = self.replay_pace()?;
         let vehicle = rec.vehicle_samples.as_ref().map(|samples| {
             let mut track = VehicleTrack::new(samples.len());
             for &s in samples {
@@ -288,6 +322,11 @@ impl CaptureConfig {
             },
         })
     }
+}
+
+/// Whether a replay path is an MCAP flight recording (a file) rather than a recording folder.
+pub fn is_flight_recording(path: &std::path::Path) -> bool {
+    path.is_file()
 }
 
 /// Frame `k` of a replay (looping) on the recording's timeline, in ns after its first frame:

@@ -3,6 +3,7 @@
 //! - `deckwatch run`: the pipeline as four processes over iceoryx2 (capture, detect, estimate,
 //!   decide) on the simulator (default) or a recording, supervised, with a live status line.
 //! - `deckwatch latency RECORDING`: per-stage latency of the four processes on recorded frames.
+//! - `deckwatch replay FILE.mcap`, `diff`, `convert`, `recover`: flight recordings (MCAP).
 //! - `deckwatch inproc`: the same stages in one process, for profiling the algorithms.
 //! - `deckwatch soak`: a long run on full-size frames, watching memory and drops.
 //! - `deckwatch sim markers` / `deckwatch estimate-table`: the marker-table tools.
@@ -39,6 +40,7 @@ struct Cli {
 mod decide_eval;
 mod decisions_csv;
 mod eval;
+mod flight;
 mod inproc;
 mod launch;
 mod pipeline;
@@ -52,6 +54,19 @@ enum Command {
     Run(pipeline::RunArgs),
     /// Replay a recording through the four processes and report per-stage latency and drops.
     Latency(pipeline::LatencyArgs),
+    /// Replay a flight recording (FILE.mcap) through the pipeline at its recorded rate (or
+    /// `--rate`); `--resim OUT.mcap` re-simulates it in this process on its recorded timing and
+    /// compares the outputs with the recorded ones.
+    Replay(flight::ReplayArgs),
+    /// Where two flight recordings' outputs part: per stage (detect, estimate, decide) and
+    /// frame, the fields that differ and by how much. Exit status 1 when they differ.
+    Diff(flight::DiffArgs),
+    /// Convert a recording folder to a flight recording (MCAP) or back (frames, timestamps,
+    /// truth, the vehicle's attitude).
+    Convert(flight::ConvertArgs),
+    /// Complete the flight recording of a recorder that was killed: everything up to its last
+    /// complete chunk, with the index MCAP tools expect.
+    Recover(flight::RecoverArgs),
     /// The stages in one process, frame by frame (no IPC): per-stage cost and accuracy.
     Inproc(Box<inproc::RunArgs>),
     /// Detection and every estimator on recordings, against their ground truth: RMSE and max
@@ -393,6 +408,14 @@ fn main() -> ExitCode {
     let result = match Cli::parse().command {
         Command::Run(a) => pipeline::run(a),
         Command::Latency(a) => pipeline::latency(a),
+        Command::Replay(a) => flight::replay(a),
+        Command::Diff(a) => match flight::diff_command(a) {
+            Ok(true) => Ok(()),
+            Ok(false) => return ExitCode::from(1),
+            Err(e) => Err(e),
+        },
+        Command::Convert(a) => flight::convert(a),
+        Command::Recover(a) => flight::recover(a),
         Command::Inproc(a) => inproc::run(*a),
         Command::DecideEval(a) => decide_eval::run(a),
         Command::Soak(a) => soak::run(a),

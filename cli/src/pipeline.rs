@@ -11,10 +11,11 @@ use std::path::{Path, PathBuf};
 pub struct RunArgs {
     /// Pipeline configuration (TOML; see README). Command-line options override it.
     #[arg(long)]
-    config: Option<PathBuf>,
-    /// Frame source: `sim` (default), `replay DIR`, or `libcamera`.
+    pub config: Option<PathBuf>,
+    /// Frame source: `sim` (default), `replay DIR` (a recording folder or a flight recording,
+    /// FILE.mcap), or `libcamera`.
     #[arg(long, num_args = 1..=2, value_names = ["KIND", "DIR"])]
-    source: Vec<String>,
+    pub source: Vec<String>,
     /// Frames to capture (sim: the run's length; replay, libcamera: stop after this many).
     #[arg(long)]
     frames: Option<u64>,
@@ -55,6 +56,10 @@ pub struct RunArgs {
     /// `[decide] heave`.
     #[arg(long, value_name = "USE")]
     heave: Option<String>,
+    /// Record the flight: every message (and frame, as `[record]` says) into this MCAP file by
+    /// a recorder process; sets `[record] path`.
+    #[arg(long, value_name = "FILE.mcap")]
+    pub record: Option<PathBuf>,
 }
 
 /// Applies `--heave required|off`.
@@ -198,6 +203,9 @@ pub fn run(a: RunArgs) -> Result<(), String> {
     apply_rerun(&mut c, &a.rerun)?;
     apply_link(&mut c, a.link, a.vehicle_attitude.as_deref())?;
     apply_heave(&mut c, a.heave.as_deref())?;
+    if let Some(p) = a.record {
+        c.record.path = Some(p);
+    }
     if a.print_config {
         c.validate(&file).map_err(|e| e.to_string())?;
         print!("{}", c.to_toml());
@@ -217,7 +225,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
 
 #[derive(clap::Args)]
 pub struct LatencyArgs {
-    /// The recording to replay.
+    /// The recording to replay (a folder, or a flight recording FILE.mcap).
     recording: PathBuf,
     /// Replay rate in Hz (default: the recorded rate; 0: as fast as possible).
     #[arg(long)]
@@ -246,6 +254,9 @@ pub struct LatencyArgs {
     /// rerun logging (default off): `spawn`, `connect [ADDR]`, `save FILE.rrd`.
     #[arg(long, num_args = 1..=2, value_names = ["MODE", "ARG"])]
     rerun: Vec<String>,
+    /// Record the run into this MCAP file (`[record]` of the configuration says how).
+    #[arg(long, value_name = "FILE.mcap")]
+    record: Option<PathBuf>,
 }
 
 pub fn latency(a: LatencyArgs) -> Result<(), String> {
@@ -260,6 +271,9 @@ pub fn latency(a: LatencyArgs) -> Result<(), String> {
     }
     c.bus.domain = a.domain;
     apply_rerun(&mut c, &a.rerun)?;
+    if let Some(p) = a.record {
+        c.record.path = Some(p);
+    }
     let options = LaunchOptions {
         status: false,
         decisions_csv: a.decisions,

@@ -44,8 +44,12 @@ pub trait WireEnum: Copy + 'static {
     /// How [`WireCode::get`] reads a code that is none of the values: the reading that never
     /// leads to a landing.
     const ON_BAD_CODE: Self;
+    /// Every value, in code order (recordings write and read them by name).
+    const VARIANTS: &'static [Self];
     fn code(self) -> u32;
     fn from_code(code: u32) -> Option<Self>;
+    /// The variant's name as written in the source (`ClearToLand`).
+    fn variant_name(self) -> &'static str;
 }
 
 /// Implements [`WireEnum`] and `TryFrom<u32>` for a fieldless enum with explicit discriminants;
@@ -56,6 +60,12 @@ macro_rules! wire_enum {
         impl $crate::wire::WireEnum for $ty {
             const NAME: &'static str = stringify!($ty);
             const ON_BAD_CODE: Self = Self::$fallback;
+            const VARIANTS: &'static [Self] = &[$(Self::$variant),+];
+            fn variant_name(self) -> &'static str {
+                match self {
+                    $(Self::$variant => stringify!($variant),)+
+                }
+            }
             fn code(self) -> u32 {
                 // Every variant listed: a variant added to the enum and not here fails to compile.
                 match self {
@@ -78,7 +88,7 @@ macro_rules! wire_enum {
 
         impl TryFrom<u32> for $ty {
             type Error = $crate::wire::BadWireValue;
-            fn try_from(code: u32) -> Result<Self, Self::Error> {
+            fn try_from(code: u32) -> Result<Self, $crate::wire::BadWireValue> {
                 <Self as $crate::wire::WireEnum>::from_code(code).ok_or($crate::wire::BadWireValue {
                     field: String::new(),
                     kind: <Self as $crate::wire::WireEnum>::NAME,

@@ -23,3 +23,23 @@ pub use mavlink;
 /// The MAVLink messages deckwatch speaks (the common dialect, MAVLink 2).
 pub use mavlink::dialects::common::MavMessage;
 pub use mavlink::MavHeader;
+
+/// A message as the recorder keeps it: its MAVLink 2 frame as sent or received (`LinkTraffic`).
+pub fn traffic(
+    time_ns: u64,
+    outgoing: bool,
+    header: &MavHeader,
+    message: &MavMessage,
+) -> deckwatch_common::messages::LinkTraffic {
+    use mavlink::Message;
+    let mut frame = Vec::with_capacity(deckwatch_common::messages::LinkTraffic::FRAME_BYTES);
+    // Writing into a Vec cannot fail.
+    let _ = mavlink::write_v2_msg(&mut frame, *header, message);
+    deckwatch_common::messages::LinkTraffic::new(
+        time_ns,
+        outgoing,
+        message.message_id(),
+        message.message_name(),
+        &frame,
+    )
+}

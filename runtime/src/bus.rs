@@ -19,7 +19,8 @@
 //! iceoryx2 file in `/dev/shm` and under `/tmp/iceoryx2`.
 
 use deckwatch_common::messages::{
-    monotonic_ns, AttitudeMessage, FrameHeader, LandingDecision, MarkerMessage, StageHeartbeat, VehicleSample,
+    monotonic_ns, AttitudeMessage, FrameHeader, LandingDecision, LinkTraffic, MarkerMessage, StageHeartbeat,
+    StageLog, VehicleSample,
 };
 use deckwatch_common::wire::{BadWireValue, WireCheck};
 use iceoryx2::config::Config;
@@ -50,6 +51,10 @@ pub mod services {
     pub const VEHICLE: &str = "deckwatch/vehicle";
     /// Every stage process's heartbeat, which the launcher follows.
     pub const HEARTBEAT: &str = "deckwatch/heartbeat";
+    /// The processes' stderr lines, passed on by the launcher while a recorder runs.
+    pub const LOG: &str = "deckwatch/log";
+    /// Every MAVLink frame the link sends and receives, while a recorder runs.
+    pub const LINK: &str = "deckwatch/link";
 }
 
 /// The default domain.
@@ -245,6 +250,17 @@ impl Message for StageHeartbeat {
     const QUEUE: usize = 64;
     // Every stage process, and the one a restart starts while the old one is being removed.
     const PUBLISHERS: usize = 12;
+}
+impl Message for StageLog {
+    const SERVICE: &'static str = services::LOG;
+    // A burst of lines (a stage's summary, a restart) while the recorder writes a frame.
+    const QUEUE: usize = 64;
+}
+impl Message for LinkTraffic {
+    const SERVICE: &'static str = services::LINK;
+    // The autopilot's streams (attitude at 200 Hz, heartbeats, positions) in and the decisions
+    // out: half a second of them.
+    const QUEUE: usize = 256;
 }
 impl Message for VehicleSample {
     const SERVICE: &'static str = services::VEHICLE;
@@ -653,6 +669,19 @@ impl FrameSubscriber {
             }
         }
         Ok(newest.map(|s| (s, passed)))
+    }
+
+    /// The oldest queued frame (every frame in order, for a consumer that must see each one:
+    /// the recorder); a frame whose header holds a bad enum or boolean is released unread and
+    /// counted.
+    pub fn receive(&self) -> Result<Option<FrameSample>, BusError> {
+        while let Some(sample) = self.subscriber.receive().map_err(context("receiving a frame"))? {
+            match sample.user_header().check_wire() {
+                Ok(()) => return Ok(Some(FrameSample { sample })),
+                Err(e) => self.rejections.reject(e.within("FrameHeader")),
+            }
+        }
+        Ok(None)
     }
 
     pub fn rejections(&self) -> &Rejections {

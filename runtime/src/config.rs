@@ -14,6 +14,7 @@ use deckwatch_common::messages::{EstimatorKind, FrameSource};
 use deckwatch_common::vehicle::{VehicleAttitudeSource, VehicleConfig};
 use deckwatch_decide::{DecisionConfig, HeaveUse};
 use deckwatch_estimate::EstimateConfig;
+use deckwatch_flight::RecordConfig;
 use deckwatch_link::LinkConfig;
 use deckwatch_viz::RerunConfig;
 use serde::{Deserialize, Serialize};
@@ -79,6 +80,7 @@ pub struct PipelineConfig {
     pub link: LinkConfig,
     pub supervisor: SupervisorConfig,
     pub rerun: RerunConfig,
+    pub record: RecordConfig,
 }
 
 /// What is wrong with a configuration, and where.
@@ -188,6 +190,15 @@ impl PipelineConfig {
             deckwatch_viz::VizError::Config { key, problem } => invalid(format!("rerun.{key}"), problem),
             other => invalid("rerun".into(), other.to_string()),
         })?;
+        self.record
+            .validate()
+            .map_err(|(key, problem)| invalid(format!("record.{key}"), problem))?;
+        if self.record.records_frames() && self.bus.frame_subscribers < 2 {
+            return Err(invalid(
+                "bus.frame_subscribers".into(),
+                "recording frames needs 2 at least (detect and the recorder)".into(),
+            ));
+        }
         let s = &self.supervisor;
         // Two heartbeat periods at least, or a busy machine looks hung.
         let min_hang_ms = 2 * deckwatch_common::messages::StageHeartbeat::PERIOD_NS / 1_000_000;

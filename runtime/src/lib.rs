@@ -12,5 +12,6 @@
 pub mod bus;
 pub mod chain;
 pub mod config;
+pub mod resim;
 pub mod stage;
 pub mod stages;

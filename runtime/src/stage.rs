@@ -180,9 +180,16 @@ pub struct StageInfo {
 }
 
 /// The stages in start order: each one's input service has a subscriber before the stage
-/// upstream of it starts, so no frame is published into the void. The link comes first: the
-/// vehicle's attitude must flow before the first frame needs it.
-pub const STAGES: [StageInfo; 5] = [
+/// upstream of it starts, so no frame is published into the void. The recorder comes first, so
+/// that it sees everything; then the link: the vehicle's attitude must flow before the first
+/// frame needs it.
+pub const STAGES: [StageInfo; 6] = [
+    // The first subscriber of the markers (estimate comes later): it is up at one.
+    StageInfo {
+        name: crate::stages::record::NAME,
+        ready_service: Some(<deckwatch_common::messages::MarkerMessage as crate::bus::Message>::SERVICE),
+        ready_subscribers: 1,
+    },
     // The link listens to the decisions, which the launcher follows too: it is up at two.
     StageInfo {
         name: crate::stages::link::NAME,
@@ -211,11 +218,23 @@ pub const STAGES: [StageInfo; 5] = [
     },
 ];
 
-/// The stages a configuration runs, in start order (the link only with `[link] enabled`).
+/// The stages a configuration runs, in start order (the link only with `[link] enabled`, the
+/// recorder only with `[record] path`). With a recorder, which subscribes to every service
+/// before the others start, each later stage is up at one subscriber more.
 pub fn active_stages(config: &PipelineConfig) -> Vec<StageInfo> {
+    let recording = config.record.enabled();
     STAGES
         .into_iter()
         .filter(|s| s.name != crate::stages::link::NAME || config.link.enabled)
+        .filter(|s| s.name != crate::stages::record::NAME || recording)
+        .map(|mut s| {
+            let recorded =
+                |service: &str| service != crate::bus::services::FRAMES || config.record.records_frames();
+            if recording && s.name != crate::stages::record::NAME && s.ready_service.is_some_and(recorded) {
+                s.ready_subscribers += 1;
+            }
+            s
+        })
         .collect()
 }
 
@@ -306,6 +325,9 @@ pub enum RunError {
     /// The MAVLink connection to the autopilot could not be set up.
     #[error("{0}")]
     Link(String),
+    /// The flight recorder could not write its file.
+    #[error("{0}")]
+    Record(String),
 }
 
 /// Runs the stage binary: parse the command line, run, report; the exit code says how it went.

@@ -157,3 +157,43 @@ pub fn reference_blobs(
     }
     blobs
 }
+
+/// The Python interpreter of the test peers that can import `module`: `DECKWATCH_PYTHON`, the
+/// virtual environment `ci/peers.sh` makes (~/.cache/deckwatch-venv), or python3.
+pub fn peer_python(module: &str) -> std::path::PathBuf {
+    use std::path::{Path, PathBuf};
+    let candidates = [
+        std::env::var_os("DECKWATCH_PYTHON").map(PathBuf::from),
+        std::env::var_os("HOME").map(|h| Path::new(&h).join(".cache/deckwatch-venv/bin/python3")),
+        Some(PathBuf::from("python3")),
+    ];
+    for p in candidates.into_iter().flatten() {
+        let ok = std::process::Command::new(&p)
+            .args(["-c", &format!("import {module}")])
+            .stderr(std::process::Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success());
+        if ok {
+            return p;
+        }
+    }
+    panic!("no python3 with {module}: run ci/peers.sh (or set DECKWATCH_PYTHON)");
+}
+
+/// rerun-sdk's `rerun` command (the venv of `ci/peers.sh`, else the one on PATH), version 0.36.3.
+pub fn peer_rerun() -> std::path::PathBuf {
+    let python = peer_python("rerun");
+    let beside = python.with_file_name("rerun");
+    let rerun = if beside.exists() { beside } else { "rerun".into() };
+    let version = std::process::Command::new(&rerun)
+        .arg("--version")
+        .output()
+        .unwrap_or_else(|e| panic!("{}: {e} (run ci/peers.sh)", rerun.display()));
+    let text = String::from_utf8_lossy(&version.stdout);
+    assert!(
+        text.contains("0.36.3"),
+        "{}: {text} (need rerun-sdk 0.36.3)",
+        rerun.display()
+    );
+    rerun
+}

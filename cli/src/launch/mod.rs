@@ -11,6 +11,7 @@ pub mod process;
 pub mod report;
 pub mod supervise;
 
+use deckwatch_common::messages::{monotonic_ns, StageLog};
 use deckwatch_runtime::bus::{quiet_logging, Bus};
 use deckwatch_runtime::config::PipelineConfig;
 use deckwatch_runtime::stage::active_stages;
@@ -23,7 +24,54 @@ pub use supervise::LaunchOptions;
 use supervise::{supervise, Supervised};
 
 fn say(msg: impl std::fmt::Display) {
-    eprintln!("deckwatch: {msg}");
+    let line = format!("deckwatch: {msg}");
+    eprintln!("{line}");
+    if let Some(tx) = LAUNCHER_LOG.get() {
+        let tx = tx.lock().unwrap_or_else(|p| p.into_inner());
+        let _ = tx.send(StageLog::new(
+            monotonic_ns(),
+            std::process::id(),
+            "deckwatch",
+            &line,
+        ));
+    }
+}
+
+/// Where the launcher's own lines go besides stderr, while a recorder runs.
+static LAUNCHER_LOG: std::sync::OnceLock<std::sync::Mutex<std::sync::mpsc::Sender<StageLog>>> =
+    std::sync::OnceLock::new();
+
+/// The processes' stderr lines (and the launcher's own), published on `deckwatch/log` for the
+/// recorder, from a node of their own that lives until the recorder is stopped.
+pub struct LogForwarder {
+    publisher: deckwatch_runtime::bus::MessagePublisher<StageLog>,
+    lines: std::sync::mpsc::Receiver<StageLog>,
+    _bus: Bus,
+}
+
+impl LogForwarder {
+    fn start(config: &PipelineConfig, stages: &mut [Supervised]) -> Result<Self, String> {
+        let bus = Bus::join(&config.bus.settings(1), "launcher-log").map_err(|e| e.to_string())?;
+        let publisher = bus.publisher::<StageLog>().map_err(|e| e.to_string())?;
+        let (tx, lines) = std::sync::mpsc::channel();
+        for s in stages.iter_mut() {
+            s.process.log = Some(tx.clone());
+        }
+        let _ = LAUNCHER_LOG.set(std::sync::Mutex::new(tx));
+        Ok(Self {
+            publisher,
+            lines,
+            _bus: bus,
+        })
+    }
+
+    /// Publishes the lines read so far.
+    pub fn forward(&self) {
+        for line in self.lines.try_iter() {
+            // A lost line is no reason to stop the pipeline.
+            let _ = self.publisher.send(&line);
+        }
+    }
 }
 
 /// Runs the pipeline until the source is exhausted or a signal arrives. `file` names the
@@ -60,6 +108,10 @@ pub fn launch(config: &PipelineConfig, file: &str, options: &LaunchOptions) -> R
     // rerun: every process logs into one recording. With `spawn` the launcher starts the viewer
     // and the stages connect to it; with `save` each process writes a part, merged at the end.
     let mut config = config.clone();
+    if config.record.records_frames() {
+        // The recorder is one more frame subscriber; the spare for a restarted stage stays.
+        config.bus.frame_subscribers = (config.bus.frame_subscribers + 1).min(8);
+    }
     let viewer = start_viewer(&mut config)?;
     let config = &config;
     // The stages read the same configuration, as the launcher resolved it.
@@ -68,12 +120,35 @@ pub fn launch(config: &PipelineConfig, file: &str, options: &LaunchOptions) -> R
     let config_path = run_dir.join("pipeline.toml");
     std::fs::write(&config_path, config.to_toml()).map_err(|e| format!("{}: {e}", config_path.display()))?;
 
-    let result = supervise(config, options, &mut stages, &config_path);
-    let mut processes: Vec<StageProcess> = stages.into_iter().map(|s| s.process).collect();
+    let log = if config.record.enabled() {
+        Some(LogForwarder::start(config, &mut stages)?)
+    } else {
+        None
+    };
+    let result = supervise(config, options, &mut stages, &config_path, log.as_ref());
+    let (mut recorder, mut processes): (Vec<StageProcess>, Vec<StageProcess>) = stages
+        .into_iter()
+        .map(|s| s.process)
+        .partition(|p| p.name == deckwatch_runtime::stages::record::NAME);
     let stop_timeout = Duration::from_millis(config.supervisor.stop_timeout_ms);
     for name in stop_all(&mut processes, stop_timeout) {
         say(format_args!("{name} did not stop in time; killed it"));
     }
+    // The recorder last, once every other stage has said its last (their closing lines are
+    // read by the threads that follow their stderr: give them a moment): it writes out its
+    // queue and the file's summary. Killed, it leaves a file that `deckwatch recover` completes.
+    if let Some(l) = &log {
+        std::thread::sleep(Duration::from_millis(100));
+        l.forward();
+    }
+    if !stop_all(&mut recorder, RECORDER_STOP_TIMEOUT).is_empty() {
+        say(format_args!(
+            "the recorder did not finish in {} s; killed it (`deckwatch recover` completes its file)",
+            RECORDER_STOP_TIMEOUT.as_secs()
+        ));
+    }
+    // Its node goes before the domain is cleaned up (a live node keeps the domain).
+    drop(log);
     let _ = std::fs::remove_dir_all(&run_dir);
     match Bus::cleanup_dead_nodes(&domain) {
         Ok(r) if r.removed > 0 => say(format_args!("removed the resources of {} dead nodes", r.removed)),
@@ -101,6 +176,9 @@ pub fn launch(config: &PipelineConfig, file: &str, options: &LaunchOptions) -> R
     }
     result
 }
+
+/// How long the recorder may take to write out its queue and finish its file.
+const RECORDER_STOP_TIMEOUT: Duration = Duration::from_secs(30);
 
 /// The launcher's name as a rerun part and iceoryx2 node.
 const LAUNCHER: &str = "launcher";

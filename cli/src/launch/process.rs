@@ -1,5 +1,6 @@
 //! Process control: starting a stage binary, signalling it, stopping every stage.
 
+use deckwatch_common::messages::{monotonic_ns, StageLog};
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
@@ -14,6 +15,9 @@ pub struct StageProcess {
     pub started: Instant,
     /// Restarts so far.
     pub restarts: u32,
+    /// Where its stderr lines go besides the launcher's stderr (to be published for the
+    /// recorder); None: the stage writes to the launcher's stderr directly.
+    pub log: Option<std::sync::mpsc::Sender<StageLog>>,
 }
 
 /// What a status poll found.
@@ -34,6 +38,7 @@ impl StageProcess {
             child: None,
             started: Instant::now(),
             restarts: 0,
+            log: None,
         }
     }
 
@@ -64,10 +69,28 @@ impl StageProcess {
                 Ok(())
             });
         }
-        let child = cmd
+        if self.log.is_some() {
+            cmd.stderr(Stdio::piped());
+        }
+        let mut child = cmd
             .spawn()
             .map_err(|e| format!("cannot start {}: {e}", self.binary.display()))?;
         let pid = child.id();
+        if let (Some(tx), Some(stderr)) = (self.log.clone(), child.stderr.take()) {
+            let name = format!("deckwatch-{}", self.name);
+            // Passes every line on to the launcher's stderr, and to the recorder. Ends when the
+            // process closes its stderr (it exited).
+            let _ = std::thread::Builder::new()
+                .name(format!("{}-stderr", self.name))
+                .spawn(move || {
+                    use std::io::BufRead;
+                    for line in std::io::BufReader::new(stderr).lines() {
+                        let Ok(line) = line else { break };
+                        eprintln!("{line}");
+                        let _ = tx.send(StageLog::new(monotonic_ns(), pid, &name, &line));
+                    }
+                });
+        }
         self.child = Some(child);
         self.started = Instant::now();
         Ok(pid)

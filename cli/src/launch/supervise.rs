@@ -148,6 +148,7 @@ pub fn supervise(
     options: &LaunchOptions,
     stages: &mut [Supervised],
     config_path: &Path,
+    log: Option<&super::LogForwarder>,
 ) -> Result<RunReport, String> {
     let sup = &config.supervisor;
     let policy = RestartPolicy::new(sup);
@@ -156,6 +157,7 @@ pub fn supervise(
     let bus = Bus::join(&config.bus.settings(1), super::LAUNCHER).map_err(|e| e.to_string())?;
     let decisions = bus.subscriber::<LandingDecision>().map_err(|e| e.to_string())?;
     let heartbeats = bus.subscriber::<StageHeartbeat>().map_err(|e| e.to_string())?;
+
     let hang = Duration::from_millis(sup.hang_timeout_ms);
     let startup = Duration::from_millis(sup.ready_timeout_ms);
     let mut observer = Observer::new(options.decisions_csv.as_deref())?;
@@ -197,6 +199,9 @@ pub fn supervise(
                 say(line);
             }
             return Ok(Flow::Continue);
+        }
+        if let Some(l) = log {
+            l.forward();
         }
         let now = Instant::now();
         while let Some(beat) = heartbeats.receive()? {

@@ -7,9 +7,9 @@
 //! Not a [`crate::stage::Stage`]: it has two inputs (the bus and a socket) and no output on the
 //! bus but the vehicle samples.
 
-use crate::bus::{event_loop, Bus, BusError, Flow, Wake};
+use crate::bus::{event_loop, Bus, BusError, Flow, MessagePublisher, Wake};
 use crate::stage::{checked_config, exit_code, setup, Heartbeat, RunError, StageArgs};
-use deckwatch_common::messages::{monotonic_ns, LandingDecision, VehicleSample};
+use deckwatch_common::messages::{monotonic_ns, LandingDecision, LinkTraffic, VehicleSample};
 use deckwatch_common::stats::Percentiles;
 use deckwatch_link::incoming::{Incoming, LinkState};
 use deckwatch_link::mavlink;
@@ -58,12 +58,20 @@ impl Identity {
 }
 
 /// Sends, counting what could not go (no peer yet on `udpin`, a full socket): a lost message is
-/// not a reason to stop.
-fn send(conn: &Connection, id: &Identity, m: &MavMessage, failed: &AtomicU64) {
-    if conn.send(&id.header(), m).is_err() {
+/// not a reason to stop. With a recorder, the frame is published on `deckwatch/link` too.
+fn send(conn: &Connection, id: &Identity, m: &MavMessage, failed: &AtomicU64, traffic: Traffic<'_>) {
+    let header = id.header();
+    if conn.send(&header, m).is_err() {
         failed.fetch_add(1, Ordering::Relaxed);
+        return;
+    }
+    if let Some(p) = traffic {
+        let _ = p.send(&deckwatch_link::traffic(monotonic_ns(), true, &header, m));
     }
 }
+
+/// Where the link's frames go for the recorder (None: no recorder runs).
+type Traffic<'a> = Option<&'a MessagePublisher<LinkTraffic>>;
 
 /// The receiving thread: until the process ends.
 fn receive(
@@ -73,8 +81,14 @@ fn receive(
     bus: Bus,
     failed: Arc<AtomicU64>,
     configured_system: u8,
+    recording: bool,
 ) -> Result<(), BusError> {
     let samples = bus.publisher::<VehicleSample>()?;
+    let traffic = if recording {
+        Some(bus.publisher::<LinkTraffic>()?)
+    } else {
+        None
+    };
     loop {
         let (header, message) = match conn.recv() {
             Ok(m) => m,
@@ -88,6 +102,9 @@ fn receive(
             Err(_) => continue,
         };
         let now = monotonic_ns();
+        if let Some(p) = &traffic {
+            let _ = p.send(&deckwatch_link::traffic(now, false, &header, &message));
+        }
         let handled = {
             let mut i = incoming.lock().unwrap_or_else(|p| p.into_inner());
             let h = i.handle(&header, &message, now);
@@ -102,7 +119,7 @@ fn receive(
             samples.send(&s)?;
         }
         if let Some(r) = handled.reply {
-            send(&conn, &id, &r, &failed);
+            send(&conn, &id, &r, &failed, traffic.as_ref());
         }
     }
 }
@@ -125,11 +142,12 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
         let (conn, id, incoming, failed) = (conn.clone(), id.clone(), incoming.clone(), failed.clone());
         let settings = bus.settings().clone();
         let system = lc.system_id;
+        let recording = config.record.enabled();
         std::thread::Builder::new()
             .name("link-rx".into())
             .spawn(move || {
                 let result = Bus::join(&settings, "link-rx")
-                    .and_then(|b| receive(conn, id, incoming, b, failed, system));
+                    .and_then(|b| receive(conn, id, incoming, b, failed, system, recording));
                 if let Err(e) = result {
                     eprintln!("deckwatch-{NAME}: receiving stopped: {e}");
                 }
@@ -137,6 +155,12 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
             .map_err(|e| RunError::Link(format!("starting the receiving thread: {e}")))?;
     }
     let decisions = bus.subscriber::<LandingDecision>()?;
+    let traffic = if config.record.enabled() {
+        Some(bus.publisher::<LinkTraffic>()?)
+    } else {
+        None
+    };
+    let traffic = traffic.as_ref();
     let mut outgoing = Outgoing::new(&lc, config.vehicle.mount());
     let period = |hz: f64| (hz > 0.0).then(|| (1e9 / hz) as u64);
     let heartbeat_period = period(lc.heartbeat_hz);
@@ -173,7 +197,7 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
         if wake == Wake::Tick {
             if heartbeat_period.is_some_and(|_| now >= next_heartbeat) {
                 next_heartbeat = now + heartbeat_period.unwrap_or(u64::MAX);
-                send(&conn, &id, &Outgoing::heartbeat(state), &failed);
+                send(&conn, &id, &Outgoing::heartbeat(state), &failed, traffic);
             }
             if let Some(p) = timesync_period.filter(|_| autopilot.is_some() && now >= next_timesync) {
                 next_timesync = now + p;
@@ -182,12 +206,18 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
                     .unwrap_or_else(|p| p.into_inner())
                     .clock
                     .request(monotonic_ns() as i64);
-                send(&conn, &id, &Outgoing::timesync_request(ts1, autopilot), &failed);
+                send(
+                    &conn,
+                    &id,
+                    &Outgoing::timesync_request(ts1, autopilot),
+                    &failed,
+                    traffic,
+                );
             }
             if newest_decision.is_none_or(|(_, at)| now.saturating_sub(at) > stale_after_ns) {
                 let stale = stale_decision(newest_decision.as_ref().map(|(d, _)| d));
                 for m in outgoing.decision(&stale, state, clock.as_ref(), now) {
-                    send(&conn, &id, &m, &failed);
+                    send(&conn, &id, &m, &failed, traffic);
                 }
             }
             if let (Some(l), Some(s)) = (&logger, newest) {
@@ -203,7 +233,7 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
             let received = monotonic_ns();
             let mut first = None;
             for m in outgoing.decision(&d, state, clock.as_ref(), received) {
-                send(&conn, &id, &m, &failed);
+                send(&conn, &id, &m, &failed, traffic);
                 first.get_or_insert_with(monotonic_ns);
             }
             sent_decisions += 1;

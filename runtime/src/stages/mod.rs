@@ -6,6 +6,7 @@ pub mod decide;
 pub mod detect;
 pub mod estimate;
 pub mod link;
+pub mod record;
 
 pub use decide::DecideStage;
 pub use detect::DetectStage;

@@ -1,0 +1,542 @@
+//! deckwatch's own messages as JSON, with a JSON Schema: what Foxglove/Lichtblick plot, what the
+//! Python `mcap` reader gets, and what deckwatch reads back exactly.
+//!
+//! Every field is written, by name, as the message holds it: integers as integers, finite floats
+//! as the shortest decimal that reads back to the same bits (`serde_json` with
+//! `float_roundtrip`), NaN as `null` and infinities as `"inf"`/`"-inf"` (JSON has neither),
+//! enums by their variant's name (a code that is no variant: its number), booleans as booleans
+//! (a byte that is neither: its number). Reading a message back gives the same value, field for
+//! field, NaN as NaN: re-simulation compares recorded and recomputed messages with it.
+
+use deckwatch_common::camera::{CameraModel, Distortion};
+use deckwatch_common::deck::DeckLayout;
+use deckwatch_common::ellipse::Ellipse;
+use deckwatch_common::markers::{Marker, MarkerSet, RejectCounts};
+use deckwatch_common::messages::{
+    AlternativeAttitude, AttitudeMessage, DropCounts, FrameContext, FrameHeader, FrameStamp, LandingDecision,
+    LinkTraffic, MarkerMessage, StageTimes, Truth, VehicleAttitude, VehicleSample,
+};
+use deckwatch_common::rotation::{Euler313, Quaternion, Rpy};
+use deckwatch_common::wire::{WireBool, WireCode, WireEnum};
+use serde_json::{json, Map, Value};
+
+/// A field that does not read as its type: where (dotted path) and what was wrong.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{path}: {problem}")]
+pub struct FieldError {
+    pub path: String,
+    pub problem: String,
+}
+
+impl FieldError {
+    fn expected(what: &str, got: &Value) -> Self {
+        let mut shown = got.to_string();
+        if shown.len() > 40 {
+            shown.truncate(40);
+            shown.push_str("...");
+        }
+        Self {
+            path: String::new(),
+            problem: format!("expected {what}, got {shown}"),
+        }
+    }
+
+    fn within(mut self, parent: &str) -> Self {
+        self.path = if self.path.is_empty() {
+            parent.to_string()
+        } else {
+            format!("{parent}.{}", self.path)
+        };
+        self
+    }
+}
+
+/// A value written to and read from a recording's JSON, with its JSON Schema.
+pub trait JsonField: Sized {
+    fn to_json(&self) -> Value;
+    fn from_json(v: &Value) -> Result<Self, FieldError>;
+    fn json_schema() -> Value;
+}
+
+impl JsonField for f64 {
+    fn to_json(&self) -> Value {
+        match serde_json::Number::from_f64(*self) {
+            Some(n) => Value::Number(n),
+            None if self.is_nan() => Value::Null,
+            None if *self > 0.0 => Value::String("inf".into()),
+            None => Value::String("-inf".into()),
+        }
+    }
+
+    fn from_json(v: &Value) -> Result<Self, FieldError> {
+        match v {
+            Value::Number(n) => n.as_f64().ok_or_else(|| FieldError::expected("a number", v)),
+            Value::Null => Ok(f64::NAN),
+            Value::String(s) if s == "inf" => Ok(f64::INFINITY),
+            Value::String(s) if s == "-inf" => Ok(f64::NEG_INFINITY),
+            _ => Err(FieldError::expected(
+                "a number, null (NaN), \"inf\" or \"-inf\"",
+                v,
+            )),
+        }
+    }
+
+    fn json_schema() -> Value {
+        json!({"type": ["number", "null", "string"]})
+    }
+}
+
+macro_rules! json_integer {
+    ($($ty:ty),+) => {$(
+        impl JsonField for $ty {
+            fn to_json(&self) -> Value {
+                json!(*self)
+            }
+
+            fn from_json(v: &Value) -> Result<Self, FieldError> {
+                let n = match v {
+                    Value::Number(n) if n.is_u64() => n.as_u64().and_then(|n| <$ty>::try_from(n).ok()),
+                    Value::Number(n) if n.is_i64() => n.as_i64().and_then(|n| <$ty>::try_from(n).ok()),
+                    _ => None,
+                };
+                n.ok_or_else(|| FieldError::expected(concat!("an integer (", stringify!($ty), ")"), v))
+            }
+
+            fn json_schema() -> Value {
+                json!({"type": "integer"})
+            }
+        }
+    )+};
+}
+
+json_integer!(u64, u32, i64, usize);
+
+impl JsonField for WireBool {
+    fn to_json(&self) -> Value {
+        match self.try_get() {
+            Ok(b) => Value::Bool(b),
+            Err(_) => json!(self.byte()),
+        }
+    }
+
+    fn from_json(v: &Value) -> Result<Self, FieldError> {
+        match v {
+            Value::Bool(b) => Ok((*b).into()),
+            Value::Number(n) => n
+                .as_u64()
+                .and_then(|n| u8::try_from(n).ok())
+                .map(WireBool::from_byte)
+                .ok_or_else(|| FieldError::expected("a boolean or a byte", v)),
+            _ => Err(FieldError::expected("a boolean", v)),
+        }
+    }
+
+    fn json_schema() -> Value {
+        json!({"type": ["boolean", "integer"]})
+    }
+}
+
+impl<E: WireEnum> JsonField for WireCode<E> {
+    fn to_json(&self) -> Value {
+        match self.try_get() {
+            Ok(e) => Value::String(e.variant_name().into()),
+            Err(_) => json!(self.code()),
+        }
+    }
+
+    fn from_json(v: &Value) -> Result<Self, FieldError> {
+        match v {
+            Value::String(s) => E::VARIANTS
+                .iter()
+                .find(|e| e.variant_name() == s)
+                .map(|&e| e.into())
+                .ok_or_else(|| FieldError::expected(&format!("a {} variant", E::NAME), v)),
+            Value::Number(n) => n
+                .as_u64()
+                .and_then(|n| u32::try_from(n).ok())
+                .map(WireCode::from_code)
+                .ok_or_else(|| FieldError::expected("a variant name or a u32 code", v)),
+            _ => Err(FieldError::expected(&format!("a {} variant", E::NAME), v)),
+        }
+    }
+
+    fn json_schema() -> Value {
+        let names: Vec<&str> = E::VARIANTS.iter().map(|e| e.variant_name()).collect();
+        json!({"type": ["string", "integer"], "description": format!("{}: {}", E::NAME, names.join(", "))})
+    }
+}
+
+impl<T: JsonField, const N: usize> JsonField for [T; N] {
+    fn to_json(&self) -> Value {
+        Value::Array(self.iter().map(JsonField::to_json).collect())
+    }
+
+    fn from_json(v: &Value) -> Result<Self, FieldError> {
+        let items = v
+            .as_array()
+            .filter(|a| a.len() == N)
+            .ok_or_else(|| FieldError::expected(&format!("an array of {N}"), v))?;
+        let mut out = Vec::with_capacity(N);
+        for (i, item) in items.iter().enumerate() {
+            out.push(T::from_json(item).map_err(|e| e.within(&i.to_string()))?);
+        }
+        out.try_into()
+            .map_err(|_| FieldError::expected(&format!("an array of {N}"), v))
+    }
+
+    fn json_schema() -> Value {
+        json!({"type": "array", "items": T::json_schema(), "minItems": N, "maxItems": N})
+    }
+}
+
+/// The field `name` of an object, read as `T`.
+pub fn field<T: JsonField>(object: &Map<String, Value>, name: &str) -> Result<T, FieldError> {
+    let v = object.get(name).ok_or_else(|| FieldError {
+        path: name.to_string(),
+        problem: "missing".into(),
+    })?;
+    T::from_json(v).map_err(|e| e.within(name))
+}
+
+/// `JsonField` for a struct: every field, by name (a field left out does not compile).
+macro_rules! json_struct {
+    ($ty:ty { $($field:ident),+ $(,)? }) => {
+        impl JsonField for $ty {
+            fn to_json(&self) -> Value {
+                let mut m = Map::new();
+                $(m.insert(stringify!($field).to_string(), self.$field.to_json());)+
+                Value::Object(m)
+            }
+
+            fn from_json(v: &Value) -> Result<Self, FieldError> {
+                let m = v.as_object().ok_or_else(|| FieldError::expected("an object", v))?;
+                Ok(Self { $($field: field(m, stringify!($field))?,)+ })
+            }
+
+            fn json_schema() -> Value {
+                let mut properties = Map::new();
+                $(properties.insert(stringify!($field).to_string(), schema_of::<$ty, _>(|s| &s.$field));)+
+                json!({
+                    "type": "object",
+                    "properties": Value::Object(properties),
+                    "required": [$(stringify!($field)),+],
+                })
+            }
+        }
+    };
+}
+
+/// A field's schema, from an accessor (a macro cannot name a field's type).
+fn schema_of<S, T: JsonField>(_field: fn(&S) -> &T) -> Value {
+    T::json_schema()
+}
+
+json_struct!(Rpy { roll, pitch, yaw });
+json_struct!(Quaternion { w, x, y, z });
+json_struct!(Euler313 { alpha, beta, gamma });
+json_struct!(Ellipse {
+    centre,
+    semi_major,
+    semi_minor,
+    angle
+});
+json_struct!(Distortion { k1, k2, p1, p2, k3 });
+json_struct!(CameraModel {
+    width,
+    height,
+    fx,
+    fy,
+    cx,
+    cy,
+    distortion
+});
+json_struct!(DeckLayout {
+    ring_radius_m,
+    marker_radius_m,
+    bow_marker_radius_m,
+    n_ring
+});
+json_struct!(StageTimes {
+    captured_ns,
+    published_ns,
+    detect_received_ns,
+    detect_finished_ns,
+    estimate_received_ns,
+    estimate_finished_ns,
+    decide_received_ns,
+    decide_finished_ns,
+});
+json_struct!(DropCounts {
+    capture,
+    bad_frames,
+    detect,
+    estimate,
+    decide
+});
+json_struct!(FrameStamp { seq, times, drops });
+json_struct!(Truth {
+    known,
+    roll_deg,
+    pitch_deg,
+    yaw_deg,
+    altitude_m,
+    offset_x_m,
+    offset_y_m,
+    deck_heave_m,
+});
+json_struct!(VehicleAttitude {
+    compensation,
+    rpy,
+    age_ms,
+    height_m
+});
+json_struct!(FrameContext {
+    source,
+    source_index,
+    source_timestamp_ns,
+    altitude_m,
+    camera,
+    deck,
+    truth,
+    vehicle,
+});
+json_struct!(FrameHeader {
+    stamp,
+    context,
+    width,
+    height,
+    stride,
+    pixel_format
+});
+json_struct!(Marker {
+    valid,
+    u,
+    v,
+    area_px,
+    mean_intensity,
+    quality
+});
+json_struct!(RejectCounts {
+    area,
+    shape,
+    border,
+    unassigned
+});
+json_struct!(MarkerSet {
+    status,
+    count,
+    tracked,
+    perspective_corrected,
+    markers,
+    rejected,
+});
+json_struct!(MarkerMessage {
+    stamp,
+    context,
+    markers
+});
+json_struct!(AlternativeAttitude {
+    present,
+    estimator,
+    valid,
+    rpy
+});
+json_struct!(AttitudeMessage {
+    stamp,
+    context,
+    estimator,
+    valid,
+    failure,
+    rpy,
+    quaternion,
+    euler313,
+    has_image_ellipse,
+    image_ellipse,
+    residual,
+    markers_used,
+    rpy_std_deg,
+    camera_position_m,
+    alternative,
+    vehicle,
+    camera_rpy,
+    deck_height_m,
+});
+json_struct!(LandingDecision {
+    stamp,
+    context,
+    attitude,
+    state,
+    reason,
+    calm_window_start_s,
+    calm_window_length_s,
+    heave_rate_mps,
+    watchdog,
+});
+json_struct!(VehicleSample {
+    seq,
+    time_ns,
+    autopilot_time_us,
+    received_ns,
+    quaternion,
+    altitude_m,
+    height_m,
+    clock_offset_ns,
+    clock_method,
+    clock_drift_ppm,
+    link_up,
+});
+
+/// A MAVLink frame: its bytes as hex (pymavlink and any MAVLink parser read them), the name
+/// and id for a reader without one.
+impl JsonField for LinkTraffic {
+    fn to_json(&self) -> Value {
+        let hex: String = self.frame_bytes().iter().map(|b| format!("{b:02x}")).collect();
+        json!({
+            "time_ns": self.time_ns,
+            "outgoing": self.outgoing.to_json(),
+            "msg_id": self.msg_id,
+            "name": self.name(),
+            "frame": hex,
+        })
+    }
+
+    fn from_json(v: &Value) -> Result<Self, FieldError> {
+        let m = v
+            .as_object()
+            .ok_or_else(|| FieldError::expected("an object", v))?;
+        let hex: String = v["frame"]
+            .as_str()
+            .map(str::to_string)
+            .ok_or_else(|| FieldError {
+                path: "frame".into(),
+                problem: "expected a hex string".into(),
+            })?;
+        let bad = || FieldError {
+            path: "frame".into(),
+            problem: "not an even number of hex digits".into(),
+        };
+        if !hex.len().is_multiple_of(2) || !hex.is_ascii() {
+            return Err(bad());
+        }
+        let frame = (0..hex.len() / 2)
+            .map(|i| u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).map_err(|_| bad()))
+            .collect::<Result<Vec<u8>, _>>()?;
+        let name: String = v["name"].as_str().unwrap_or_default().to_string();
+        let outgoing: WireBool = field(m, "outgoing")?;
+        let mut out = LinkTraffic::new(
+            field(m, "time_ns")?,
+            outgoing.get(),
+            field(m, "msg_id")?,
+            &name,
+            &frame,
+        );
+        out.outgoing = outgoing;
+        Ok(out)
+    }
+
+    fn json_schema() -> Value {
+        json!({
+            "type": "object",
+            "properties": {
+                "time_ns": {"type": "integer"},
+                "outgoing": {"type": ["boolean", "integer"]},
+                "msg_id": {"type": "integer"},
+                "name": {"type": "string"},
+                "frame": {"type": "string", "description": "the MAVLink 2 frame, hex"},
+            },
+            "required": ["time_ns", "outgoing", "msg_id", "name", "frame"],
+        })
+    }
+}
+
+/// Whether two values hold the same bits in every float field (NaN equal to NaN) and the same
+/// value in every other: the comparison of re-simulation and `deckwatch diff`.
+pub fn same_bits<T: JsonField>(a: &T, b: &T) -> bool {
+    a.to_json() == b.to_json()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use deckwatch_common::messages::{DecisionReason, DecisionState};
+
+    #[test]
+    fn floats_read_back_to_the_same_bits() {
+        for x in [
+            0.1,
+            -0.0,
+            1.0 / 3.0,
+            f64::MIN_POSITIVE,
+            f64::MAX,
+            5e-324,
+            123456.789e-300,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ] {
+            let back = f64::from_json(&serde_json::from_str(&x.to_json().to_string()).unwrap()).unwrap();
+            assert_eq!(back.to_bits(), x.to_bits(), "{x:e}");
+        }
+        assert!(f64::from_json(&f64::NAN.to_json()).unwrap().is_nan());
+    }
+
+    #[test]
+    fn a_decision_reads_back_field_for_field() {
+        let mut d = LandingDecision {
+            state: DecisionState::ClearToLand.into(),
+            reason: DecisionReason::WithinCapacity.into(),
+            calm_window_start_s: 12.345678901234567,
+            ..Default::default()
+        };
+        d.attitude.rpy.roll = -0.0123456789;
+        d.attitude.camera_position_m[2] = 1234.5678;
+        d.stamp.seq = u64::MAX;
+        let text = d.to_json().to_string();
+        let back = LandingDecision::from_json(&serde_json::from_str(&text).unwrap()).unwrap();
+        assert!(same_bits(&d, &back));
+        assert_eq!(back.state, DecisionState::ClearToLand);
+        assert_eq!(back.attitude.camera_position_m[2], 1234.5678);
+        assert!(text.contains("\"state\":\"ClearToLand\""), "{text}");
+    }
+
+    #[test]
+    fn bad_codes_survive_and_bad_json_names_the_field() {
+        let d = LandingDecision {
+            state: WireCode::from_code(77),
+            watchdog: WireBool::from_byte(9),
+            ..Default::default()
+        };
+        let back = LandingDecision::from_json(&d.to_json()).unwrap();
+        assert_eq!(back.state.code(), 77);
+        assert_eq!(back.watchdog.byte(), 9);
+        let mut v = d.to_json();
+        v["attitude"]["rpy"]["pitch"] = json!("level");
+        let e = LandingDecision::from_json(&v).unwrap_err();
+        assert_eq!(e.path, "attitude.rpy.pitch");
+        v["attitude"]["rpy"] = json!({"roll": 0.0});
+        let e = LandingDecision::from_json(&v).unwrap_err();
+        assert_eq!(
+            (e.path.as_str(), e.problem.as_str()),
+            ("attitude.rpy.pitch", "missing")
+        );
+    }
+
+    #[test]
+    fn a_mavlink_frame_reads_back() {
+        let t = LinkTraffic::new(42, true, 149, "LANDING_TARGET", &[0xfd, 0x1e, 0, 0, 7]);
+        let back = LinkTraffic::from_json(&serde_json::from_str(&t.to_json().to_string()).unwrap()).unwrap();
+        assert_eq!(back, t);
+        assert_eq!(t.to_json()["frame"], "fd1e000007");
+        let mut v = t.to_json();
+        v["frame"] = json!("fd1");
+        assert_eq!(LinkTraffic::from_json(&v).unwrap_err().path, "frame");
+    }
+
+    #[test]
+    fn the_schema_names_every_field() {
+        let s = AttitudeMessage::json_schema();
+        assert_eq!(s["properties"]["rpy"]["properties"]["roll"]["type"][0], "number");
+        assert_eq!(s["properties"]["stamp"]["properties"]["seq"]["type"], "integer");
+        assert!(s["properties"]["valid"]["type"][0] == "boolean");
+        assert_eq!(s["required"].as_array().unwrap().len(), 18);
+    }
+}

@@ -1,0 +1,454 @@
+//! The flight recorder process (`deckwatch-record`, `[record]`): subscribes to every service
+//! and writes an MCAP flight recording ([`deckwatch_flight`]).
+//!
+//! Off the hot path: it is one more subscriber of each service (safe overflow: a slow recorder
+//! loses its own oldest samples, it never holds capture back). A frame is copied out of shared
+//! memory at once (into a buffer that is reused) and the sample released; encoding, compression
+//! and disk writes happen on a writer thread behind a bounded queue. When the writer is behind,
+//! the recorder drops frames (their headers are still recorded) and counts them; a frame the
+//! recorder never saw (its queue overflowed) is counted too.
+
+use crate::bus::{event_loop, Bus, BusError, Flow, FrameSample};
+use crate::stage::{checked_config, exit_code, Heartbeat, RunError, StageArgs};
+use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
+use deckwatch_common::messages::{
+    monotonic_ns, AttitudeMessage, FrameHeader, GapCounter, LandingDecision, LinkTraffic, MarkerMessage,
+    StageLog, VehicleSample,
+};
+use deckwatch_flight::{FlightWriter, FrameEncoding, RecordConfig, RecorderStats, TimeBase, WriterOptions};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+pub const NAME: &str = "record";
+
+/// What the writer thread is handed.
+enum Item {
+    Frame(FrameHeader, Option<Vec<u8>>),
+    Markers(MarkerMessage),
+    Attitude(AttitudeMessage),
+    Decision(LandingDecision),
+    Vehicle(VehicleSample),
+    Link(LinkTraffic),
+    Log(StageLog),
+    Stats(RecorderStats),
+}
+
+/// The recorder's nice value (0 is the stages'; higher yields to them).
+const RECORDER_NICE: libc::c_int = 10;
+
+/// Frames the recorder holds in shared memory at once (the frame service's borrows per
+/// subscriber) while detect works on them.
+const MAX_HELD_FRAMES: usize = 2;
+/// The longest a frame is held for detect (one it passes over gets no marker message).
+const MAX_HOLD_NS: u64 = 20_000_000;
+
+/// Small messages queued for the writer before the recorder drops them (a few seconds of every
+/// channel at 30 fps).
+const MESSAGE_QUEUE: usize = 4096;
+
+/// The file a recorder writes: the configured one, or for a recorder the launcher restarted,
+/// a new file beside it (`flight.mcap` -> `flight.restart-<pid>.mcap`), never over the first.
+pub fn recording_path(config: &RecordConfig, restarted: bool) -> Option<PathBuf> {
+    let path = config.path.clone()?;
+    if !restarted {
+        return Some(path);
+    }
+    let stem = path
+        .file_stem()
+        .map_or("flight".into(), |s| s.to_string_lossy().to_string());
+    Some(path.with_file_name(format!("{stem}.restart-{}.mcap", std::process::id())))
+}
+
+/// Counts shared by the recorder's loop and its writer thread.
+#[derive(Default)]
+struct Counts {
+    frames_written: AtomicU64,
+    bytes_written: AtomicU64,
+    messages_written: AtomicU64,
+    /// Frame buffers the writer holds (queued or being written).
+    frames_queued: AtomicU64,
+}
+
+/// Runs the recorder process until SIGINT/SIGTERM; then the queue is written out and the file
+/// finished (its summary written), so MCAP tools read it with its index.
+pub fn run(args: &StageArgs) -> Result<String, RunError> {
+    let config = checked_config(args)?;
+    let rc = config.record.clone();
+    let path = recording_path(&rc, args.restarted)
+        .ok_or_else(|| RunError::Record("record.path is not set: nothing to record to".into()))?;
+    // Below the stages that make the decision: on a busy CPU the recorder waits, not them (its
+    // writer thread, started below, inherits this).
+    // SAFETY: setpriority on this thread (who = 0); a failure leaves the priority as it was.
+    unsafe { libc::setpriority(libc::PRIO_PROCESS, 0, RECORDER_NICE) };
+    crate::bus::quiet_logging();
+    let bus = Bus::join(&config.bus.settings(1), NAME)?;
+    let frames = if rc.frames != FrameEncoding::None {
+        Some(bus.frame_subscriber()?)
+    } else {
+        None
+    };
+    let markers = bus.subscriber::<MarkerMessage>()?;
+    let attitudes = bus.subscriber::<AttitudeMessage>()?;
+    let decisions = bus.subscriber::<LandingDecision>()?;
+    let vehicle = bus.subscriber::<VehicleSample>()?;
+    let logs = bus.subscriber::<StageLog>()?;
+    let link = bus.subscriber::<LinkTraffic>()?;
+
+    let started_ns = monotonic_ns();
+    let time_base = TimeBase::measure();
+    let writer = FlightWriter::create(
+        &path,
+        WriterOptions {
+            compression: rc.compression,
+            chunk_bytes: u64::from(rc.chunk_mib) << 20,
+            time_base,
+        },
+    )
+    .map_err(|e| RunError::Record(e.to_string()))?;
+    let counts = Arc::new(Counts::default());
+    let (tx, rx) = bounded::<Item>(MESSAGE_QUEUE + rc.queue_frames as usize);
+    // Frame buffers go back to the loop for reuse: no 8 MB allocation per frame.
+    let (spare_tx, spare_rx) = bounded::<Vec<u8>>(rc.queue_frames as usize + 1);
+    let metadata = recording_metadata(&config, args, time_base);
+    let toml = config.to_toml();
+    let writer_thread = {
+        let (counts, rc) = (counts.clone(), rc.clone());
+        std::thread::Builder::new()
+            .name("record-writer".into())
+            .spawn(move || write_items(writer, rx, spare_tx, counts, &rc, metadata, toml))
+            .map_err(|e| RunError::Record(format!("starting the writer thread: {e}")))?
+    };
+    eprintln!("deckwatch-{NAME}: recording to {}", path.display());
+
+    let mut stats = RecorderStats::default();
+    let mut frame_gaps = GapCounter::default();
+    let mut heartbeat = Heartbeat::new(&bus)?;
+    heartbeat.beat();
+    let mut next_stats_ns = monotonic_ns() + 1_000_000_000;
+    let mut writer_gone = false;
+    let mut listeners = vec![
+        markers.listener(),
+        attitudes.listener(),
+        decisions.listener(),
+        vehicle.listener(),
+        logs.listener(),
+        link.listener(),
+    ];
+    if let Some(f) = &frames {
+        listeners.push(f.listener());
+    }
+    let mut spare_pool: Vec<Vec<u8>> = Vec::new();
+    let send_message = |item: Item, stats: &mut RecorderStats| match tx.try_send(item) {
+        Ok(()) => true,
+        Err(TrySendError::Full(_)) => {
+            stats.messages_dropped += 1;
+            true
+        }
+        Err(TrySendError::Disconnected(_)) => false,
+    };
+    // Frames are held in shared memory (up to the subscriber's borrows) until detect has done
+    // with them, then copied: the copy does not compete with detect for the memory bus.
+    let mut held: std::collections::VecDeque<(FrameSample, u64)> = std::collections::VecDeque::new();
+    let mut detect_done: Option<u64> = None;
+    let end = event_loop(&listeners, Some(Heartbeat::PERIOD), |wake| {
+        heartbeat.beat();
+        let _ = wake;
+        let mut take = |sample: FrameSample, stats: &mut RecorderStats| {
+            let header = *sample.header();
+            stats.frames_dropped += frame_gaps.observe(header.stamp.seq, header.stamp.drops.total());
+            let wanted = header.stamp.seq.is_multiple_of(u64::from(rc.frame_every));
+            let room = counts.frames_queued.load(Ordering::Relaxed) < u64::from(rc.queue_frames);
+            let pixels = if !wanted {
+                stats.frames_skipped += 1;
+                None
+            } else if !room {
+                stats.frames_dropped += 1;
+                None
+            } else {
+                let src = sample.pixels();
+                let len = header.required_len().min(src.len());
+                let mut buf = spare_pool
+                    .pop()
+                    .or_else(|| spare_rx.try_recv().ok())
+                    .unwrap_or_default();
+                buf.clear();
+                buf.extend_from_slice(&src[..len]);
+                counts.frames_queued.fetch_add(1, Ordering::Relaxed);
+                Some(buf)
+            };
+            drop(sample);
+            match tx.try_send(Item::Frame(header, pixels)) {
+                Ok(()) => {}
+                // Never wait for the writer (the launcher would take a blocked loop for a hung
+                // recorder): drop the frame, keep its buffer.
+                Err(TrySendError::Full(Item::Frame(_, px))) => {
+                    stats.frames_dropped += 1;
+                    if let Some(px) = px {
+                        counts.frames_queued.fetch_sub(1, Ordering::Relaxed);
+                        spare_pool.push(px);
+                    }
+                }
+                Err(_) => writer_gone = true,
+            }
+        };
+        let mut ok = true;
+        while let Some(m) = markers.receive()? {
+            detect_done = Some(m.stamp.seq);
+            ok &= send_message(Item::Markers(m), &mut stats);
+        }
+        if let Some(f) = &frames {
+            let now = monotonic_ns();
+            loop {
+                if held.len() >= MAX_HELD_FRAMES {
+                    if let Some((s, _)) = held.pop_front() {
+                        take(s, &mut stats);
+                    }
+                }
+                match f.receive()? {
+                    Some(s) => held.push_back((s, now)),
+                    None => break,
+                }
+            }
+            while let Some((s, since)) = held.front() {
+                let done = detect_done.is_some_and(|d| d >= s.header().stamp.seq);
+                if !done && now.saturating_sub(*since) < MAX_HOLD_NS {
+                    break;
+                }
+                if let Some((s, _)) = held.pop_front() {
+                    take(s, &mut stats);
+                }
+            }
+        }
+        while let Some(m) = attitudes.receive()? {
+            ok &= send_message(Item::Attitude(m), &mut stats);
+        }
+        while let Some(m) = decisions.receive()? {
+            ok &= send_message(Item::Decision(m), &mut stats);
+        }
+        while let Some(m) = vehicle.receive()? {
+            ok &= send_message(Item::Vehicle(m), &mut stats);
+        }
+        while let Some(m) = logs.receive()? {
+            ok &= send_message(Item::Log(m), &mut stats);
+        }
+        while let Some(m) = link.receive()? {
+            ok &= send_message(Item::Link(m), &mut stats);
+        }
+        let now = monotonic_ns();
+        if now >= next_stats_ns {
+            next_stats_ns = now + 1_000_000_000;
+            stats.time_ns = now;
+            ok &= send_message(Item::Stats(stats), &mut stats);
+        }
+        if !ok || writer_gone {
+            // The writer stopped (a write failed): it says why when joined.
+            return Ok::<Flow, BusError>(Flow::Stop);
+        }
+        Ok(Flow::Continue)
+    })?;
+    // The frames still held were recorded as they were dropped here: count them.
+    stats.frames_dropped += held.len() as u64;
+    drop(held);
+    stats.time_ns = monotonic_ns();
+    let _ = tx.send(Item::Stats(stats));
+    drop(tx);
+    let result = writer_thread
+        .join()
+        .map_err(|_| RunError::Record("the writer thread panicked".into()))?;
+    let bytes = result.map_err(RunError::Record)?;
+    let rejected: u64 = [
+        markers.rejections().count(),
+        attitudes.rejections().count(),
+        decisions.rejections().count(),
+        vehicle.rejections().count(),
+        logs.rejections().count(),
+        link.rejections().count(),
+        frames.as_ref().map_or(0, |f| f.rejections().count()),
+    ]
+    .iter()
+    .sum();
+    let _ = end;
+    let elapsed_s = (monotonic_ns().saturating_sub(started_ns)) as f64 / 1e9;
+    let (user_s, system_s) = cpu_seconds();
+    Ok(format!(
+        "{}: {} frames written, {} skipped (frame_every), {} dropped; {} messages written, {} dropped; {} bad messages skipped; {:.1} MB ({:.1} MB/s); CPU {user_s:.2} s user + {system_s:.2} s system in {elapsed_s:.1} s ({:.0} % of a core)",
+        path.display(),
+        counts.frames_written.load(Ordering::Relaxed),
+        stats.frames_skipped,
+        stats.frames_dropped,
+        counts.messages_written.load(Ordering::Relaxed),
+        stats.messages_dropped,
+        rejected,
+        bytes as f64 / 1e6,
+        bytes as f64 / 1e6 / elapsed_s.max(1e-9),
+        100.0 * (user_s + system_s) / elapsed_s.max(1e-9)
+    ))
+}
+
+/// This process's CPU time so far, user and system (s): every thread, the writer's included.
+fn cpu_seconds() -> (f64, f64) {
+    // SAFETY: getrusage fills the struct we pass; RUSAGE_SELF always exists.
+    let mut u: libc::rusage = unsafe { std::mem::zeroed() };
+    unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut u) };
+    let s = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 / 1e6;
+    (s(u.ru_utime), s(u.ru_stime))
+}
+
+/// The metadata records of a recording: versions, the run, the clock.
+fn recording_metadata(
+    config: &crate::config::PipelineConfig,
+    args: &StageArgs,
+    time_base: TimeBase,
+) -> BTreeMap<String, BTreeMap<String, String>> {
+    let mut out = BTreeMap::new();
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
+    out.insert(
+        "deckwatch".to_string(),
+        BTreeMap::from([
+            ("version".to_string(), deckwatch_flight::VERSION.to_string()),
+            ("source".to_string(), config.source.kind.name().to_string()),
+            (
+                "estimator".to_string(),
+                format!("{:?}", config.estimate.estimator),
+            ),
+            ("domain".to_string(), config.bus.domain.clone()),
+            ("configuration".to_string(), args.config_name()),
+            ("host".to_string(), host.trim().to_string()),
+            ("restarted".to_string(), args.restarted.to_string()),
+        ]),
+    );
+    out.insert(
+        "deckwatch.clock".to_string(),
+        BTreeMap::from([
+            (
+                "unix_minus_monotonic_ns".to_string(),
+                time_base.unix_minus_monotonic_ns.to_string(),
+            ),
+            (
+                "note".to_string(),
+                "log times are UNIX ns; the messages' own times are CLOCK_MONOTONIC ns".to_string(),
+            ),
+        ]),
+    );
+    out
+}
+
+/// The writer thread: writes until the queue closes, flushes the open chunk every
+/// `flush_interval_ms`, finishes the file; the bytes written or why it stopped.
+fn write_items(
+    mut writer: FlightWriter,
+    rx: Receiver<Item>,
+    spare: Sender<Vec<u8>>,
+    counts: Arc<Counts>,
+    rc: &RecordConfig,
+    metadata: BTreeMap<String, BTreeMap<String, String>>,
+    toml: String,
+) -> Result<u64, String> {
+    // The writer (encoding, compression, the file) runs only when no stage wants the CPU: when it
+    // falls behind, its queue fills and the recorder drops frames, counted; nothing else waits.
+    // SAFETY: sched_setscheduler on this thread (pid 0) with a zeroed parameter, which SCHED_IDLE
+    // requires; a failure leaves the thread at the recorder's nice value.
+    unsafe {
+        let param: libc::sched_param = std::mem::zeroed();
+        libc::sched_setscheduler(0, libc::SCHED_IDLE, &param);
+    }
+    let e = |e: deckwatch_flight::FlightError| e.to_string();
+    for (name, entries) in metadata {
+        writer.write_metadata(&name, entries).map_err(e)?;
+    }
+    writer
+        .attach(
+            "pipeline.toml",
+            "application/toml",
+            toml.as_bytes(),
+            monotonic_ns(),
+        )
+        .map_err(e)?;
+    let flush_every = Duration::from_millis(rc.flush_interval_ms);
+    let mut last_flush = std::time::Instant::now();
+    let mut camera_written = false;
+    loop {
+        let item = match rx.recv_timeout(flush_every) {
+            Ok(item) => Some(item),
+            Err(crossbeam_channel::RecvTimeoutError::Timeout) => None,
+            Err(crossbeam_channel::RecvTimeoutError::Disconnected) => break,
+        };
+        if let Some(item) = item {
+            let message = !matches!(item, Item::Frame(..));
+            write_item(&mut writer, item, rc, &spare, &counts, &mut camera_written)?;
+            if message {
+                counts.messages_written.fetch_add(1, Ordering::Relaxed);
+            }
+            counts
+                .bytes_written
+                .store(writer.bytes_written(), Ordering::Relaxed);
+        }
+        if last_flush.elapsed() >= flush_every {
+            writer.flush().map_err(e)?;
+            last_flush = std::time::Instant::now();
+        }
+    }
+    writer.finish().map_err(e)
+}
+
+fn write_item(
+    writer: &mut FlightWriter,
+    item: Item,
+    rc: &RecordConfig,
+    spare: &Sender<Vec<u8>>,
+    counts: &Counts,
+    camera_written: &mut bool,
+) -> Result<(), String> {
+    let e = |e: deckwatch_flight::FlightError| e.to_string();
+    match item {
+        Item::Frame(header, pixels) => {
+            if !*camera_written {
+                *camera_written = true;
+                writer
+                    .write_calibration(&header.context.camera, header.stamp.times.captured_ns)
+                    .map_err(e)?;
+                let camera = deckwatch_flight::JsonField::to_json(&header.context.camera).to_string();
+                let deck = deckwatch_flight::JsonField::to_json(&header.context.deck).to_string();
+                writer
+                    .write_metadata(
+                        "deckwatch.camera",
+                        BTreeMap::from([("camera".to_string(), camera), ("deck".to_string(), deck)]),
+                    )
+                    .map_err(e)?;
+            }
+            writer.write(&header).map_err(e)?;
+            if let Some(px) = pixels {
+                let written = writer.write_frame(&header, &px, rc.frames, rc.jpeg_quality);
+                counts.frames_queued.fetch_sub(1, Ordering::Relaxed);
+                let _ = spare.try_send(px);
+                written.map_err(e)?;
+                counts.frames_written.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        Item::Markers(m) => writer.write(&m).map_err(e)?,
+        Item::Attitude(m) => writer.write(&m).map_err(e)?,
+        Item::Decision(m) => writer.write(&m).map_err(e)?,
+        Item::Vehicle(m) => writer.write(&m).map_err(e)?,
+        Item::Link(m) => writer.write(&m).map_err(e)?,
+        Item::Log(l) => writer
+            .write_log(l.time_ns, l.level.get() as i32, &l.name(), &l.text())
+            .map_err(e)?,
+        Item::Stats(mut s) => {
+            s.frames_written = counts.frames_written.load(Ordering::Relaxed);
+            s.messages_written = counts.messages_written.load(Ordering::Relaxed);
+            s.bytes_written = writer.bytes_written();
+            writer.write_stats(&s).map_err(e)?;
+        }
+    }
+    Ok(())
+}
+
+/// The `deckwatch-record` binary.
+pub fn main() -> ExitCode {
+    let args = <StageArgs as clap::Parser>::parse();
+    exit_code(NAME, run(&args))
+}

@@ -1,0 +1,64 @@
+#!/usr/bin/env python3
+"""Reads a flight recording with the `mcap` package from PyPI (nobody at deckwatch wrote it) and
+prints what it found as JSON: per channel its schema, encodings and message count; the metadata
+and attachments; whether the file has a summary; and, for a file a killed recorder left (no
+summary), how many messages a streaming read gets before the file ends.
+
+Usage: mcap_check.py FILE.mcap
+"""
+import json
+import sys
+
+from mcap.reader import NonSeekingReader, make_reader
+
+
+def main(path):
+    out = {"channels": {}, "metadata": {}, "attachments": [], "summary": False}
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        summary = None
+        try:
+            summary = reader.get_summary()
+        except Exception as e:  # a cut file
+            out["summary_error"] = str(e)
+        if summary is not None and summary.statistics is not None:
+            out["summary"] = True
+            for cid, ch in summary.channels.items():
+                schema = summary.schemas[ch.schema_id]
+                out["channels"][ch.topic] = {
+                    "schema": schema.name,
+                    "schema_encoding": schema.encoding,
+                    "message_encoding": ch.message_encoding,
+                    "count": summary.statistics.channel_message_counts.get(cid, 0),
+                }
+            for m in reader.iter_metadata():
+                out["metadata"][m.name] = dict(m.metadata)
+            for a in reader.iter_attachments():
+                out["attachments"].append({"name": a.name, "media_type": a.media_type, "bytes": len(a.data)})
+            # Every message decodes as its encoding says: JSON parses, protobuf is left to the
+            # schema (its bytes are counted).
+            counted = {}
+            first = {}
+            for schema, channel, message in reader.iter_messages():
+                counted[channel.topic] = counted.get(channel.topic, 0) + 1
+                if channel.message_encoding == "json":
+                    value = json.loads(message.data)
+                    first.setdefault(channel.topic, value)
+            out["iterated"] = counted
+            out["first_json"] = {t: sorted(v.keys()) for t, v in first.items()}
+    # A streaming read, as of a file still being written or cut.
+    streamed = {}
+    with open(path, "rb") as f:
+        try:
+            for schema, channel, message in NonSeekingReader(f).iter_messages(log_time_order=False):
+                streamed[channel.topic] = streamed.get(channel.topic, 0) + 1
+            out["stream_complete"] = True
+        except Exception as e:
+            out["stream_complete"] = False
+            out["stream_error"] = type(e).__name__ + ": " + str(e)
+    out["streamed"] = streamed
+    print(json.dumps(out, sort_keys=True))
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])

@@ -244,3 +244,56 @@ fn inproc_replays_recordings_and_simulates() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(String::from_utf8_lossy(&out.stdout).contains("5 frames (0 bad, skipped): 5 ok"));
 }
+
+/// `deckwatch doctor`: on this machine with the defaults everything a run needs is there; a
+/// configuration with a serial port that does not exist, a viewer nobody runs and a recorder in
+/// a folder that cannot be written is told what to fix, each by name, with exit status 1.
+#[test]
+fn doctor_says_what_to_fix() {
+    let out = Command::new(workspace_binary("deckwatch"))
+        .args(["doctor"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    for line in [
+        "ok    configuration",
+        "ok    stage binary deckwatch-capture",
+        "ok    shared memory /dev/shm",
+    ] {
+        assert!(text.contains(line), "{line}:\n{text}");
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("p.toml");
+    // A port nobody listens on: bind one, note it, let it go.
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    std::fs::write(
+        &config,
+        format!(
+            "[link]\nenabled = true\naddress = \"serial:/dev/deckwatch-no-such-uart:921600\"\n\
+             [rerun]\nsink = \"connect\"\naddress = \"rerun+http://127.0.0.1:{port}/proxy\"\n\
+             [record]\npath = \"/proc/deckwatch-no/flight.mcap\"\n"
+        ),
+    )
+    .unwrap();
+    let out = Command::new(workspace_binary("deckwatch"))
+        .arg("doctor")
+        .arg("--config")
+        .arg(&config)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{text}");
+    for fix in [
+        "FIX   MAVLink endpoint serial:/dev/deckwatch-no-such-uart:921600: /dev/deckwatch-no-such-uart does not exist",
+        &format!("FIX   rerun viewer at rerun+http://127.0.0.1:{port}/proxy"),
+        "FIX   flight recorder /proc/deckwatch-no/flight.mcap",
+    ] {
+        assert!(text.contains(fix), "{fix}:\n{text}");
+    }
+    assert!(text.contains("3 to fix"), "{text}");
+}

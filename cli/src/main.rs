@@ -39,6 +39,7 @@ struct Cli {
 
 mod decide_eval;
 mod decisions_csv;
+mod doctor;
 mod eval;
 mod flight;
 mod inproc;
@@ -64,6 +65,10 @@ enum Command {
     /// Convert a recording folder to a flight recording (MCAP) or back (frames, timestamps,
     /// truth, the vehicle's attitude).
     Convert(flight::ConvertArgs),
+    /// Check what a deployment needs with this configuration: the stage binaries, shared
+    /// memory, the camera, the MAVLink endpoint, the rerun viewer, the recorder's disk; says
+    /// what to fix (exit status 1 when anything needs fixing).
+    Doctor(doctor::DoctorArgs),
     /// Complete the flight recording of a recorder that was killed: everything up to its last
     /// complete chunk, with the index MCAP tools expect.
     Recover(flight::RecoverArgs),
@@ -416,6 +421,11 @@ fn main() -> ExitCode {
         },
         Command::Convert(a) => flight::convert(a),
         Command::Recover(a) => flight::recover(a),
+        Command::Doctor(a) => match doctor::run(a) {
+            Ok(true) => Ok(()),
+            Ok(false) => return ExitCode::from(1),
+            Err(e) => Err(e),
+        },
         Command::Inproc(a) => inproc::run(*a),
         Command::DecideEval(a) => decide_eval::run(a),
         Command::Soak(a) => soak::run(a),

@@ -1,6 +1,8 @@
 //! `deckwatch soak`: the whole pipeline for a long time at camera rate on full-size frames (a
-//! looped replay), with each process's resident memory and the domain's shared memory sampled
-//! as it runs. What a flight of half an hour must not show: memory that grows, frames dropped.
+//! looped replay), with each process's CPU (user + system), resident memory and context switches
+//! and the domain's shared memory sampled as it runs. What a flight of half an hour must not
+//! show: memory that grows, frames dropped; and what each process costs per frame (the budget a
+//! Raspberry Pi must have).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -31,6 +33,35 @@ pub struct SoakArgs {
     /// first minute, once every buffer is allocated) to the last (MiB).
     #[arg(long, default_value_t = 8.0)]
     max_growth_mib: f64,
+}
+
+/// CPU time of a process so far (user + system, s): `/proc/<pid>/stat` fields 14 and 15.
+fn cpu_s(pid: u32) -> Option<f64> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // The command name (field 2) may hold spaces and parentheses: count from the last `)`.
+    let fields: Vec<&str> = stat.rsplit_once(')')?.1.split_whitespace().collect();
+    let ticks = fields.get(11)?.parse::<u64>().ok()? + fields.get(12)?.parse::<u64>().ok()?;
+    // SAFETY: sysconf only reads a system constant.
+    let hz = unsafe { libc::sysconf(libc::_SC_CLK_TCK) }.max(1) as f64;
+    Some(ticks as f64 / hz)
+}
+
+/// Context switches of a process so far: (voluntary, involuntary).
+fn context_switches(pid: u32) -> Option<(u64, u64)> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let get = |key: &str| {
+        status
+            .lines()
+            .find(|l| l.starts_with(key))?
+            .split_whitespace()
+            .nth(1)?
+            .parse::<u64>()
+            .ok()
+    };
+    Some((
+        get("voluntary_ctxt_switches:")?,
+        get("nonvoluntary_ctxt_switches:")?,
+    ))
 }
 
 /// Private resident memory (MiB) of a process: `RssAnon` of `/proc/<pid>/status`, the heap and
@@ -137,18 +168,25 @@ pub fn run(a: SoakArgs) -> Result<(), String> {
         s
     });
     println!(
-        "soak: {} min at {} fps of {} ({frames} frames); private resident memory (RssAnon, MiB) of each process and the domain's shared memory every {} s",
+        "soak: {} min at {} fps of {} ({frames} frames); every {} s, each process's CPU since the last sample (% of a core, user + system) / private resident memory (RssAnon, MiB), and the domain's shared memory",
         a.minutes,
         a.rate,
         recording.display(),
         a.every_s
     );
     println!(
-        "{:>7} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}",
+        "{:>7} {:>14} {:>14} {:>14} {:>14} {:>14} {:>9} {:>9}",
         "t_s", "capture", "detect", "estimate", "decide", "launcher", "shm_MiB", "shm_files"
     );
     let start = Instant::now();
     let mut samples: Vec<[Option<f64>; 5]> = Vec::new();
+    // Per process: (pid, CPU s, when) at the previous sample, at the first after a minute, and
+    // the context switches at the last.
+    let mut previous: [Option<(u32, f64, Instant)>; 5] = [None; 5];
+    let mut settled_cpu: [Option<(u32, f64, Instant)>; 5] = [None; 5];
+    let mut first_cpu: [Option<(u32, f64, Instant)>; 5] = [None; 5];
+    let mut last_cpu: [Option<(u32, f64, Instant)>; 5] = [None; 5];
+    let mut switches: [Option<(u64, u64)>; 5] = [None; 5];
     let mut next = Duration::from_secs_f64(a.every_s.min(10.0));
     loop {
         if launcher.try_wait().map_err(|e| e.to_string())?.is_some() {
@@ -157,23 +195,46 @@ pub fn run(a: SoakArgs) -> Result<(), String> {
         if start.elapsed() >= next {
             next += Duration::from_secs_f64(a.every_s);
             let pids = deckwatch_runtime::stage::stage_processes(&a.domain);
-            let rss: [Option<f64>; 5] = PROCESSES.map(|p| match p {
-                "launcher" => private_mib(launcher.id()),
-                stage => pids
-                    .iter()
-                    .find(|(n, _)| n == stage)
-                    .and_then(|(_, pid)| private_mib(*pid)),
+            let pid_of: [Option<u32>; 5] = PROCESSES.map(|p| match p {
+                "launcher" => Some(launcher.id()),
+                stage => pids.iter().find(|(n, _)| n == stage).map(|(_, pid)| *pid),
             });
+            let rss: [Option<f64>; 5] = pid_of.map(|pid| pid.and_then(private_mib));
+            let now = Instant::now();
+            let mut cells = Vec::new();
+            for k in 0..PROCESSES.len() {
+                let cpu = pid_of[k].and_then(|pid| Some((pid, cpu_s(pid)?, now)));
+                // Since the previous sample of the same process (a restart starts afresh).
+                let pct = match (previous[k], cpu) {
+                    (Some((p0, c0, t0)), Some((p1, c1, t1))) if p0 == p1 => {
+                        Some(100.0 * (c1 - c0) / (t1 - t0).as_secs_f64().max(1e-9))
+                    }
+                    _ => None,
+                };
+                previous[k] = cpu;
+                if start.elapsed() >= Duration::from_secs(60) && settled_cpu[k].is_none() {
+                    settled_cpu[k] = cpu;
+                }
+                if cpu.is_some() {
+                    if first_cpu[k].is_none() {
+                        first_cpu[k] = cpu;
+                    }
+                    last_cpu[k] = cpu;
+                    switches[k] = pid_of[k].and_then(context_switches);
+                }
+                let pct = pct.map_or("-".to_string(), |v| format!("{v:.1}%"));
+                let mib = rss[k].map_or("-".to_string(), |v| format!("{v:.1}"));
+                cells.push(format!("{pct}/{mib}"));
+            }
             let (shm, files) = shm_mib(&a.domain);
-            let cell = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.1}"));
             println!(
-                "{:>7.0} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9.1} {:>9}",
+                "{:>7.0} {:>14} {:>14} {:>14} {:>14} {:>14} {:>9.1} {:>9}",
                 start.elapsed().as_secs_f64(),
-                cell(rss[0]),
-                cell(rss[1]),
-                cell(rss[2]),
-                cell(rss[3]),
-                cell(rss[4]),
+                cells[0],
+                cells[1],
+                cells[2],
+                cells[3],
+                cells[4],
                 shm,
                 files
             );
@@ -205,13 +266,33 @@ pub fn run(a: SoakArgs) -> Result<(), String> {
     // Growth from the first sample after a minute (buffers allocated) to the last.
     let settled = ((60.0 / a.every_s).ceil() as usize).min(samples.len().saturating_sub(1));
     let mut worst = 0.0f64;
+    println!(
+        "{:<9} {:>11} {:>13} {:>26} {:>22}",
+        "process", "CPU %", "CPU ms/frame", "RssAnon MiB (growth)", "ctx switches vol/invol"
+    );
     for (k, name) in PROCESSES.iter().enumerate() {
         let first = samples.get(settled).and_then(|s| s[k]);
         let last = samples.iter().rev().find_map(|s| s[k]);
-        if let (Some(f), Some(l)) = (first, last) {
-            println!("{name:<9} {f:>8.1} -> {l:>8.1} MiB ({:+.1})", l - f);
-            worst = worst.max(l - f);
-        }
+        // CPU from the first sample after a minute (or the first) to the last, same process.
+        let cpu = match (settled_cpu[k].or(first_cpu[k]), last_cpu[k]) {
+            (Some((p0, c0, t0)), Some((p1, c1, t1))) if p0 == p1 && t1 > t0 => {
+                let s = (t1 - t0).as_secs_f64();
+                Some((100.0 * (c1 - c0) / s, 1e3 * (c1 - c0) / (s * a.rate)))
+            }
+            _ => None,
+        };
+        let (pct, per_frame) = cpu.map_or(("-".to_string(), "-".to_string()), |(p, f)| {
+            (format!("{p:.1}"), format!("{f:.2}"))
+        });
+        let mem = match (first, last) {
+            (Some(f), Some(l)) => {
+                worst = worst.max(l - f);
+                format!("{f:.1} -> {l:.1} ({:+.1})", l - f)
+            }
+            _ => "-".to_string(),
+        };
+        let sw = switches[k].map_or("-".to_string(), |(v, i)| format!("{v}/{i}"));
+        println!("{name:<9} {pct:>11} {per_frame:>13} {mem:>26} {sw:>22}");
     }
     println!(
         "{} decisions in {:.0} s; drops {total_drops} ({drops}); restarts {}",

@@ -10,6 +10,8 @@ STAGE="$(mktemp -d)"
 trap 'rm -rf "$STAGE"' EXIT
 if ! command -v systemd-analyze >/dev/null; then
   SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -qq
   $SUDO apt-get install -y -qq systemd >/dev/null
 fi
 DESTDIR="$STAGE/root" deploy/install.sh --bin-dir "$BIN_DIR" --no-systemctl

@@ -93,3 +93,69 @@ fn spectrum_seas_with_faults_no_unsafe_clearance() {
         "2",
     ]));
 }
+
+/// The default scenario (`lulls`) shows the decision's whole cycle within the README's 60 s
+/// run: HOLD while warming up, CLEAR in the lull, HOLD again once the sea builds; and every
+/// clearance is safe on the true motion. On the true angles (with the estimator's noise), the
+/// way the decide stage sees them; the pipeline run itself is in tests/pipeline.rs.
+#[test]
+fn lulls_scenario_shows_the_whole_cycle() {
+    use deckwatch_capture::{MotionProfile, Scenario};
+    use deckwatch_common::messages::{DecisionReason, DecisionState};
+    use deckwatch_decide::{DecisionConfig, DeckObservation, LandingDecider};
+    let config = DecisionConfig::default();
+    for seed in [1, 2, 3] {
+        let profile = Scenario::Lulls.profile(seed, 1.0);
+        let mut decider = LandingDecider::new(config.clone()).unwrap();
+        let mut changes: Vec<(f64, DecisionState, DecisionReason)> = Vec::new();
+        let rate_hz = 10.0;
+        let mut noise = 0.0f64;
+        for k in 0..600 {
+            let t = k as f64 / rate_hz;
+            let s = profile.sample(t);
+            let [roll, pitch, _] = s.attitude.to_degrees();
+            // A deterministic +-0.02 deg wobble standing in for the estimator's noise.
+            noise = (noise * 1.7 + 0.37).fract();
+            let e = 0.04 * (noise - 0.5);
+            let d = decider.update(t, Some(DeckObservation::new(roll + e, pitch - e, e)), t + 0.005);
+            if changes.last().is_none_or(|c| (c.1, c.2) != (d.state, d.reason)) {
+                changes.push((t, d.state, d.reason));
+            }
+            if d.new_commit {
+                // The true deck stays within the capacity during the whole touchdown.
+                for j in 0..=20 {
+                    let u = profile.sample(t + j as f64 * config.touchdown_s / 20.0);
+                    let [r, p, _] = u.attitude.to_degrees();
+                    assert!(
+                        config.naive_within(r, p),
+                        "seed {seed}: unsafe clearance at {t} s ({r:.2}, {p:.2} deg)"
+                    );
+                }
+            }
+        }
+        let timeline: Vec<String> = changes
+            .iter()
+            .map(|(t, s, r)| format!("{t:.1}s {} ({})", s.name(), r.name()))
+            .collect();
+        println!("seed {seed}: {}", timeline.join(" -> "));
+        let first_clear = changes
+            .iter()
+            .position(|c| c.1 == DecisionState::ClearToLand)
+            .unwrap_or_else(|| panic!("seed {seed}: never CLEAR: {timeline:?}"));
+        assert_eq!(changes[0].1, DecisionState::Hold, "{timeline:?}");
+        assert_eq!(changes[0].2, DecisionReason::Warmup, "{timeline:?}");
+        assert!(changes[first_clear].0 < 40.0, "seed {seed}: {timeline:?}");
+        let hold_after = changes[first_clear..]
+            .iter()
+            .rev()
+            .find(|c| c.1 != DecisionState::ClearToLand)
+            .unwrap_or_else(|| panic!("seed {seed}: no HOLD after CLEAR: {timeline:?}"));
+        assert!(hold_after.0 < 60.0, "{timeline:?}");
+        // The run ends in the rough stretch: not clear.
+        assert_ne!(
+            changes.last().unwrap().1,
+            DecisionState::ClearToLand,
+            "{timeline:?}"
+        );
+    }
+}

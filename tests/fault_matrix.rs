@@ -135,7 +135,7 @@ fn every_fault_is_survived_and_never_cleared_on() {
         &config,
         format!(
             "[bus]\ndomain = \"{domain}\"\n\
-             [sim]\nframes = 100000\nrate = {RATE_HZ}\nsea_scale = 0.2\n\
+             [sim]\nscenario = \"ship\"\nframes = 100000\nrate = {RATE_HZ}\nsea_scale = 0.2\n\
              [decide]\nmin_history_s = 10.0\nerror_memory_s = 6.0\nmax_age_ms = {}\n\
              [link]\nenabled = true\naddress = \"udpout:127.0.0.1:{port}\"\n\
              [rerun]\nsink = \"off\"\n",

@@ -297,6 +297,9 @@ fn decider_holds(n: u32) {
             50..200,
         ),
     );
+    // How many CLEAR decisions the fault phases had (on good frames): the streams must reach
+    // a clearance, or the faults were never tested against one.
+    let cleared = std::sync::atomic::AtomicU64::new(0);
     fuzz(
         "decider streams",
         n,
@@ -312,11 +315,13 @@ fn decider_holds(n: u32) {
                 )
             };
             let mut t = 0.0;
+            // The last input the decider was given (a repeat of it is a frozen input).
+            let mut last = sea(t);
             while t < 30.0 {
-                d.update_at_capture(t, Some(sea(t)), 0.005);
+                last = sea(t);
+                d.update_at_capture(t, Some(last), 0.005);
                 t += 0.1;
             }
-            let mut last = sea(t);
             // How many times in a row the same input came (a repeat of the previous one adds one).
             let mut run = 1u32;
             for f in faults {
@@ -356,6 +361,9 @@ fn decider_holds(n: u32) {
                     _ => (t, Some(last), 0.005),       // repeats the last input bit for bit
                 };
                 let r = d.update_at_capture(time, deck, age);
+                if r.state == DecisionState::ClearToLand {
+                    cleared.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                }
                 run = if f.kind == 9 { run + 1 } else { 1 };
                 if f.kind == 9 {
                     // A repeat is refused once it is the third in a row (`frozen_input_count`);
@@ -391,6 +399,9 @@ fn decider_holds(n: u32) {
             Ok(())
         },
     );
+    let cleared = cleared.into_inner();
+    println!("decider streams: {cleared} CLEAR decisions on good frames among the faults");
+    assert!(cleared > 0, "no stream reached a clearance");
 }
 
 #[test]
@@ -687,7 +698,7 @@ fn shared_memory_holds(n: u32) {
                 let mut out =
                     deckwatch_link::outgoing::Outgoing::new(&Default::default(), Default::default());
                 let _ = out.decision(&d, deckwatch_link::incoming::LinkState::Up, None, 0);
-                let _ = deckwatch_viz::entities::decision_items(&d, true);
+                let _ = deckwatch_viz::entities::DecisionView::new(5.0, 5.0).items(&d);
             }
             // A vehicle sample, as estimate takes it.
             let mut v: VehicleSample = message_from_bytes(&raw);

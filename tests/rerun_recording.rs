@@ -3,7 +3,7 @@
 //! rows: an image, the markers, the ellipse, the reprojected deck, the angles (both estimators
 //! and the truth) and the decision for every frame.
 
-use deckwatch_tests::workspace_binary;
+use deckwatch_tests::{peer_rerun, workspace_binary};
 use std::process::Command;
 
 #[test]
@@ -43,7 +43,60 @@ fn saved_recording_holds_every_stage() {
     ] {
         assert_eq!(get(e), 16, "{e}: {rows:?}");
     }
-    // Every frame's decision, plus the watchdog's stale one after the last frame.
-    assert!(get("decision/state") >= 16, "{rows:?}");
-    assert!(get("decision/log") >= 1, "{rows:?}");
+    // Each estimator's error against the truth, and each decided frame's latency and drops.
+    for e in [
+        "error/roll/full-pose",
+        "error/yaw/paper-atan2",
+        "latency/end_to_end",
+        "latency/detect",
+        "drops/capture",
+        "attitude/roll/capacity_max",
+    ] {
+        assert!(get(e) >= 16, "{e}: {rows:?}");
+    }
+    // The deck region of every frame (the image of each, the overlays of each).
+    assert_eq!(get("camera/deck"), 16, "{rows:?}");
+    assert_eq!(get("camera/deck/markers"), 16, "{rows:?}");
+    assert_eq!(get("camera/deck/deck_model"), 16, "{rows:?}");
+    // The decision's lanes change only when it does (warm-up, then the watchdog's stale one
+    // after the last frame), its text with them.
+    assert!(get("decision/state") >= 2, "{rows:?}");
+    assert_eq!(get("decision/state"), get("decision/reason"), "{rows:?}");
+    assert!(get("decision_now") >= 2, "{rows:?}");
+    assert!(get("decision_log") >= 2, "{rows:?}");
+    // rerun's own reader: the file verifies, and names the run with its properties.
+    let rerun = peer_rerun();
+    let verify = Command::new(&rerun)
+        .args(["rrd", "verify"])
+        .arg(&rrd)
+        .output()
+        .unwrap();
+    assert!(
+        verify.status.success(),
+        "{}",
+        String::from_utf8_lossy(&verify.stderr)
+    );
+    let print = Command::new(&rerun)
+        .args(["rrd", "print", "-vvv"])
+        .arg(&rrd)
+        .output()
+        .unwrap();
+    assert!(
+        print.status.success(),
+        "{}",
+        String::from_utf8_lossy(&print.stderr)
+    );
+    let printed = String::from_utf8_lossy(&print.stdout);
+    assert!(printed.contains("RecordingInfo:name"), "no recording name");
+    assert!(
+        printed.contains("deckwatch run: replay of"),
+        "the name says what ran"
+    );
+    for property in [
+        "/__properties/deckwatch",
+        "/__properties/configuration",
+        "component: estimator",
+    ] {
+        assert!(printed.contains(property), "{property} missing");
+    }
 }

@@ -14,8 +14,8 @@ pub mod source;
 pub mod virtual_camera;
 
 pub use motion::{
-    Case1Sweep, DeckHeave, Heaving, MotionProfile, MotionSample, ShipMotion, Swaying, TrackingError,
-    VehicleSway,
+    Case1Sweep, DeckHeave, Heaving, LullCycle, Lulled, MotionProfile, MotionSample, ShipMotion, Swaying,
+    TrackingError, VehicleSway,
 };
 pub use render::{RenderOptions, Renderer};
 pub use scenario::{MarkerSimulator, Scenario};

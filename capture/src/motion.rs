@@ -326,6 +326,80 @@ impl<P: MotionProfile> MotionProfile for Swaying<P> {
     }
 }
 
+/// A sea whose strength rises and falls: spells of calm between stretches of a moderate sea
+/// (waves come in groups with lulls between them; a lull of half a minute or more is what a
+/// ship's crew waits for to land a helicopter). The sea's amplitudes are multiplied by a
+/// factor that holds `calm` for `calm_s`, rises smoothly to `rough` over `ramp_s`, holds it for
+/// `rough_s`, falls back over `ramp_s`, and repeats.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LullCycle {
+    pub calm: f64,
+    pub rough: f64,
+    pub calm_s: f64,
+    pub ramp_s: f64,
+    pub rough_s: f64,
+}
+
+impl LullCycle {
+    /// The `lulls` scenario: a lull (0.15 of the sea-state-6 amplitudes: roll within 3.8 deg,
+    /// pitch within 1.2 deg) for 40 s, then a moderate sea (0.6: roll up to 15 deg, pitch up to
+    /// 4.8 deg) for 30 s, with 8 s between: one cycle is 86 s. With the decider's 20 s of
+    /// warm-up, a 60 s run shows HOLD (warm-up), CLEAR in the lull, and HOLD as the sea builds.
+    pub const DEMO: Self = Self {
+        calm: 0.15,
+        rough: 0.6,
+        calm_s: 40.0,
+        ramp_s: 8.0,
+        rough_s: 30.0,
+    };
+
+    pub fn period_s(&self) -> f64 {
+        self.calm_s + 2.0 * self.ramp_s + self.rough_s
+    }
+
+    /// The amplitude factor at `t_s` (smoothstep ramps: the motion's rate changes gently).
+    pub fn factor(&self, t_s: f64) -> f64 {
+        let period = self.period_s();
+        if !(period > 0.0 && t_s.is_finite()) {
+            return self.calm;
+        }
+        let t = t_s.rem_euclid(period);
+        let smooth = |u: f64| {
+            let u = u.clamp(0.0, 1.0);
+            u * u * (3.0 - 2.0 * u)
+        };
+        let up = if self.ramp_s > 0.0 {
+            let rise = smooth((t - self.calm_s) / self.ramp_s);
+            let fall = smooth((t - self.calm_s - self.ramp_s - self.rough_s) / self.ramp_s);
+            rise - fall
+        } else if t >= self.calm_s && t < self.calm_s + self.rough_s {
+            1.0
+        } else {
+            0.0
+        };
+        self.calm + (self.rough - self.calm) * up
+    }
+}
+
+/// A motion profile whose sea follows a [`LullCycle`]: the inner profile's deck angles and
+/// heave times the cycle's factor (the camera keeps its height in W, as with [`Heaving`]).
+pub struct Lulled<P> {
+    pub inner: P,
+    pub cycle: LullCycle,
+}
+
+impl<P: MotionProfile> MotionProfile for Lulled<P> {
+    fn sample(&self, t_s: f64) -> MotionSample {
+        let mut s = self.inner.sample(t_s);
+        let f = self.cycle.factor(t_s);
+        s.attitude = Rpy::new(s.attitude.roll * f, s.attitude.pitch * f, s.attitude.yaw * f);
+        // The camera's height over the deck is the inner one's with the heave's share removed.
+        s.viewpoint.altitude_m += s.deck_heave_m * (1.0 - f);
+        s.deck_heave_m *= f;
+        s
+    }
+}
+
 /// (amplitude m, period s) of the deck's heave at sea state 6 for a frigate-size ship: periods
 /// near the roll's waves (7-13 s), amplitudes summing to 1.2 m; the largest vertical speed
 /// (amplitude x 2 pi / period, summed) is 0.84 m/s. Ship-helicopter operating limits put the
@@ -597,5 +671,34 @@ mod tests {
             assert!((v.offset_x_m.hypot(v.offset_y_m) - 0.3).abs() < 1e-12);
             assert!((4.5..=5.5).contains(&v.altitude_m));
         }
+    }
+
+    #[test]
+    fn the_lulls_calm_and_build_and_calm_again() {
+        let c = LullCycle::DEMO;
+        assert_eq!(c.period_s(), 86.0);
+        assert_eq!(c.factor(0.0), 0.15);
+        assert_eq!(c.factor(39.9), 0.15);
+        assert!((c.factor(44.0) - 0.375).abs() < 1e-12); // half way up
+        assert_eq!(c.factor(60.0), 0.6);
+        assert_eq!(c.factor(86.0 + 10.0), 0.15); // the next lull
+        assert_eq!(c.factor(f64::NAN), 0.15);
+        // The factor moves smoothly: no step between frames.
+        let steps = (0..8600).map(|k| (c.factor(k as f64 / 100.0) - c.factor((k + 1) as f64 / 100.0)).abs());
+        assert!(steps.fold(0.0, f64::max) < 0.001);
+        // Angles and heave scale together; the camera keeps its height in W.
+        let heaving = Heaving {
+            inner: ShipMotion::sea_state_6(3),
+            heave: DeckHeave::sea_state_6(3, 1.0),
+        };
+        let plain = heaving.sample(60.0);
+        let lulled = Lulled {
+            inner: heaving,
+            cycle: c,
+        }
+        .sample(60.0);
+        assert!((lulled.attitude.roll - 0.6 * plain.attitude.roll).abs() < 1e-12);
+        assert!((lulled.deck_heave_m - 0.6 * plain.deck_heave_m).abs() < 1e-12);
+        assert!((lulled.vehicle_height_m() - plain.vehicle_height_m()).abs() < 1e-12);
     }
 }

@@ -1,7 +1,9 @@
 //! Named simulator scenarios, and marker-level simulation: the exact pixels of the marker centres
 //! (optionally with Gaussian pixel noise) for a motion sample.
 
-use crate::motion::{Case1Sweep, MotionProfile, MotionSample, ShipMotion, TrackingError};
+use crate::motion::{
+    Case1Sweep, DeckHeave, Heaving, LullCycle, Lulled, MotionProfile, MotionSample, ShipMotion, TrackingError,
+};
 use crate::rng::SplitMix64;
 use deckwatch_common::marker_table::MarkerRow;
 use deckwatch_common::{CameraModel, DeckLayout, GroundTruth, SceneGeometry};
@@ -15,6 +17,9 @@ pub enum Scenario {
     Case1,
     /// Sea-state-6-like ship motion, camera centred at 5 m.
     Ship,
+    /// The same ship in a moderate sea with lulls ([`LullCycle::DEMO`]): 40 s calm enough to
+    /// land, 30 s too rough, repeating. The default: a run shows the decision's whole cycle.
+    Lulls,
     /// Ship motion with the camera 0.3 m off the deck centre at 4.5-5.5 m.
     Offset,
     /// The camera 30 m away from the deck at 5 m: only the sea in view.
@@ -23,12 +28,13 @@ pub enum Scenario {
 }
 
 impl Scenario {
-    pub const ALL: [Self; 4] = [Self::Case1, Self::Ship, Self::Offset, Self::NoDeck];
+    pub const ALL: [Self; 5] = [Self::Case1, Self::Ship, Self::Lulls, Self::Offset, Self::NoDeck];
 
     pub fn name(&self) -> &'static str {
         match self {
             Self::Case1 => "case1",
             Self::Ship => "ship",
+            Self::Lulls => "lulls",
             Self::Offset => "offset",
             Self::NoDeck => "nodeck",
         }
@@ -41,15 +47,36 @@ impl Scenario {
     /// The scenario's motion; `seed` sets the sea's phases (Case 1 has none), `sea_scale`
     /// multiplies the sea-state-6 amplitudes (1: sea state 6; Case 1 has no sea).
     pub fn profile(&self, seed: u64, sea_scale: f64) -> Box<dyn MotionProfile + Send + Sync> {
+        self.profile_heaving(seed, sea_scale, None)
+    }
+
+    /// The same with the deck heaving by `heave` (the lulls calm the heave too).
+    pub fn profile_heaving(
+        &self,
+        seed: u64,
+        sea_scale: f64,
+        heave: Option<DeckHeave>,
+    ) -> Box<dyn MotionProfile + Send + Sync> {
         let sea = || ShipMotion::scaled(seed, sea_scale);
-        match self {
+        let deck: Box<dyn MotionProfile + Send + Sync> = match self {
             Self::Case1 => Box::new(Case1Sweep::paper()),
-            Self::Ship => Box::new(sea()),
+            Self::Ship | Self::Lulls => Box::new(sea()),
             Self::Offset => Box::new(sea().with_tracking(TrackingError::offset_0_3m(seed))),
             Self::NoDeck => Box::new(sea().with_tracking(TrackingError {
                 offset_m: 30.0,
                 ..TrackingError::offset_0_3m(seed)
             })),
+        };
+        let deck: Box<dyn MotionProfile + Send + Sync> = match heave {
+            Some(heave) => Box::new(Heaving { inner: deck, heave }),
+            None => deck,
+        };
+        match self {
+            Self::Lulls => Box::new(Lulled {
+                inner: deck,
+                cycle: LullCycle::DEMO,
+            }),
+            _ => deck,
         }
     }
 
@@ -68,8 +95,9 @@ impl Scenario {
 #[cfg_attr(feature = "cli", derive(clap::Args))]
 #[serde(default, deny_unknown_fields)]
 pub struct SimulationArgs {
-    /// Scenario: case1, ship, offset or nodeck.
-    #[cfg_attr(feature = "cli", arg(long, default_value = "ship"))]
+    /// Scenario: lulls (a moderate sea with calm spells), ship (sea state 6), case1, offset or
+    /// nodeck.
+    #[cfg_attr(feature = "cli", arg(long, default_value = "lulls"))]
     pub scenario: Scenario,
     /// Number of frames.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = 600))]
@@ -112,7 +140,7 @@ impl Default for SimulationArgs {
     /// The command line's defaults (a test checks that they agree).
     fn default() -> Self {
         Self {
-            scenario: Scenario::Ship,
+            scenario: Scenario::Lulls,
             frames: 600,
             rate: 10.0,
             camera: None,
@@ -197,15 +225,10 @@ impl SimulationArgs {
     /// The run's motion: the scenario's deck (heaving with `heave`) and camera position, on the
     /// configured vehicle.
     pub fn profile(&self) -> Box<dyn MotionProfile + Send + Sync> {
-        let scenario = self.scenario.profile(self.seed, self.sea_scale);
-        let scenario: Box<dyn MotionProfile + Send + Sync> = if self.heave {
-            Box::new(crate::Heaving {
-                inner: scenario,
-                heave: crate::DeckHeave::sea_state_6(self.seed, self.sea_scale),
-            })
-        } else {
-            scenario
-        };
+        let heave = self
+            .heave
+            .then(|| crate::DeckHeave::sea_state_6(self.seed, self.sea_scale));
+        let scenario = self.scenario.profile_heaving(self.seed, self.sea_scale, heave);
         let tilt = match self.vehicle_tilt_deg[..] {
             [r, p, y] => [r, p, y],
             _ => [0.0; 3], // refused by `resolve`

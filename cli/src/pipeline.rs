@@ -23,6 +23,11 @@ pub struct RunArgs {
     /// libcamera: asked of the camera, 0 = its default).
     #[arg(long)]
     rate: Option<f64>,
+    /// The simulated scenario: `lulls` (default: a moderate sea with calm spells, the
+    /// decision's whole cycle in 60 s), `ship` (sea state 6), `case1`, `offset` or `nodeck`;
+    /// sets `[sim] scenario`.
+    #[arg(long, value_enum)]
+    scenario: Option<deckwatch_capture::Scenario>,
     /// iceoryx2 domain (isolates concurrent pipelines).
     #[arg(long)]
     domain: Option<String>,
@@ -197,6 +202,9 @@ pub fn run(a: RunArgs) -> Result<(), String> {
     let (mut c, file) = load(a.config.as_deref())?;
     apply_source(&mut c, &a.source)?;
     apply_frames_and_rate(&mut c, a.frames, a.rate);
+    if let Some(scenario) = a.scenario {
+        c.sim.scenario = scenario;
+    }
     if let Some(d) = a.domain {
         c.bus.domain = d;
     }

@@ -33,6 +33,36 @@ pub fn monotonic_ns() -> u64 {
     ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
 }
 
+/// The offset from the pipeline's `CLOCK_MONOTONIC` to UNIX time, measured once (per flight
+/// recording, per rerun logging thread): what turns the messages' times into wall-clock times.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct TimeBase {
+    pub unix_minus_monotonic_ns: i64,
+}
+
+impl TimeBase {
+    /// Now: the system clock less the monotonic one.
+    pub fn measure() -> Self {
+        let unix = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos() as i64);
+        Self {
+            unix_minus_monotonic_ns: unix.saturating_sub(monotonic_ns() as i64),
+        }
+    }
+
+    /// No offset: times are already what the file should show (a converted recording's).
+    pub const IDENTITY: Self = Self {
+        unix_minus_monotonic_ns: 0,
+    };
+
+    pub fn to_unix_ns(&self, monotonic_ns: u64) -> u64 {
+        (monotonic_ns as i64)
+            .saturating_add(self.unix_minus_monotonic_ns)
+            .max(0) as u64
+    }
+}
+
 /// When a frame passed each stage: `CLOCK_MONOTONIC` nanoseconds, 0 = not (yet) passed.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, bytemuck::AnyBitPattern)]

@@ -523,13 +523,9 @@ impl LandingDecider {
             deck.pitch_deg,
             if heave { deck.height_m } else { f64::NAN },
         ];
-        if !t.is_finite() || age_s < -MAX_FUTURE_S {
-            return Err(DecisionReason::ClockJump);
-        }
-        if !(age_s <= c.max_age_ms / 1e3) {
-            return Err(DecisionReason::StaleData);
-        }
-        // A real sensor never repeats itself bit for bit: a frozen one must not look calm.
+        // A real sensor never repeats itself bit for bit: a frozen one must not look calm. Every
+        // repeat counts, also one refused for its time (stale, out of order): a frozen camera's
+        // frames may come late and still be the same frame.
         let bits = sample.map(f64::to_bits);
         let count = match self.repeated {
             Some((b, n)) if b == bits => n.saturating_add(1),
@@ -540,6 +536,12 @@ impl LandingDecider {
             // What came while it was frozen is not the deck's motion: learn afresh after it.
             self.forget();
             return Err(DecisionReason::FrozenInput);
+        }
+        if !t.is_finite() || age_s < -MAX_FUTURE_S {
+            return Err(DecisionReason::ClockJump);
+        }
+        if !(age_s <= c.max_age_ms / 1e3) {
+            return Err(DecisionReason::StaleData);
         }
         if let Some(&(tp, prev)) = self.history.back() {
             let dt = t - tp;
@@ -712,18 +714,20 @@ impl LandingDecider {
         };
         // How well did the fit of `holdout_s` ago predict the samples since? (angles, heave)
         let old = self.past.iter().rev().find(|m| end - m[0].t0() >= c.holdout_s);
-        let (angle_miss, heave_miss) = match old {
-            Some(old) => {
-                let t0 = old[0].t0();
-                self.history
-                    .iter()
-                    .filter(|h| h.0 > t0 && h.0 <= t0 + c.holdout_s)
-                    .map(|&(ti, v)| channel_misses(old, ti, &v))
-                    .fold((0.0, 0.0), |(a, b), (x, y)| (f64::max(a, x), f64::max(b, y)))
-            }
-            None => (f64::INFINITY, f64::INFINITY), // no track record yet
-        };
-        self.errors.push_back((end, angle_miss, heave_miss));
+        let misses = old.map(|old| {
+            let t0 = old[0].t0();
+            self.history
+                .iter()
+                .filter(|h| h.0 > t0 && h.0 <= t0 + c.holdout_s)
+                .map(|&(ti, v)| channel_misses(old, ti, &v))
+                .fold((0.0, 0.0), |(a, b), (x, y)| (f64::max(a, x), f64::max(b, y)))
+        });
+        // Only a measured miss is remembered: a fit with no track record yet (the first
+        // `holdout_s` after warm-up) is unreliable itself, but remembering that as an infinite
+        // error would hold every decision for `error_memory_s` after each warm-up.
+        if let Some((angle_miss, heave_miss)) = misses {
+            self.errors.push_back((end, angle_miss, heave_miss));
+        }
         while self
             .errors
             .front()
@@ -745,8 +749,13 @@ impl LandingDecider {
                 .fold((0.0, 0.0), |(a, b), (x, y)| (f64::max(a, x), f64::max(b, y))),
             None => (f64::INFINITY, f64::INFINITY),
         };
-        let recent_angle = self.errors.iter().map(|e| e.1).fold(0.0, f64::max);
-        let recent_heave = self.errors.iter().map(|e| e.2).fold(0.0, f64::max);
+        let (recent_angle, recent_heave) = match misses {
+            Some(_) => self
+                .errors
+                .iter()
+                .fold((0.0, 0.0), |(a, b), e| (f64::max(a, e.1), f64::max(b, e.2))),
+            None => (f64::INFINITY, f64::INFINITY), // no track record yet
+        };
         let holdout_error = c.error_factor * recent_angle.max(disagreement.0);
         let heave_error = c.error_factor * recent_heave.max(disagreement.1);
         self.past.push_back(tracks.clone());
@@ -1131,7 +1140,11 @@ mod tests {
         run(&mut d, 0.0, 40.0, |t| Some(sea(t, 0.3)));
         let still = sea(40.0, 0.3);
         let out = run(&mut d, 40.0, 110.0, |_| Some(still));
-        assert!(out.iter().all(|(_, d)| d.state != DecisionState::ClearToLand));
+        // The first value is the true one and the second its first repeat (a clearance may go
+        // on through them); from the third identical input on it is frozen: never CLEAR.
+        assert!(out[2..]
+            .iter()
+            .all(|(_, d)| d.state != DecisionState::ClearToLand));
         assert!(out[2..]
             .iter()
             .all(|(_, d)| d.reason == DecisionReason::FrozenInput));

@@ -179,35 +179,8 @@ impl RecorderStats {
     }
 }
 
-/// The offset from the pipeline's `CLOCK_MONOTONIC` to UNIX time, measured once per recording
-/// (kept in the metadata `deckwatch.clock`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct TimeBase {
-    pub unix_minus_monotonic_ns: i64,
-}
-
-impl TimeBase {
-    /// Now: the system clock less the monotonic one.
-    pub fn measure() -> Self {
-        let unix = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.as_nanos() as i64);
-        Self {
-            unix_minus_monotonic_ns: unix.saturating_sub(deckwatch_common::messages::monotonic_ns() as i64),
-        }
-    }
-
-    /// No offset: times are already what the file should show (a converted recording's).
-    pub const IDENTITY: Self = Self {
-        unix_minus_monotonic_ns: 0,
-    };
-
-    pub fn to_unix_ns(&self, monotonic_ns: u64) -> u64 {
-        (monotonic_ns as i64)
-            .saturating_add(self.unix_minus_monotonic_ns)
-            .max(0) as u64
-    }
-}
+/// The offset from monotonic to UNIX time (kept in a recording's metadata `deckwatch.clock`).
+pub use deckwatch_common::messages::TimeBase;
 
 /// The deckwatch version that wrote a recording (metadata `deckwatch`).
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");

@@ -132,6 +132,39 @@ impl PipelineConfig {
         path.map_or_else(|| Ok(Self::default()), Self::load)
     }
 
+    /// What a run of this configuration is, as (key, value) pairs: the version, the source
+    /// (and its scenario, recording or camera), the estimator, the domain and the host. Shown as
+    /// the rerun recording's properties and written in a flight recording's metadata.
+    pub fn run_properties(&self) -> Vec<(String, String)> {
+        use deckwatch_common::messages::FrameSource;
+        let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
+        let mut out = vec![
+            ("version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
+            ("source".to_string(), self.source.kind.name().to_string()),
+        ];
+        match self.source.kind {
+            FrameSource::Simulator => {
+                out.push(("scenario".into(), self.sim.scenario.name().into()));
+                out.push(("seed".into(), self.sim.seed.to_string()));
+                out.push(("rate_hz".into(), self.sim.rate.to_string()));
+            }
+            FrameSource::Replay => {
+                let path = self.replay.recording.as_ref().map(|p| p.display().to_string());
+                out.push(("recording".into(), path.unwrap_or_default()));
+            }
+            _ => out.push(("camera".into(), format!("{:?}", self.libcamera))),
+        }
+        out.extend([
+            (
+                "estimator".to_string(),
+                self.estimate.estimator.name().to_string(),
+            ),
+            ("domain".to_string(), self.bus.domain.clone()),
+            ("host".to_string(), host.trim().to_string()),
+        ]);
+        out
+    }
+
     /// Serialises the configuration (`--print-config`, and the file the launcher hands the
     /// stages).
     pub fn to_toml(&self) -> String {

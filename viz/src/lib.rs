@@ -139,6 +139,11 @@ impl RerunConfig {
         Ok(())
     }
 
+    /// Whether frame `seq`'s image is logged (and the overlays of its deck crop with it).
+    pub fn logs_image(&self, seq: u64) -> bool {
+        self.sink != RerunSink::Off && seq.is_multiple_of(self.image_every.max(1) as u64)
+    }
+
     /// The part file a process writes in `save` mode: `FILE.rrd.<part>.part`, where a stage
     /// process's part is `<stage>-<pid>` (a restarted stage writes a new part instead of
     /// overwriting its predecessor's) and the launcher's is `launcher`.
@@ -191,39 +196,66 @@ impl RerunConfig {
     }
 }
 
-/// One thing to log, owned (no reference into shared memory), at one frame.
+/// One thing to log, owned (no reference into shared memory), at one time.
 #[derive(Debug, Clone)]
 pub struct Item {
-    pub seq: u64,
-    pub captured_ns: u64,
+    /// The frame it belongs to (the `frame` timeline); None for what belongs to no frame (a
+    /// watchdog's decision, a calm window predicted ahead, an autopilot sample).
+    pub frame: Option<u64>,
+    /// Its time on the capture clock (the `capture_time` timeline; `CLOCK_MONOTONIC` ns).
+    pub time_ns: u64,
     pub kind: ItemKind,
 }
 
 #[derive(Debug, Clone)]
 pub enum ItemKind {
-    /// An 8-bit gray image (already downscaled).
+    /// An 8-bit gray image: the frame ([`entities::IMAGE`], downscaled) or its deck region
+    /// ([`entities::DECK_CROP`]).
     Image {
+        entity: &'static str,
         pixels: Vec<u8>,
         width: u32,
         height: u32,
     },
-    /// Points in full-resolution pixels with labels.
+    /// Points in full-resolution pixels with labels (shown in the deck crop only), drawn
+    /// `radius_ui` UI points large; also drawn in `crop` when given.
     Points {
         entity: &'static str,
         points: Vec<[f32; 2]>,
         labels: Vec<String>,
         colour: [u8; 4],
+        radius_ui: f32,
+        crop: Option<entities::DeckCrop>,
     },
-    /// Closed line strips in full-resolution pixels.
+    /// Closed line strips in full-resolution pixels; also drawn in `crop` when given.
     Strips {
         entity: &'static str,
         strips: Vec<Vec<[f32; 2]>>,
         colour: [u8; 4],
+        crop: Option<entities::DeckCrop>,
     },
     /// Scalars by entity path.
     Scalars(Vec<(String, f64)>),
     /// A line of text on [`entities::DECISION_LOG`].
     Text(String),
+    /// A lane of a state timeline enters `state` (None: leaves it).
+    State {
+        entity: &'static str,
+        state: Option<String>,
+    },
+    /// A markdown document (the newest one is shown).
+    Document { entity: &'static str, markdown: String },
+}
+
+/// What the recording is, for the viewer: its name and properties (the launcher's).
+#[derive(Debug, Clone, Default)]
+pub struct RunDescription {
+    /// The recording's name in the viewer.
+    pub name: String,
+    /// (key, value): version, source, estimator, host, ...
+    pub properties: Vec<(String, String)>,
+    /// The run's whole configuration.
+    pub configuration_toml: String,
 }
 
 /// A process's logger: the channel to its logging thread.
@@ -286,9 +318,10 @@ impl Logger {
             out.extend(row.iter().step_by(f));
         }
         Item {
-            seq,
-            captured_ns,
+            frame: Some(seq),
+            time_ns: captured_ns,
             kind: ItemKind::Image {
+                entity: entities::IMAGE,
                 pixels: out,
                 width: w as u32,
                 height: h as u32,

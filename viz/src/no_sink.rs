@@ -1,7 +1,7 @@
 //! A build without the `rerun` feature: the logging API without the rerun SDK. `off` works;
 //! any other sink is refused, saying how to get it.
 
-use crate::{Item, RerunConfig, RerunSink, VizError};
+use crate::{Item, RerunConfig, RerunSink, RunDescription, VizError};
 use crossbeam_channel::Receiver;
 use std::path::Path;
 use std::thread::JoinHandle;
@@ -25,7 +25,11 @@ impl Viewer {
     }
 }
 
-pub fn open_viewer(config: &RerunConfig, _stage: &str) -> Result<Option<Viewer>, VizError> {
+pub fn open_viewer(
+    config: &RerunConfig,
+    _stage: &str,
+    _about: &RunDescription,
+) -> Result<Option<Viewer>, VizError> {
     match config.sink {
         RerunSink::Off => Ok(None),
         other => Err(VizError::NotBuilt { sink: other.name() }),

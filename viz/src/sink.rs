@@ -1,7 +1,11 @@
 //! The rerun side of the logging: recording streams, archetypes, the blueprint, `.rrd` files.
 
-use crate::{entities, Item, ItemKind, RerunConfig, RerunSink, VizError, APPLICATION_ID, DEFAULT_ADDRESS};
+use crate::{
+    entities, Item, ItemKind, RerunConfig, RerunSink, RunDescription, VizError, APPLICATION_ID,
+    DEFAULT_ADDRESS,
+};
 use crossbeam_channel::Receiver;
+use deckwatch_common::messages::{EstimatorKind, LatencyInterval, TimeBase};
 use rerun::{RecordingStream, RecordingStreamBuilder};
 use std::path::Path;
 use std::thread::JoinHandle;
@@ -25,11 +29,13 @@ pub(crate) fn spawn_logging_thread(
         problem: "off: nothing to log to".into(),
     })?;
     let downscale = config.image_downscale as f32;
+    // Every process measures the offset itself: they agree to microseconds.
+    let clock = TimeBase::measure();
     std::thread::Builder::new()
         .name(format!("rerun-{stage}"))
         .spawn(move || {
             for item in rx {
-                log_item(&rec, &item, downscale);
+                log_item(&rec, &item, downscale, clock);
             }
             // Dropping the stream flushes it (and writes the .rrd footer).
             let _ = rec.flush_blocking();
@@ -50,11 +56,21 @@ impl Viewer {
 }
 
 /// Opens the launcher's stream of the configured sink and sends the blueprint (None: off).
-pub fn open_viewer(config: &RerunConfig, stage: &str) -> Result<Option<Viewer>, VizError> {
+pub fn open_viewer(
+    config: &RerunConfig,
+    stage: &str,
+    about: &RunDescription,
+) -> Result<Option<Viewer>, VizError> {
     let Some(stream) = open_stream(config, stage)? else {
         return Ok(None);
     };
     send_blueprint(&stream)?;
+    let sink_error = |e: rerun::RecordingStreamError| VizError::Sink {
+        sink: config.sink.name(),
+        message: e.to_string(),
+    };
+    send_styles(&stream).map_err(sink_error)?;
+    send_properties(&stream, about).map_err(sink_error)?;
     Ok(Some(Viewer { stream }))
 }
 
@@ -85,45 +101,63 @@ fn open_stream(config: &RerunConfig, stage: &str) -> Result<Option<RecordingStre
     Ok(Some(rec))
 }
 
-fn log_item(rec: &RecordingStream, item: &Item, downscale: f32) {
-    rec.set_time_sequence("frame", item.seq as i64);
-    rec.set_duration_secs("capture_time", item.captured_ns as f64 / 1e9);
+fn rgba(c: [u8; 4]) -> rerun::Color {
+    rerun::Color::from_unmultiplied_rgba(c[0], c[1], c[2], c[3])
+}
+
+fn log_item(rec: &RecordingStream, item: &Item, downscale: f32, clock: TimeBase) {
+    match item.frame {
+        Some(seq) => rec.set_time_sequence("frame", seq as i64),
+        None => rec.disable_timeline("frame"),
+    }
+    // Wall-clock time of the monotonic stamp: the viewer shows the time of day.
+    rec.set_timestamp_nanos_since_epoch("capture_time", clock.to_unix_ns(item.time_ns) as i64);
     // Full-resolution pixel -> pixel of the downscaled image (pixel centres at integers).
     let scale = |p: &[f32; 2]| [(p[0] + 0.5) / downscale - 0.5, (p[1] + 0.5) / downscale - 0.5];
     let result = match &item.kind {
         ItemKind::Image {
+            entity,
             pixels,
             width,
             height,
-        } => rec.log(
-            entities::IMAGE,
-            &rerun::Image::from_l8(pixels.clone(), [*width, *height]),
-        ),
+        } => rec.log(*entity, &rerun::Image::from_l8(pixels.clone(), [*width, *height])),
         ItemKind::Points {
             entity,
             points,
             labels,
             colour,
+            radius_ui,
+            crop,
         } => {
-            let pts: Vec<[f32; 2]> = points.iter().map(scale).collect();
-            rec.log(
-                *entity,
-                &rerun::Points2D::new(pts)
-                    .with_labels(labels.clone())
-                    .with_colors([rerun::Color::from_unmultiplied_rgba(
-                        colour[0], colour[1], colour[2], colour[3],
-                    )])
-                    .with_radii([2.0]),
-            )
+            let style = |pts: Vec<[f32; 2]>| {
+                rerun::Points2D::new(pts)
+                    .with_colors([rgba(*colour)])
+                    .with_radii([rerun::Radius::new_ui_points(*radius_ui)])
+            };
+            let mut r = rec.log(*entity, &style(points.iter().map(scale).collect()));
+            if let (Some(c), Some(path)) = (crop, entities::crop_entity(entity)) {
+                let pts = points.iter().map(|p| c.map(*p)).collect();
+                r = r.and(rec.log(path, &style(pts).with_labels(labels.clone())));
+            }
+            r
         }
         ItemKind::Strips {
             entity,
             strips,
             colour,
+            crop,
         } => {
-            let s: Vec<Vec<[f32; 2]>> = strips.iter().map(|st| st.iter().map(scale).collect()).collect();
-            let c = rerun::Color::from_unmultiplied_rgba(colour[0], colour[1], colour[2], colour[3]);
-            rec.log(*entity, &rerun::LineStrips2D::new(s).with_colors([c]))
+            let style = |s: Vec<Vec<[f32; 2]>>| rerun::LineStrips2D::new(s).with_colors([rgba(*colour)]);
+            let s = strips.iter().map(|st| st.iter().map(scale).collect()).collect();
+            let mut r = rec.log(*entity, &style(s));
+            if let (Some(c), Some(path)) = (crop, entities::crop_entity(entity)) {
+                let s = strips
+                    .iter()
+                    .map(|st| st.iter().map(|p| c.map(*p)).collect())
+                    .collect();
+                r = r.and(rec.log(path, &style(s)));
+            }
+            r
         }
         ItemKind::Scalars(values) => {
             let mut r = Ok(());
@@ -135,41 +169,158 @@ fn log_item(rec: &RecordingStream, item: &Item, downscale: f32) {
             r
         }
         ItemKind::Text(t) => rec.log(entities::DECISION_LOG, &rerun::TextLog::new(t.clone())),
+        ItemKind::State { entity, state } => rec.log(
+            *entity,
+            &rerun::StateChange::new().with_state_opt([state.clone()]),
+        ),
+        ItemKind::Document { entity, markdown } => rec.log(
+            *entity,
+            &rerun::TextDocument::new(markdown.clone()).with_media_type(rerun::MediaType::markdown()),
+        ),
     };
     // A failed log call (e.g. a viewer that went away) must not stop the thread.
     let _ = result;
 }
 
-/// The viewer layout: the image with its overlays beside the angle plots, the decision below.
+/// The series' names and colours, the decision lanes' labels and colours (static: they hold
+/// for the whole recording).
+fn send_styles(rec: &RecordingStream) -> rerun::RecordingStreamResult<()> {
+    let line = |name: &str, colour: [u8; 4], width: f32| {
+        rerun::SeriesLines::new()
+            .with_names([name])
+            .with_colors([rgba(colour)])
+            .with_widths([width])
+    };
+    for axis in entities::AXES {
+        rec.log_static(
+            entities::attitude_path(axis, entities::TRUTH_SERIES),
+            &line("truth", entities::TRUTH_COLOUR, 3.0),
+        )?;
+        for kind in EstimatorKind::ALL {
+            let (name, colour) = (kind.name(), entities::estimator_colour(kind));
+            rec.log_static(entities::attitude_path(axis, name), &line(name, colour, 1.5))?;
+            rec.log_static(
+                format!("{}/{name}", entities::error_axis_path(axis)),
+                &line(name, colour, 1.5),
+            )?;
+        }
+    }
+    for axis in &entities::AXES[..2] {
+        for series in entities::CAPACITY_SERIES {
+            rec.log_static(
+                entities::attitude_path(axis, series),
+                &line("capacity", entities::CAPACITY_COLOUR, 1.0),
+            )?;
+        }
+    }
+    let states: Vec<&str> = entities::STATE_COLOURS.iter().map(|(s, _)| s.name()).collect();
+    let colours: Vec<rerun::Color> = entities::STATE_COLOURS.iter().map(|(_, c)| rgba(*c)).collect();
+    rec.log_static(
+        entities::DECISION_STATE,
+        &rerun::StateConfiguration::new()
+            .with_values(states)
+            .with_colors(colours),
+    )?;
+    rec.log_static(
+        entities::CALM_WINDOW,
+        &rerun::StateConfiguration::new()
+            .with_values([entities::CALM_WINDOW_LABEL])
+            .with_colors([rgba([40, 200, 70, 160])]),
+    )?;
+    Ok(())
+}
+
+/// The recording's name and properties: what ran, on what, with which configuration.
+fn send_properties(rec: &RecordingStream, about: &RunDescription) -> rerun::RecordingStreamResult<()> {
+    use rerun::components::Text;
+    rec.send_recording_name(about.name.clone())?;
+    let mut values = rerun::AnyValues::default();
+    for (key, value) in &about.properties {
+        // An empty key cannot name a field; it is left out.
+        if let Ok(field) = rerun::ComponentIdentifier::try_new(key) {
+            values = values.with_component::<Text>(field, [value.clone()]);
+        }
+    }
+    rec.send_property("deckwatch", &values)?;
+    rec.send_property(
+        "configuration",
+        &rerun::TextDocument::new(format!("```toml\n{}\n```", about.configuration_toml))
+            .with_media_type(rerun::MediaType::markdown()),
+    )
+}
+
+/// The viewer layout. Left: the frame and its deck region with their overlays, the decision's
+/// lanes, the decision in words and its changes. Middle: the angles with the truth and the
+/// capacity. Right: the errors against the truth, and latency, drops, heave and the vehicle
+/// in tabs.
 pub fn send_blueprint(rec: &RecordingStream) -> Result<(), VizError> {
     use rerun::blueprint::{
-        Blueprint, BlueprintActivation, Horizontal, Spatial2DView, TextLogView, TimeSeriesView, Vertical,
+        components::PanelState, Blueprint, BlueprintActivation, BlueprintPanel, Horizontal, SelectionPanel,
+        Spatial2DView, StateTimelineView, Tabs, TextDocumentView, TextLogView, TimePanel, TimeSeriesView,
+        Vertical,
     };
-    let plots = Vertical::new([
-        TimeSeriesView::new("roll (deg)")
-            .with_origin(entities::attitude_axis_path(entities::AXES[0]))
+    let series = |name: &str, origin: String| TimeSeriesView::new(name).with_origin(origin).into();
+    let camera = Horizontal::new([
+        Spatial2DView::new("frame").with_origin(entities::IMAGE).into(),
+        Spatial2DView::new("deck (full resolution)")
+            .with_origin(entities::DECK_CROP)
             .into(),
-        TimeSeriesView::new("pitch (deg)")
-            .with_origin(entities::attitude_axis_path(entities::AXES[1]))
+    ])
+    .with_column_shares([1.3, 1.0]);
+    let words = Horizontal::new([
+        TextDocumentView::new("decision now")
+            .with_origin(entities::DECISION_NOW)
             .into(),
-        TimeSeriesView::new("yaw (deg)")
-            .with_origin(entities::attitude_axis_path(entities::AXES[2]))
-            .into(),
-        TimeSeriesView::new("heave (m, m/s)")
-            .with_origin(entities::HEAVE)
-            .into(),
-        TimeSeriesView::new("decision")
-            .with_origin(entities::DECISION)
+        TextLogView::new("decision changes")
+            .with_origin(entities::DECISION_LOG)
             .into(),
     ]);
     let left = Vertical::new([
-        Spatial2DView::new("camera").with_origin(entities::IMAGE).into(),
-        TextLogView::new("decisions")
-            .with_origin(entities::DECISION_LOG)
+        camera.into(),
+        StateTimelineView::new("decision")
+            .with_origin(entities::DECISION)
             .into(),
+        words.into(),
     ])
-    .with_row_shares([3.0, 1.0]);
-    let blueprint = Blueprint::new(Horizontal::new([left.into(), plots.into()]));
+    .with_row_shares([3.0, 1.6, 1.3]);
+    let angles = Vertical::new(
+        entities::AXES
+            .iter()
+            .map(|axis| series(&format!("{axis} (deg)"), entities::attitude_axis_path(axis))),
+    );
+    let errors = entities::AXES
+        .iter()
+        .map(|axis| series(&format!("{axis} error (deg)"), entities::error_axis_path(axis)));
+    let more = Tabs::new([
+        // Without the capture itself (the simulator's rendering, tens of ms), which would
+        // flatten the stages' fractions of a millisecond.
+        TimeSeriesView::new("latency after capture (ms)")
+            .with_origin(entities::LATENCY)
+            .with_contents([
+                "+ $origin/**".to_string(),
+                format!("- /{}", entities::latency_path(LatencyInterval::Capture)),
+            ])
+            .into(),
+        series("drops", entities::DROPS.into()),
+        series("heave (m, m/s)", entities::HEAVE.into()),
+        TimeSeriesView::new("vehicle (deg)")
+            .with_origin("/")
+            .with_contents(["vehicle/**", "link/**"])
+            .into(),
+    ]);
+    let right = Vertical::new(errors.chain(std::iter::once(more.into())));
+    let layout =
+        Horizontal::new([left.into(), angles.into(), right.into()]).with_column_shares([2.2, 1.0, 1.0]);
+    // The views get the whole window: the blueprint and selection panels start hidden, the
+    // time panel collapsed to its controls (each opens with a click).
+    let blueprint = Blueprint::new(layout)
+        .with_blueprint_panel(BlueprintPanel::new().with_state(PanelState::Hidden))
+        .with_selection_panel(SelectionPanel::new().with_state(PanelState::Hidden))
+        .with_time_panel(
+            TimePanel::new()
+                .with_timeline("capture_time")
+                .with_state(PanelState::Collapsed),
+        );
     blueprint
         .send(rec, BlueprintActivation::default())
         .map_err(|e| VizError::Sink {
@@ -244,7 +395,8 @@ fn merge_into(
     Ok((n, parts))
 }
 
-/// Rows logged per entity of the recording (blueprint stores excluded), read back from an
+/// Rows logged over time per entity of the recording (static data such as the series' styles
+/// and the properties, and blueprint stores excluded), read back from an
 /// `.rrd` file: what a test or a user checks a saved run with.
 pub fn rrd_entity_rows(path: &Path) -> Result<std::collections::BTreeMap<String, u64>, VizError> {
     use rerun::external::re_log_encoding as enc;
@@ -261,6 +413,9 @@ pub fn rrd_entity_rows(path: &Path) -> Result<std::collections::BTreeMap<String,
                 continue;
             }
             let chunk = Chunk::from_arrow_msg(arrow).map_err(|e| file_error(path, e))?;
+            if chunk.is_static() {
+                continue;
+            }
             *rows.entry(chunk.entity_path().to_string()).or_default() += chunk.num_rows() as u64;
         }
     }

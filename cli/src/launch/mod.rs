@@ -254,6 +254,21 @@ pub fn clean(domain: &str, rrd: Option<&Path>) -> Result<Cleaned, String> {
     Ok(out)
 }
 
+/// The recording's name in the viewer: what ran (the viewer shows when, from the recording's
+/// start time).
+fn run_name(config: &PipelineConfig) -> String {
+    use deckwatch_common::messages::FrameSource;
+    let what = match config.source.kind {
+        FrameSource::Simulator => format!("simulator, {}", config.sim.scenario.name()),
+        FrameSource::Replay => match &config.replay.recording {
+            Some(p) => format!("replay of {}", p.display()),
+            None => "replay".to_string(),
+        },
+        other => other.name().to_string(),
+    };
+    format!("deckwatch run: {what}")
+}
+
 /// Opens the launcher's own rerun stream (which carries the blueprint) and points the stages at
 /// the same recording.
 fn start_viewer(config: &mut PipelineConfig) -> Result<Option<deckwatch_viz::Viewer>, String> {
@@ -267,7 +282,13 @@ fn start_viewer(config: &mut PipelineConfig) -> Result<Option<deckwatch_viz::Vie
             .unwrap_or_default();
         r.recording_id = Some(format!("deckwatch-{}-{}", now.as_secs(), std::process::id()));
     }
-    let viewer = deckwatch_viz::open_viewer(r, LAUNCHER).map_err(|e| e.to_string())?;
+    let about = deckwatch_viz::RunDescription {
+        name: run_name(config),
+        properties: config.run_properties(),
+        configuration_toml: config.to_toml(),
+    };
+    let r = &mut config.rerun;
+    let viewer = deckwatch_viz::open_viewer(r, LAUNCHER, &about).map_err(|e| e.to_string())?;
     if r.sink == RerunSink::Spawn {
         // The viewer is up: the stages connect to it rather than spawning their own.
         r.sink = RerunSink::Connect;

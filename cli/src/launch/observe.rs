@@ -225,15 +225,24 @@ impl Observer {
         let fps = self.recent_count as f64 / period;
         let h = &self.recent;
         let decision = match &self.last {
-            Some(d) if d.attitude.valid.get() => {
-                let [r, p, y] = d.attitude.rpy.to_degrees();
-                format!(
-                    "{} {} | r {r:+.2} p {p:+.2} y {y:+.1} deg",
-                    d.state.get().name(),
-                    d.reason.get().name()
-                )
+            Some(d) => {
+                // The predicted calm window: when it starts (from now) and how long it lasts.
+                let window = if d.calm_window_start_s.is_finite() && d.calm_window_length_s.is_finite() {
+                    format!(
+                        " (calm in {:.1} s for {:.1} s)",
+                        d.calm_window_start_s, d.calm_window_length_s
+                    )
+                } else {
+                    String::new()
+                };
+                let state = format!("{} {}{window}", d.state.get().name(), d.reason.get().name());
+                if d.attitude.valid.get() {
+                    let [r, p, y] = d.attitude.rpy.to_degrees();
+                    format!("{state} | r {r:+.2} p {p:+.2} y {y:+.1} deg")
+                } else {
+                    state
+                }
             }
-            Some(d) => format!("{} {}", d.state.get().name(), d.reason.get().name()),
             None => "no decision yet".into(),
         };
         let line = format!(

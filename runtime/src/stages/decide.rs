@@ -10,7 +10,7 @@
 use crate::config::{ConfigError, PipelineConfig};
 use crate::stage::Stage;
 use deckwatch_common::messages::{
-    monotonic_ns, AttitudeMessage, DecisionReason, DecisionState, GapCounter, LandingDecision,
+    monotonic_ns, AttitudeMessage, DecisionReason, GapCounter, LandingDecision,
 };
 use deckwatch_common::vehicle::Compensation;
 use deckwatch_decide::{DecisionConfig, DeckObservation, LandingDecider};
@@ -24,7 +24,8 @@ pub struct DecideStage {
     last: Option<LandingDecision>,
     /// The newest input: its time on the frames' timeline (s) and when it arrived (ns).
     last_input: Option<(f64, u64)>,
-    last_logged: Option<(DecisionState, DecisionReason)>,
+    /// What the viewer was last shown (state changes, the calm window drawn ahead).
+    view: deckwatch_viz::entities::DecisionView,
     pub dropped: u64,
     pub processed: u64,
     pub watchdog_decisions: u64,
@@ -47,12 +48,14 @@ impl DecideStage {
         config: DecisionConfig,
         joined_late: bool,
     ) -> Result<Self, deckwatch_decide::DecisionConfigError> {
+        let view =
+            deckwatch_viz::entities::DecisionView::new(config.max_abs_roll_deg, config.max_abs_pitch_deg);
         Ok(Self {
             decider: LandingDecider::new(config)?,
             gaps: GapCounter::new(joined_late),
             last: None,
             last_input: None,
-            last_logged: None,
+            view,
             dropped: 0,
             processed: 0,
             watchdog_decisions: 0,
@@ -147,11 +150,8 @@ impl Stage for DecideStage {
         self.watchdog(now_ns)
     }
 
-    /// The plot gets every decision; the text log only the changes.
     fn viewer_items(&mut self, d: &LandingDecision) -> Vec<Item> {
-        let changed = self.last_logged != Some((d.state.get(), d.reason.get()));
-        self.last_logged = Some((d.state.get(), d.reason.get()));
-        deckwatch_viz::entities::decision_items(d, changed)
+        self.view.items(d)
     }
 
     fn summary(&self) -> String {
@@ -165,6 +165,7 @@ impl Stage for DecideStage {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use deckwatch_common::messages::DecisionState;
     use deckwatch_common::messages::VehicleAttitude;
     use deckwatch_common::Rpy;
 

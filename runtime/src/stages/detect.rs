@@ -8,12 +8,17 @@ use deckwatch_common::markers::{DetectionStatus, MarkerSet};
 use deckwatch_common::messages::{monotonic_ns, FrameHeader, GapCounter, MarkerMessage, PixelFormat};
 use deckwatch_common::GrayView;
 use deckwatch_detect::{Detector, DetectorConfig};
-use deckwatch_viz::Item;
+use deckwatch_viz::entities::{crop_image_item, DeckCrop};
+use deckwatch_viz::{Item, RerunConfig};
 
 /// State of the detect stage across frames.
 #[derive(Default)]
 pub struct DetectStage {
     detector: Option<Detector>,
+    /// The viewer's configuration: which frames' deck crop is logged (None: nothing is).
+    viewer: Option<RerunConfig>,
+    /// The newest frame's deck crop and its image, for the viewer.
+    crop: Option<(DeckCrop, Option<Item>)>,
     gaps: GapCounter,
     /// Frames this stage never processed (cumulative).
     pub dropped: u64,
@@ -28,13 +33,27 @@ impl Stage for DetectStage {
     type Input = Frames;
     type Output = MarkerMessage;
 
-    fn from_config(_config: &PipelineConfig, joined_late: bool) -> Result<Self, ConfigError> {
-        Ok(Self::new(joined_late))
+    fn from_config(config: &PipelineConfig, joined_late: bool) -> Result<Self, ConfigError> {
+        let mut stage = Self::new(joined_late);
+        stage.viewer = Some(config.rerun.clone()).filter(|r| r.logs_image(0));
+        Ok(stage)
     }
 
     fn step(&mut self, frame: Frame<'_>, received_ns: u64) -> MarkerMessage {
         let (message, problem) = self.process(frame.header, frame.pixels, received_ns);
         self.warning = problem.map(|p| format!("bad {p}"));
+        // The deck region of the frames whose image is logged, cut while the pixels are here.
+        let seq = message.stamp.seq;
+        self.crop = self
+            .viewer
+            .as_ref()
+            .filter(|v| v.logs_image(seq) && problem_free(&message))
+            .and_then(|_| DeckCrop::of(&message.markers, frame.header.width, frame.header.height))
+            .map(|crop| {
+                let t = message.stamp.times.captured_ns;
+                let stride = frame.header.stride as usize;
+                (crop, crop_image_item(seq, t, crop, frame.pixels, stride))
+            });
         message
     }
 
@@ -43,7 +62,13 @@ impl Stage for DetectStage {
     }
 
     fn viewer_items(&mut self, m: &MarkerMessage) -> Vec<Item> {
-        deckwatch_viz::entities::marker_items(m)
+        let (crop, image) = match self.crop.take() {
+            Some((crop, image)) => (Some(crop), image),
+            None => (None, None),
+        };
+        let mut items: Vec<Item> = image.into_iter().collect();
+        items.extend(deckwatch_viz::entities::marker_items(m, crop));
+        items
     }
 
     fn summary(&self) -> String {
@@ -52,6 +77,11 @@ impl Stage for DetectStage {
             self.processed, self.dropped, self.bad_frames
         )
     }
+}
+
+/// A marker set worth cropping around (a bad frame's markers are not).
+fn problem_free(m: &MarkerMessage) -> bool {
+    m.markers.status.get() != DetectionStatus::BadFrame
 }
 
 impl DetectStage {

@@ -99,6 +99,10 @@ pub struct EstimateStage {
     pub dropped: u64,
     pub processed: u64,
     pub estimated: u64,
+    /// The viewer's configuration: which frames' deck crop is drawn on (None: none).
+    viewer: Option<deckwatch_viz::RerunConfig>,
+    /// The newest input's deck crop (the same as detect's: a function of the markers).
+    crop: Option<deckwatch_viz::entities::DeckCrop>,
 }
 
 impl EstimateStage {
@@ -116,6 +120,8 @@ impl EstimateStage {
             dropped: 0,
             processed: 0,
             estimated: 0,
+            viewer: None,
+            crop: None,
         }
     }
 
@@ -312,7 +318,9 @@ impl Stage for EstimateStage {
     type Output = AttitudeMessage;
 
     fn from_config(config: &PipelineConfig, joined_late: bool) -> Result<Self, ConfigError> {
-        Ok(Self::new(&config.estimate, &config.vehicle, joined_late))
+        let mut stage = Self::new(&config.estimate, &config.vehicle, joined_late);
+        stage.viewer = Some(config.rerun.clone()).filter(|r| r.logs_image(0));
+        Ok(stage)
     }
 
     fn wants_vehicle(&self) -> bool {
@@ -324,11 +332,19 @@ impl Stage for EstimateStage {
     }
 
     fn step(&mut self, m: &MarkerMessage, received_ns: u64) -> AttitudeMessage {
+        self.crop = self
+            .viewer
+            .as_ref()
+            .filter(|v| v.logs_image(m.stamp.seq))
+            .and_then(|_| {
+                let camera = &m.context.camera;
+                deckwatch_viz::entities::DeckCrop::of(&m.markers, camera.width, camera.height)
+            });
         self.process(m, received_ns)
     }
 
     fn viewer_items(&mut self, a: &AttitudeMessage) -> Vec<Item> {
-        deckwatch_viz::entities::attitude_items(a)
+        deckwatch_viz::entities::attitude_items(a, self.crop.take())
     }
 
     fn summary(&self) -> String {

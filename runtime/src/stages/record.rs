@@ -305,22 +305,11 @@ fn recording_metadata(
     time_base: TimeBase,
 ) -> BTreeMap<String, BTreeMap<String, String>> {
     let mut out = BTreeMap::new();
-    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
-    out.insert(
-        "deckwatch".to_string(),
-        BTreeMap::from([
-            ("version".to_string(), deckwatch_flight::VERSION.to_string()),
-            ("source".to_string(), config.source.kind.name().to_string()),
-            (
-                "estimator".to_string(),
-                format!("{:?}", config.estimate.estimator),
-            ),
-            ("domain".to_string(), config.bus.domain.clone()),
-            ("configuration".to_string(), args.config_name()),
-            ("host".to_string(), host.trim().to_string()),
-            ("restarted".to_string(), args.restarted.to_string()),
-        ]),
-    );
+    let mut run: BTreeMap<String, String> = config.run_properties().into_iter().collect();
+    run.insert("version".to_string(), deckwatch_flight::VERSION.to_string());
+    run.insert("configuration".to_string(), args.config_name());
+    run.insert("restarted".to_string(), args.restarted.to_string());
+    out.insert("deckwatch".to_string(), run);
     out.insert(
         "deckwatch.clock".to_string(),
         BTreeMap::from([

@@ -195,8 +195,10 @@ mod tests {
         a.valid = false.into();
         a.stamp.seq = 2;
         assert_eq!(s.process(&a, 1_210_000_000).state, DecisionState::NoDeck);
-        // No capture time: never fresh.
+        // No capture time: never fresh. (Another attitude: a third repeat of the same one would
+        // be a frozen input, whatever its time.)
         a.valid = true.into();
+        a.rpy = Rpy::from_degrees(1.1, 1.0, 0.0);
         a.stamp.seq = 3;
         a.stamp.times.captured_ns = 0;
         assert_eq!(s.process(&a, 1_220_000_000).reason, DecisionReason::StaleData);

@@ -306,7 +306,6 @@ fn recording_metadata(
 ) -> BTreeMap<String, BTreeMap<String, String>> {
     let mut out = BTreeMap::new();
     let mut run: BTreeMap<String, String> = config.run_properties().into_iter().collect();
-    run.insert("version".to_string(), deckwatch_flight::VERSION.to_string());
     run.insert("configuration".to_string(), args.config_name());
     run.insert("restarted".to_string(), args.restarted.to_string());
     out.insert("deckwatch".to_string(), run);

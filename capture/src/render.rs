@@ -172,6 +172,59 @@ struct Patch {
     cov: Vec<f32>,
 }
 
+/// The scene over one frame's exposure, as the renderer samples it.
+#[derive(Clone, Copy)]
+pub enum Exposure<'a> {
+    /// A global shutter: every row sees the same poses, at evenly spaced instants of the
+    /// exposure window (one pose: no motion blur).
+    Global(&'a [SceneGeometry]),
+    /// A rolling shutter (`CameraModel::readout_s`): row `v` is exposed around its own instant
+    /// `CameraModel::row_time_s(v)`; `scene_at(dt_s)` gives the scene `dt_s` after the frame's
+    /// instant. The exposure window (`exposure_s`) is sampled at `steps` instants (1: no blur).
+    Rolling {
+        scene_at: &'a dyn Fn(f64) -> SceneGeometry,
+        exposure_s: f64,
+        steps: usize,
+    },
+}
+
+impl Exposure<'_> {
+    fn steps(&self) -> usize {
+        match self {
+            Self::Global(poses) => poses.len(),
+            Self::Rolling { steps, .. } => *steps,
+        }
+    }
+
+    fn is_rolling(&self) -> bool {
+        matches!(self, Self::Rolling { .. })
+    }
+
+    /// The scene of sub-exposure `sub` as row `row` sees it.
+    fn scene(&self, camera: &CameraModel, row: f64, sub: usize) -> SceneGeometry {
+        match self {
+            Self::Global(poses) => poses[sub],
+            Self::Rolling {
+                scene_at,
+                exposure_s,
+                steps,
+            } => {
+                let dt = if *steps <= 1 {
+                    0.0
+                } else {
+                    exposure_s * (sub as f64 / (*steps - 1) as f64 - 0.5)
+                };
+                scene_at(camera.row_time_s(row) + dt)
+            }
+        }
+    }
+
+    /// The scene of the middle sub-exposure as row `row` sees it (the background's).
+    fn mid(&self, camera: &CameraModel, row: f64) -> SceneGeometry {
+        self.scene(camera, row, self.steps() / 2)
+    }
+}
+
 /// Renders frames for one camera, deck and set of options.
 pub struct Renderer {
     camera: CameraModel,
@@ -259,6 +312,16 @@ impl Renderer {
         noise_seed: u64,
         out: &mut GrayViewMut<'_>,
     ) -> Result<(), RenderError> {
+        self.render_exposure(Exposure::Global(exposure), noise_seed, out)
+    }
+
+    /// Renders one frame of any shutter into `out` (see [`Exposure`]).
+    pub fn render_exposure(
+        &mut self,
+        exposure: Exposure<'_>,
+        noise_seed: u64,
+        out: &mut GrayViewMut<'_>,
+    ) -> Result<(), RenderError> {
         let (w, h) = (self.camera.width as usize, self.camera.height as usize);
         if (out.width(), out.height()) != (w, h) {
             return Err(RenderError::SizeMismatch {
@@ -269,16 +332,29 @@ impl Renderer {
         let finite = |s: &SceneGeometry| {
             s.attitude.iter().all(|v| v.is_finite()) && s.viewpoint.position().iter().all(|v| v.is_finite())
         };
-        if exposure.is_empty() || !exposure.iter().all(finite) {
+        let steps = exposure.steps();
+        let checked: &[f64] = if exposure.is_rolling() {
+            &[0.0, 0.5, 1.0]
+        } else {
+            &[]
+        };
+        let rows_finite = checked
+            .iter()
+            .all(|f| (0..steps).all(|k| finite(&exposure.scene(&self.camera, f * (h as f64 - 1.0), k))));
+        let all_finite = match exposure {
+            Exposure::Global(poses) => poses.iter().all(finite),
+            Exposure::Rolling { .. } => rows_finite,
+        };
+        if steps == 0 || !all_finite {
             return Err(RenderError::InvalidScene);
         }
-        let mid = exposure[exposure.len() / 2];
+        let mid = exposure.mid(&self.camera, self.camera.cy);
         let Some(h_mid) = pixel_to_deck(&self.camera, &mid) else {
             return Err(RenderError::InvalidScene);
         };
-        self.draw_patches(exposure);
+        self.draw_patches(&exposure);
         self.blur_patches();
-        self.composite(&h_mid, &mid, noise_seed, out);
+        self.composite(&h_mid, &mid, &exposure, noise_seed, out);
         self.draw_glints(noise_seed, out);
         Ok(())
     }
@@ -313,11 +389,12 @@ impl Renderer {
     }
 
     /// Disc coverage of every marker in its patch, averaged over the sub-exposures.
-    fn draw_patches(&mut self, exposure: &[SceneGeometry]) {
+    fn draw_patches(&mut self, exposure: &Exposure<'_>) {
         let camera = self.camera;
         let (w, h) = (camera.width as i64, camera.height as i64);
         let pad = (self.blur_kernel.len() / 2) as i64 + 2;
-        let n_sub = exposure.len() as f32;
+        let steps = exposure.steps();
+        let n_sub = steps as f32;
         let n = self.options.supersample as usize;
         let inv_n = 1.0 / n as f64;
         for m in 0..self.deck.marker_count() {
@@ -329,21 +406,32 @@ impl Renderer {
             let centre = self.deck.marker_position(m);
             let (mx, my) = (centre.x, centre.y);
             let rho = self.deck.disc_radius(m);
-            // Bounding box of the disc's image over the exposure.
+            // Bounding box of the disc's image over the exposure. A rolling shutter's rows see
+            // other instants: the box is grown with the scenes of the rows it spans until it
+            // covers them (twice is plenty: a disc moves a few pixels during the readout).
             let (mut u0, mut v0, mut u1, mut v1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
             let mut behind = false;
-            for s in exposure {
-                for k in 0..48 {
-                    let a = std::f64::consts::TAU * k as f64 / 48.0;
-                    let p = centre + Vector3::new(rho * a.cos(), rho * a.sin(), 0.0);
-                    match s.project_deck_point(&camera, &p) {
-                        Some([u, v]) => {
-                            u0 = u0.min(u);
-                            v0 = v0.min(v);
-                            u1 = u1.max(u);
-                            v1 = v1.max(v);
+            let passes = if exposure.is_rolling() { 5 } else { 1 };
+            for pass in 0..passes {
+                let row = match pass {
+                    0 => camera.cy,
+                    _ if v0 > v1 => break,
+                    p => v0 + (v1 - v0) * (p - 1) as f64 / 3.0,
+                };
+                for k in 0..steps {
+                    let s = exposure.scene(&camera, row, k);
+                    for k in 0..48 {
+                        let a = std::f64::consts::TAU * k as f64 / 48.0;
+                        let p = centre + Vector3::new(rho * a.cos(), rho * a.sin(), 0.0);
+                        match s.project_deck_point(&camera, &p) {
+                            Some([u, v]) => {
+                                u0 = u0.min(u);
+                                v0 = v0.min(v);
+                                u1 = u1.max(u);
+                                v1 = v1.max(v);
+                            }
+                            None => behind = true,
                         }
-                        None => behind = true,
                     }
                 }
             }
@@ -367,13 +455,16 @@ impl Renderer {
             patch.h = ph;
             patch.cov.clear();
             patch.cov.resize(pw * ph, 0.0);
-            for s in exposure {
-                let Some(hm) = ray_to_deck(s) else { continue };
+            for sub in 0..steps {
+                let (uc, vc) = ((x0 + x1) as f64 / 2.0, (y0 + y1) as f64 / 2.0);
+                let Some(hm_centre) = ray_to_deck(&exposure.scene(&camera, vc, sub)) else {
+                    continue;
+                };
                 // The pixel's footprint on the deck (half its diagonal extent), from the map's
                 // derivatives at the patch centre, with 10 % margin for the change of scale
                 // across the patch.
                 let foot = {
-                    let (uc, vc) = ((x0 + x1) as f64 / 2.0, (y0 + y1) as f64 / 2.0);
+                    let hm = hm_centre;
                     match pixel_ray(&camera, uc, vc) {
                         Some((ray, du, dv)) => {
                             let b = hm * ray;
@@ -392,6 +483,15 @@ impl Renderer {
                 let outer2 = (rho + foot).powi(2);
                 let rho2 = rho * rho;
                 for py in 0..ph {
+                    // A rolling shutter's row sees its own instant.
+                    let hm = if exposure.is_rolling() {
+                        match ray_to_deck(&exposure.scene(&camera, (y0 as usize + py) as f64, sub)) {
+                            Some(hm) => hm,
+                            None => continue,
+                        }
+                    } else {
+                        hm_centre
+                    };
                     for px in 0..pw {
                         let (u, v) = ((x0 as usize + px) as f64, (y0 as usize + py) as f64);
                         // Ray of the pixel centre and its change per pixel (exact without
@@ -454,6 +554,7 @@ impl Renderer {
         &mut self,
         h_px: &Matrix3<f64>,
         scene: &SceneGeometry,
+        exposure: &Exposure<'_>,
         noise_seed: u64,
         out: &mut GrayViewMut<'_>,
     ) {
@@ -491,6 +592,16 @@ impl Renderer {
         let mut rng = SplitMix64::new(noise_seed);
         let gmask = (1u64 << GAUSS_BITS) - 1;
         for y in 0..h {
+            // A rolling shutter's row sees the scene of its own instant.
+            let row_maps = exposure.is_rolling().then(|| {
+                let s = exposure.mid(&self.camera, y as f64);
+                (pixel_to_deck(&self.camera, &s), ray_to_deck(&s))
+            });
+            let (h_px, ray_h) = match &row_maps {
+                Some((Some(hp), rh)) => (hp, rh),
+                Some((None, _)) => (h_px, &None),
+                None => (h_px, &ray_h),
+            };
             // Background albedo along the row: exact at every `chunk`-th pixel, linear in
             // between. The chunk spans at most two texels (a slight smoothing of the finest
             // texture octave), and the perspective map's curvature over it is far
@@ -498,7 +609,7 @@ impl Renderer {
             let base = h_px * Vector3::new(0.0, y as f64, 1.0);
             let step = h_px.column(0).into_owned();
             let albedo_at = |x: usize| -> f32 {
-                let p = match (&self.undistort_grid, &ray_h) {
+                let p = match (&self.undistort_grid, ray_h) {
                     (None, _) => base + step * x as f64,
                     (Some(grid), Some(rh)) => rh * grid.ray(x, y),
                     (Some(_), None) => return sea_dn,
@@ -945,6 +1056,74 @@ mod tests {
         let n = s.attitude * Vector3::z();
         let expect = std::f64::consts::PI * 0.05 * 0.05 * cam.fx * cam.fy / (p.z * p.z) * n.z;
         assert!((sum - expect).abs() < 0.02 * expect + 1.0, "{sum} vs {expect}");
+    }
+
+    #[test]
+    fn a_rolling_shutter_draws_each_row_at_its_own_instant() {
+        let deck = DeckLayout::paper();
+        let opts = RenderOptions::realistic();
+        let still = scene(Rpy::from_degrees(8.0, -3.0, 20.0), Viewpoint::centred(5.0));
+        // A still scene: the rolling shutter changes nothing, pixel for pixel.
+        let rolling_cam = CameraModel {
+            readout_s: 0.025,
+            ..small_camera()
+        };
+        let mut global = Renderer::new(small_camera(), deck, opts.clone(), 3).unwrap();
+        let mut rolling = Renderer::new(rolling_cam, deck, opts, 3).unwrap();
+        let (mut a, mut b) = (GrayImage::new(640, 480), GrayImage::new(640, 480));
+        global
+            .render(&[still, still, still], 9, &mut a.view_mut())
+            .unwrap();
+        let at = |_: f64| still;
+        let exposure = Exposure::Rolling {
+            scene_at: &at,
+            exposure_s: 0.004,
+            steps: 3,
+        };
+        rolling.render_exposure(exposure, 9, &mut b.view_mut()).unwrap();
+        assert_eq!(a, b);
+        // The camera rolling at 60 deg/s: a marker's disc lies where its row's instant puts it
+        // (its centroid within 0.05 px of that), not where the frame's instant would.
+        let clean = RenderOptions {
+            texture: 0.0,
+            ..RenderOptions::default()
+        };
+        let mut rolling = Renderer::new(rolling_cam, deck, clean, 3).unwrap();
+        let turning = |dt: f64| SceneGeometry {
+            viewpoint: Viewpoint::centred(5.0)
+                .with_vehicle_attitude(Rpy::new(60f64.to_radians() * dt, 0.0, 0.0).to_matrix()),
+            ..still
+        };
+        let exposure = Exposure::Rolling {
+            scene_at: &turning,
+            exposure_s: 0.0,
+            steps: 1,
+        };
+        rolling.render_exposure(exposure, 0, &mut b.view_mut()).unwrap();
+        // The bow's row and the stern's (marker 5) are read 5 ms apart.
+        for m in [1, 5] {
+            let p = deck.marker_position(m);
+            let frame_instant = turning(0.0).project_deck_point(&rolling_cam, &p).unwrap();
+            let mut uv = frame_instant;
+            for _ in 0..5 {
+                uv = turning(rolling_cam.row_time_s(uv[1]))
+                    .project_deck_point(&rolling_cam, &p)
+                    .unwrap();
+            }
+            let (mut sum, mut su, mut sv) = (0.0, 0.0, 0.0);
+            for y in (uv[1] as usize - 10)..(uv[1] as usize + 11) {
+                for x in (uv[0] as usize - 10)..(uv[0] as usize + 11) {
+                    let w = (b.view().get(x, y) as f64 - 70.0).max(0.0);
+                    (sum, su, sv) = (sum + w, su + w * x as f64, sv + w * y as f64);
+                }
+            }
+            let centroid = [su / sum, sv / sum];
+            assert!(dist(centroid, uv) < 0.05, "marker {m}: {centroid:?} vs {uv:?}");
+            assert!(
+                dist(frame_instant, uv) > 0.5,
+                "marker {m} moved: {frame_instant:?} {uv:?}"
+            );
+        }
     }
 
     #[test]

@@ -2,9 +2,10 @@
 //! renderer straight into the caller's buffer, with the frame's ground truth.
 
 use crate::motion::{MotionProfile, MotionSample};
-use crate::render::{RenderError, RenderOptions, Renderer};
+use crate::render::{Exposure, RenderError, RenderOptions, Renderer};
 use crate::scenario::Simulation;
 use deckwatch_common::image::GrayViewMut;
+use deckwatch_common::messages::VehicleAttitude;
 use deckwatch_common::{CameraModel, DeckLayout, Distortion, GroundTruth, SceneGeometry};
 
 /// One rendered frame's truth.
@@ -16,8 +17,25 @@ pub struct FrameTruth {
     pub sample: MotionSample,
     /// Whether any marker centre lies on the sensor.
     pub deck_in_view: bool,
-    /// Exact pixels of the marker centres (None when off the sensor).
+    /// Exact pixels of the marker centres (None when off the sensor); with a rolling shutter,
+    /// where each appears: at the instant of its own row.
     pub markers: Vec<Option<[f64; 2]>>,
+    /// The vehicle's angular velocity in W at the frame's instant (deg/s).
+    pub vehicle_rate_dps: [f64; 3],
+    /// Its change (deg/s^2).
+    pub vehicle_acceleration_dps2: [f64; 3],
+}
+
+impl FrameTruth {
+    /// The vehicle's attitude as the frame carries it: its own (none for a level camera), with
+    /// its height, rate and acceleration.
+    pub fn vehicle(&self) -> VehicleAttitude {
+        let truth = self.ground_truth();
+        VehicleAttitude::from_rpy(truth.vehicle_attitude())
+            .with_height(truth.vehicle_height_m.unwrap_or(f64::NAN))
+            .with_rate_dps(self.vehicle_rate_dps)
+            .with_acceleration_dps2(self.vehicle_acceleration_dps2)
+    }
 }
 
 impl FrameTruth {
@@ -40,6 +58,9 @@ impl FrameTruth {
             vehicle_yaw_deg: Some(vehicle[2]),
             vehicle_height_m: Some(self.sample.vehicle_height_m()),
             deck_heave_m: Some(self.sample.deck_heave_m),
+            vehicle_rate_x_dps: Some(self.vehicle_rate_dps[0]),
+            vehicle_rate_y_dps: Some(self.vehicle_rate_dps[1]),
+            vehicle_rate_z_dps: Some(self.vehicle_rate_dps[2]),
         }
     }
 }
@@ -71,6 +92,14 @@ impl FrameSimulator {
         if !(exposure_s.is_finite() && exposure_s >= 0.0 && exposure_s <= 1.0 / rate_hz) {
             return Err(format!("exposure must be within [0, 1/rate] s, got {exposure_s}"));
         }
+        let readout_s = renderer.camera().readout_s;
+        if readout_s > 1.0 / rate_hz {
+            return Err(format!(
+                "the rolling shutter's readout ({} ms) must fit in a frame time ({} ms)",
+                readout_s * 1e3,
+                1e3 / rate_hz
+            ));
+        }
         let steps = if exposure_s > 0.0 {
             exposure_steps.clamp(2, 64)
         } else {
@@ -94,38 +123,95 @@ impl FrameSimulator {
         self.renderer.deck()
     }
 
-    /// Renders frame `index` (at t = index / rate) into `out` and returns its truth.
+    /// The scene `t_s` seconds into the run.
+    fn scene_at(&self, t_s: f64) -> SceneGeometry {
+        scene_of(self.profile.as_ref(), t_s)
+    }
+
+    /// Renders frame `index` (at t = index / rate: the middle row's mid-exposure) into `out` and
+    /// returns its truth.
     pub fn render_frame(&mut self, index: u64, out: &mut GrayViewMut<'_>) -> Result<FrameTruth, RenderError> {
         let t = index as f64 / self.rate_hz;
-        self.poses.clear();
-        for k in 0..self.exposure_steps {
-            let dt = if self.exposure_steps == 1 {
-                0.0
-            } else {
-                self.exposure_s * (k as f64 / (self.exposure_steps - 1) as f64 - 0.5)
-            };
-            let s = self.profile.sample(t + dt);
-            self.poses.push(SceneGeometry {
-                attitude: s.attitude.to_matrix(),
-                viewpoint: s.viewpoint,
-            });
-        }
         // Noise differs per frame and per seed, and is reproducible frame by frame.
         let noise_seed = self.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ index;
-        self.renderer.render(&self.poses, noise_seed, out)?;
+        let camera = *self.renderer.camera();
+        if camera.readout_s > 0.0 {
+            // The renderer is borrowed mutably beside the profile.
+            let (profile, renderer) = (&self.profile, &mut self.renderer);
+            let scene_at = |dt: f64| scene_of(profile.as_ref(), t + dt);
+            renderer.render_exposure(
+                Exposure::Rolling {
+                    scene_at: &scene_at,
+                    exposure_s: self.exposure_s,
+                    steps: self.exposure_steps,
+                },
+                noise_seed,
+                out,
+            )?;
+        } else {
+            self.poses.clear();
+            for k in 0..self.exposure_steps {
+                let dt = if self.exposure_steps == 1 {
+                    0.0
+                } else {
+                    self.exposure_s * (k as f64 / (self.exposure_steps - 1) as f64 - 0.5)
+                };
+                let scene = self.scene_at(t + dt);
+                self.poses.push(scene);
+            }
+            self.renderer.render(&self.poses, noise_seed, out)?;
+        }
         let sample = self.profile.sample(t);
-        let scene = SceneGeometry {
-            attitude: sample.attitude.to_matrix(),
-            viewpoint: sample.viewpoint,
+        let deck = *self.renderer.deck();
+        // Each marker where it appears: at its own row's instant (a fixed point: the row moves
+        // by far less than a pixel per iteration).
+        let markers: Vec<Option<[f64; 2]>> = (0..deck.marker_count())
+            .map(|m| {
+                let p = deck.marker_position(m);
+                let mut uv = self.scene_at(t).project_deck_point(&camera, &p)?;
+                if camera.readout_s > 0.0 {
+                    for _ in 0..4 {
+                        uv = self
+                            .scene_at(t + camera.row_time_s(uv[1]))
+                            .project_deck_point(&camera, &p)?;
+                    }
+                }
+                camera.contains(uv).then_some(uv)
+            })
+            .collect();
+        // The vehicle's rate and its change, by central differences over +-1 ms.
+        let rate_at = |t: f64| {
+            let dt = 1e-3;
+            let (a, b) = (
+                self.profile.sample(t - dt).viewpoint.vehicle_attitude,
+                self.profile.sample(t + dt).viewpoint.vehicle_attitude,
+            );
+            deckwatch_common::rotation::angular_velocity(&a, &b, 2.0 * dt)
         };
-        let markers = scene.project_markers(self.renderer.camera(), self.renderer.deck());
+        let w = rate_at(t);
+        let a = (rate_at(t + 1e-3) - rate_at(t - 1e-3)) / 2e-3;
+        let (vehicle_rate_dps, vehicle_acceleration_dps2) = (
+            [w.x, w.y, w.z].map(f64::to_degrees),
+            [a.x, a.y, a.z].map(f64::to_degrees),
+        );
         Ok(FrameTruth {
             index,
             timestamp_ns: (t * 1e9).round() as u64,
             sample,
             deck_in_view: markers.iter().any(Option::is_some),
             markers,
+            vehicle_rate_dps,
+            vehicle_acceleration_dps2,
         })
+    }
+}
+
+/// A motion profile's scene at `t_s`.
+fn scene_of(profile: &(dyn MotionProfile + Send + Sync), t_s: f64) -> SceneGeometry {
+    let s = profile.sample(t_s);
+    SceneGeometry {
+        attitude: s.attitude.to_matrix(),
+        viewpoint: s.viewpoint,
     }
 }
 
@@ -179,6 +265,10 @@ pub struct ImageArgs {
     /// Lens distortion k1,k2,p1,p2,k3 (OpenCV order).
     #[cfg_attr(feature = "cli", arg(long, value_delimiter = ',', num_args = 5))]
     pub distortion: Option<Vec<f64>>,
+    /// Rolling shutter: the time to read the rows out, top to bottom (ms; 0 = a global
+    /// shutter). The Pi cameras take about 20-30 ms at full resolution.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 0.0))]
+    pub readout_ms: f64,
 }
 
 /// The starting point of a rendered image's look (`--look`, `[image] look`).
@@ -219,6 +309,7 @@ impl Default for ImageArgs {
             occlude: None,
             glints: None,
             distortion: None,
+            readout_ms: 0.0,
         }
     }
 }
@@ -244,6 +335,7 @@ impl ImageArgs {
                 .map_err(|_| "--distortion: give k1,k2,p1,p2,k3")?;
             camera.distortion = Distortion::from_array(a);
         }
+        camera.readout_s = self.readout_ms / 1e3;
         camera.validate().map_err(|e| format!("camera: {e}"))?;
         let mut o = match self.look {
             Look::Clean => RenderOptions::default(),

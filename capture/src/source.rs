@@ -523,6 +523,8 @@ impl CaptureSource {
     fn capture_frame(&mut self, k: u64, out: &mut [u8], stride: usize) -> Result<CapturedFrame, String> {
         let (w, h) = (self.camera.width as usize, self.camera.height as usize);
         let altimeter = self.altimeter;
+        #[cfg(feature = "libcamera")]
+        let readout_s = self.camera.readout_s;
         match &mut self.inner {
             Inner::Sim { sim, .. } => {
                 let mut view = GrayViewMut::new(out, w, h, stride).map_err(|e| e.to_string())?;
@@ -532,8 +534,7 @@ impl CaptureSource {
                     source_index: k,
                     source_timestamp_ns: t.timestamp_ns,
                     altitude_m: if altimeter { truth.alt_m } else { None },
-                    vehicle: VehicleAttitude::from_rpy(truth.vehicle_attitude())
-                        .with_height(truth.vehicle_height_m.unwrap_or(f64::NAN)),
+                    vehicle: t.vehicle(),
                     truth,
                     truth_known: true,
                     captured_ns: None,
@@ -575,7 +576,8 @@ impl CaptureSource {
                     vehicle: {
                         let v = match vehicle {
                             Some(track) => track.vehicle_attitude_at(f.timestamp_ns, *max_gap_ns),
-                            None => VehicleAttitude::from_rpy(f.truth.vehicle_attitude()),
+                            None => VehicleAttitude::from_rpy(f.truth.vehicle_attitude())
+                                .with_rate_dps(f.truth.vehicle_rate_dps().unwrap_or([f64::NAN; 3])),
                         };
                         // The stream's height first, else the frame's column.
                         match f.truth.vehicle_height_m {
@@ -591,14 +593,21 @@ impl CaptureSource {
             Inner::Camera { camera, .. } => {
                 let _ = altimeter;
                 let f = camera.take(out, stride)?;
+                // The sensor's start of frame -> the frame's instant (the vehicle's attitude
+                // is taken there); a completion time is left as it is.
+                let instant_ns = if f.sensor_timestamp {
+                    crate::camera::frame_instant_ns(f.timestamp_ns, f.exposure_us, readout_s)
+                } else {
+                    f.timestamp_ns
+                };
                 Ok(CapturedFrame {
                     source_index: f.sequence.map_or(camera.delivered() - 1, u64::from),
-                    source_timestamp_ns: f.timestamp_ns,
+                    source_timestamp_ns: instant_ns,
                     truth: GroundTruth::default(),
                     truth_known: false,
                     altitude_m: None,
                     vehicle: VehicleAttitude::LEVEL,
-                    captured_ns: Some(f.timestamp_ns),
+                    captured_ns: Some(instant_ns),
                     dropped_before: f.dropped_before,
                 })
             }

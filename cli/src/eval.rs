@@ -30,6 +30,24 @@ pub struct EvalArgs {
 
 const ESTIMATORS: [EstimatorKind; 2] = [EstimatorKind::FullPose, EstimatorKind::PaperAtan2];
 
+/// One row of the table per recording: an estimator and whether it corrects for a rolling
+/// shutter. A rolling-shutter recording gets the full pose twice, with and without.
+fn rows(rolling_shutter: bool) -> Vec<(String, EstimateConfig)> {
+    let config = |estimator, rolling_shutter| EstimateConfig {
+        estimator,
+        compare: false,
+        rolling_shutter,
+    };
+    let mut rows: Vec<(String, EstimateConfig)> = ESTIMATORS
+        .iter()
+        .map(|&k| (k.name().to_string(), config(k, true)))
+        .collect();
+    if rolling_shutter {
+        rows.insert(1, ("full-pose-gs".into(), config(EstimatorKind::FullPose, false)));
+    }
+    rows
+}
+
 #[derive(Default)]
 struct Tally {
     frames: usize,
@@ -89,17 +107,16 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
             preload: false,
             ..ReplayConfig::default()
         };
-        let stage_config = |estimator| EstimateConfig {
-            estimator,
-            compare: false,
-        };
-        config.estimate = stage_config(ESTIMATORS[0]);
+        let rolling =
+            deckwatch_common::recording::read_camera_json(dir).is_ok_and(|(c, _)| c.readout_s > 0.0);
+        let rows = rows(rolling);
+        config.estimate = rows[0].1.clone();
         let mut chain = StageChain::new(&config).map_err(|e| e.to_string())?;
-        let mut others: Vec<EstimateStage> = ESTIMATORS[1..]
+        let mut others: Vec<EstimateStage> = rows[1..]
             .iter()
-            .map(|&k| EstimateStage::new(&stage_config(k), &config.vehicle, false))
+            .map(|(_, c)| EstimateStage::new(c, &config.vehicle, false))
             .collect();
-        let mut tallies: Vec<Tally> = ESTIMATORS.iter().map(|_| Tally::default()).collect();
+        let mut tallies: Vec<Tally> = rows.iter().map(|_| Tally::default()).collect();
         let name = dir
             .file_name()
             .map(|s| s.to_string_lossy().to_string())
@@ -121,7 +138,7 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
                 let a = stage.step(markers, 0);
                 results.push((a, clock.elapsed().as_secs_f64() * 1e6));
             }
-            for ((est, t), (a, cost)) in ESTIMATORS.iter().zip(&mut tallies).zip(results) {
+            for (((est, _), t), (a, cost)) in rows.iter().zip(&mut tallies).zip(results) {
                 t.frames += 1;
                 if markers.markers.count > 0 {
                     t.cost_us.push(cost);
@@ -163,7 +180,7 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
                         w,
                         "{name},{},{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{z:.5},{x:.5},{y:.5},{:.5},{:.5},{:.6},{:.6},{:.6},{cost:.1}",
                         f.source_index,
-                        est.name(),
+                        est,
                         a.valid.get() as u8,
                         rpy[0],
                         rpy[1],
@@ -181,7 +198,7 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
                 }
             }
         }
-        for (est, t) in ESTIMATORS.iter().map(|k| k.name()).zip(&mut tallies) {
+        for ((est, _), t) in rows.iter().zip(&mut tallies) {
             let (rmse, max) = if t.angles.n > 0 {
                 (fmt3(t.angles.rmse(), 4), fmt3(t.angles.max, 4))
             } else {

@@ -97,7 +97,7 @@ impl Distortion {
 /// carries the camera its pixels belong to.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::AnyBitPattern)]
-#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.CameraModel.v1"))]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.CameraModel.v2"))]
 pub struct CameraModel {
     pub width: u32,
     pub height: u32,
@@ -106,6 +106,10 @@ pub struct CameraModel {
     pub cx: f64,
     pub cy: f64,
     pub distortion: Distortion,
+    /// Rolling shutter: the time from the first row's exposure to the last row's (s); 0 = a
+    /// global shutter. A frame's instant is its middle row's mid-exposure
+    /// ([`CameraModel::row_time_s`]).
+    pub readout_s: f64,
 }
 
 /// The camera presets deckwatch knows by name.
@@ -116,6 +120,9 @@ pub const CAMERA_PRESETS: [&str; 2] = ["paper", "rpi-v2"];
 pub const MAX_SIDE_PX: u32 = 32_768;
 /// The longest focal length accepted, in image sides (a 0.3 deg field of view).
 pub const MAX_FOCAL_SIDES: f64 = 200.0;
+/// The longest rolling-shutter readout accepted (s): a frame's rows are read within a frame
+/// time, and no sensor mode is slower than 1 fps.
+pub const MAX_READOUT_S: f64 = 1.0;
 /// The largest distortion coefficient accepted (OpenCV's fits stay far below).
 pub const MAX_DISTORTION: f64 = 1e3;
 
@@ -131,6 +138,7 @@ impl CameraModel {
             cx: (width as f64 - 1.0) / 2.0,
             cy: (height as f64 - 1.0) / 2.0,
             distortion: Distortion::NONE,
+            readout_s: 0.0,
         }
     }
 
@@ -173,7 +181,17 @@ impl CameraModel {
             cx: (self.cx + 0.5) * sx - 0.5,
             cy: (self.cy + 0.5) * sy - 0.5,
             distortion: self.distortion,
+            readout_s: self.readout_s,
         }
+    }
+
+    /// When row `v` (px, fractional rows allowed) was exposed, relative to the frame's instant
+    /// (the middle row's mid-exposure), s: rows are read top to bottom over `readout_s`.
+    pub fn row_time_s(&self, v: f64) -> f64 {
+        if self.readout_s == 0.0 || self.height < 2 {
+            return 0.0;
+        }
+        self.readout_s * (v / f64::from(self.height - 1) - 0.5)
     }
 
     /// Checks every field; the error names the field.
@@ -204,6 +222,12 @@ impl CameraModel {
                     format!("must be a finite number of px within 10 image widths, got {v}"),
                 ));
             }
+        }
+        if !(self.readout_s.is_finite() && (0.0..=MAX_READOUT_S).contains(&self.readout_s)) {
+            return Err(crate::InvalidField::new(
+                "readout_s",
+                format!("must be within 0..={MAX_READOUT_S} s, got {}", self.readout_s),
+            ));
         }
         for (i, k) in self.distortion.to_array().iter().enumerate() {
             if !(k.is_finite() && k.abs() <= MAX_DISTORTION) {

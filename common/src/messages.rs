@@ -338,7 +338,7 @@ impl Truth {
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
-    type_name("deckwatch.VehicleAttitude.v3")
+    type_name("deckwatch.VehicleAttitude.v4")
 )]
 pub struct VehicleAttitude {
     /// `Level`: none (the camera is level, as the paper assumes, or the source has no vehicle);
@@ -354,6 +354,12 @@ pub struct VehicleAttitude {
     /// the simulator's deck mean), NaN when unknown. With the full pose it gives the deck's
     /// heave (`AttitudeMessage::deck_height_m`).
     pub height_m: f64,
+    /// The vehicle's angular velocity in W (deg/s, `dR_V/dt = [w]x R_V`), NaN when unknown: a
+    /// rolling shutter's rows see the camera turned by it (`estimate::FrameMotion`).
+    pub rate_dps: [f64; 3],
+    /// The rate's change (deg/s^2 in W), NaN when unknown: a hovering quadrotor's sway turns
+    /// its rate around within a readout (300 deg/s^2 at 1.7 Hz is 0.02 deg over 12 ms).
+    pub acceleration_dps2: [f64; 3],
 }
 
 impl Default for VehicleAttitude {
@@ -372,6 +378,8 @@ impl VehicleAttitude {
         },
         age_ms: f64::NAN,
         height_m: f64::NAN,
+        rate_dps: [f64::NAN; 3],
+        acceleration_dps2: [f64::NAN; 3],
     };
 
     pub const MISSING: Self = Self {
@@ -387,6 +395,8 @@ impl VehicleAttitude {
                 rpy,
                 age_ms: 0.0,
                 height_m: f64::NAN,
+                rate_dps: [f64::NAN; 3],
+                acceleration_dps2: [f64::NAN; 3],
             },
             None => Self::LEVEL,
         }
@@ -395,6 +405,37 @@ impl VehicleAttitude {
     /// The same with the vehicle's height in W (NaN: unknown).
     pub fn with_height(self, height_m: f64) -> Self {
         Self { height_m, ..self }
+    }
+
+    /// The same with the vehicle's angular velocity in W (deg/s; NaN: unknown).
+    pub fn with_rate_dps(self, rate_dps: [f64; 3]) -> Self {
+        Self { rate_dps, ..self }
+    }
+
+    /// The same with the rate's change (deg/s^2 in W; NaN: unknown).
+    pub fn with_acceleration_dps2(self, acceleration_dps2: [f64; 3]) -> Self {
+        Self {
+            acceleration_dps2,
+            ..self
+        }
+    }
+
+    /// The angular velocity in W (rad/s) when known (a level camera does not turn).
+    pub fn rate_rad_s(&self) -> Option<nalgebra::Vector3<f64>> {
+        self.radians_if_known(&self.rate_dps)
+    }
+
+    /// The angular acceleration in W (rad/s^2) when known.
+    pub fn acceleration_rad_s2(&self) -> Option<nalgebra::Vector3<f64>> {
+        self.radians_if_known(&self.acceleration_dps2)
+    }
+
+    fn radians_if_known(&self, v: &[f64; 3]) -> Option<nalgebra::Vector3<f64>> {
+        match self.compensation.get() {
+            Compensation::Level => Some(nalgebra::Vector3::zeros()),
+            _ if v.iter().all(|x| x.is_finite()) => Some(nalgebra::Vector3::from(v.map(f64::to_radians))),
+            _ => None,
+        }
     }
 
     /// Whether there is an attitude to compensate with (`Frame` or `Stream`).
@@ -455,6 +496,9 @@ impl FrameContext {
             vehicle_yaw_deg: vehicle.map(|v| v[2]),
             vehicle_height_m: f(self.vehicle.height_m),
             deck_heave_m: f(t.deck_heave_m),
+            vehicle_rate_x_dps: f(self.vehicle.rate_dps[0]).filter(|_| self.vehicle.known()),
+            vehicle_rate_y_dps: f(self.vehicle.rate_dps[1]).filter(|_| self.vehicle.known()),
+            vehicle_rate_z_dps: f(self.vehicle.rate_dps[2]).filter(|_| self.vehicle.known()),
         }
     }
 }

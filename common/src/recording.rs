@@ -114,7 +114,14 @@ struct CameraJson {
     cx: f64,
     cy: f64,
     distortion: Vec<f64>,
+    /// Rolling-shutter readout (ms); absent = 0, a global shutter.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    readout_ms: f64,
     deck: DeckJson,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 #[derive(Serialize, Deserialize)]
@@ -137,6 +144,7 @@ pub fn write_camera_json(dir: &Path, camera: &CameraModel, deck: &DeckLayout) ->
         cx: camera.cx,
         cy: camera.cy,
         distortion: camera.distortion.to_array().to_vec(),
+        readout_ms: camera.readout_s * 1e3,
         deck: DeckJson {
             ring_radius_m: deck.ring_radius_m,
             marker_radius_m: deck.marker_radius_m,
@@ -180,6 +188,7 @@ fn parse_camera_json(path: &Path, text: &str) -> Result<(CameraModel, DeckLayout
         cx: json.cx,
         cy: json.cy,
         distortion: Distortion::from_array(json.distortion.as_slice().try_into().expect("length checked")),
+        readout_s: json.readout_ms / 1e3,
     };
     camera
         .validate()
@@ -246,6 +255,11 @@ pub struct GroundTruth {
     pub vehicle_height_m: Option<f64>,
     /// The deck centre's true height in W (m): the heave.
     pub deck_heave_m: Option<f64>,
+    /// The vehicle's angular velocity in W at mid-exposure (deg/s; what a gyro gives): a
+    /// rolling shutter's rows see the camera turned by it.
+    pub vehicle_rate_x_dps: Option<f64>,
+    pub vehicle_rate_y_dps: Option<f64>,
+    pub vehicle_rate_z_dps: Option<f64>,
 }
 
 impl GroundTruth {
@@ -263,6 +277,15 @@ impl GroundTruth {
         ))
     }
 
+    /// The vehicle's angular velocity in W (deg/s), when all three components are known.
+    pub fn vehicle_rate_dps(&self) -> Option<[f64; 3]> {
+        Some([
+            self.vehicle_rate_x_dps?,
+            self.vehicle_rate_y_dps?,
+            self.vehicle_rate_z_dps?,
+        ])
+    }
+
     fn values(&self) -> [Option<f64>; TRUTH_COLUMNS.len()] {
         [
             self.roll_deg,
@@ -276,6 +299,9 @@ impl GroundTruth {
             self.vehicle_yaw_deg,
             self.vehicle_height_m,
             self.deck_heave_m,
+            self.vehicle_rate_x_dps,
+            self.vehicle_rate_y_dps,
+            self.vehicle_rate_z_dps,
         ]
     }
 
@@ -292,13 +318,16 @@ impl GroundTruth {
             7 => self.vehicle_pitch_deg = v,
             8 => self.vehicle_yaw_deg = v,
             9 => self.vehicle_height_m = v,
-            _ => self.deck_heave_m = v,
+            10 => self.deck_heave_m = v,
+            11 => self.vehicle_rate_x_dps = v,
+            12 => self.vehicle_rate_y_dps = v,
+            _ => self.vehicle_rate_z_dps = v,
         }
     }
 }
 
 /// Names of the optional ground-truth columns, in [`GroundTruth`] order.
-pub const TRUTH_COLUMNS: [&str; 11] = [
+pub const TRUTH_COLUMNS: [&str; 14] = [
     "roll_deg",
     "pitch_deg",
     "yaw_deg",
@@ -310,6 +339,9 @@ pub const TRUTH_COLUMNS: [&str; 11] = [
     "vehicle_yaw_deg",
     "vehicle_height_m",
     "deck_heave_m",
+    "vehicle_rate_x_dps",
+    "vehicle_rate_y_dps",
+    "vehicle_rate_z_dps",
 ];
 
 /// Which columns of [`TRUTH_COLUMNS`] a recording has or a writer writes.
@@ -317,7 +349,7 @@ pub type TruthColumns = [bool; TRUTH_COLUMNS.len()];
 
 /// Every ground-truth column but the vehicle's (a level camera) and the heave's.
 pub const LEVEL_TRUTH: TruthColumns = [
-    true, true, true, true, true, true, false, false, false, false, false,
+    true, true, true, true, true, true, false, false, false, false, false, false, false, false,
 ];
 /// The vehicle's height in W and the deck's heave (columns 9 and 10), added to a set.
 pub const fn with_heave_truth(mut columns: TruthColumns) -> TruthColumns {
@@ -887,6 +919,9 @@ mod tests {
             vehicle_yaw_deg: Some(170.0),
             vehicle_height_m: Some(6.25),
             deck_heave_m: Some(-0.75),
+            vehicle_rate_x_dps: Some(12.5),
+            vehicle_rate_y_dps: Some(-0.1),
+            vehicle_rate_z_dps: Some(3e-5),
         };
         let t1 = GroundTruth {
             alt_m: Some(5.5),
@@ -937,7 +972,10 @@ mod tests {
             parse("file,comment,timestamp_ns,index,yaw_deg\na.png,hi,10,0,nan\nb.png,,20,1,2.5\n").unwrap();
         assert_eq!(
             cols,
-            [false, false, true, false, false, false, false, false, false, false, false]
+            [
+                false, false, true, false, false, false, false, false, false, false, false, false, false,
+                false
+            ]
         );
         assert_eq!(frames[1].file, "b.png");
         assert_eq!(frames[1].truth.yaw_deg, Some(2.5));

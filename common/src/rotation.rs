@@ -403,6 +403,12 @@ impl Attitude {
 }
 
 /// The angle of the rotation taking `a` to `b` (the geodesic distance), in radians.
+/// The angular velocity (rad/s, in the frame both rotations map into) that turns `a` into `b`
+/// in `dt_s`: `b = exp([w dt]x) a`.
+pub fn angular_velocity(a: &RotationMatrix, b: &RotationMatrix, dt_s: f64) -> nalgebra::Vector3<f64> {
+    nalgebra::Rotation3::from_matrix_unchecked(b * a.transpose()).scaled_axis() / dt_s
+}
+
 pub fn rotation_angle_between(a: &RotationMatrix, b: &RotationMatrix) -> f64 {
     let d = a.transpose() * b;
     // Robust for small angles: sin from the skew part, cos from the trace.

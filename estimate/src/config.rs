@@ -15,6 +15,10 @@ pub struct EstimateConfig {
     /// Also run the other family (paper `atan2` beside the full pose, or the full pose beside
     /// a paper variant) and publish its result for comparison.
     pub compare: bool,
+    /// With a rolling shutter (the camera's `readout_s` > 0), the full pose takes each marker
+    /// at its row's instant, turned by the vehicle's rate and the deck's recent motion
+    /// (`FrameMotion`); false: every marker at the frame's instant (for comparison).
+    pub rolling_shutter: bool,
 }
 
 impl Default for EstimateConfig {
@@ -22,6 +26,7 @@ impl Default for EstimateConfig {
         Self {
             estimator: EstimatorKind::FullPose,
             compare: true,
+            rolling_shutter: true,
         }
     }
 }

@@ -6,10 +6,12 @@
 
 pub mod config;
 pub mod ellipse;
+pub mod motion;
 pub mod paper;
 pub mod pose;
 
 pub use config::EstimateConfig;
 pub use ellipse::{Ellipse, EllipseFit, EllipseFitError};
+pub use motion::DeckMotionHistory;
 pub use paper::{NotEstimable, PaperEstimate, PaperEstimator, PaperVariant};
-pub use pose::{PoseConfig, PoseError, PoseEstimate, PoseEstimator};
+pub use pose::{FrameMotion, PoseConfig, PoseError, PoseEstimate, PoseEstimator};

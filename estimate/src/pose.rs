@@ -119,6 +119,65 @@ struct Observation {
     deck: Vector3<f64>,
     /// Measured, undistorted, normalised image coordinates.
     xy: [f64; 2],
+    /// The camera's motion between the frame's instant and this marker's row's
+    /// ([`FrameMotion`]): `p_cam = turn_deck R P + turn_camera t + shift` for the frame's pose
+    /// `(R, t)`; identity, identity, zero for a global shutter.
+    turn_deck: Matrix3<f64>,
+    turn_camera: Matrix3<f64>,
+    shift: Vector3<f64>,
+}
+
+impl Observation {
+    /// The marker in camera coordinates at its row's instant, for the frame's pose.
+    fn camera_point(&self, (r, t): &Pose) -> Vector3<f64> {
+        self.turn_deck * (r * self.deck) + self.turn_camera * t + self.shift
+    }
+
+    /// Deck plane (x, y) -> normalised image coordinates at this marker's row's instant.
+    fn plane_homography(&self, (r, t): &Pose) -> Matrix3<f64> {
+        let m = self.turn_deck * r.matrix();
+        Matrix3::from_columns(&[
+            m.column(0).into_owned(),
+            m.column(1).into_owned(),
+            self.turn_camera * t + self.shift,
+        ])
+    }
+}
+
+/// How the camera moved relative to the deck while a rolling shutter read the frame's rows
+/// out (`CameraModel::readout_s`): every marker is seen at its own row's instant
+/// (`CameraModel::row_time_s`), and the pose is solved for the frame's instant. Rates are
+/// taken as constant over the readout (tens of milliseconds).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameMotion {
+    /// The vehicle's (and so the camera's) angular velocity in W (rad/s)...
+    pub vehicle_rate_rad_s: Vector3<f64>,
+    /// ...and its change (rad/s^2): a hovering quadrotor's rate turns around within a readout.
+    pub vehicle_acceleration_rad_s2: Vector3<f64>,
+    /// The deck's angular velocity in W (rad/s).
+    pub deck_rate_rad_s: Vector3<f64>,
+    /// The camera's velocity relative to the deck centre in W (m/s).
+    pub camera_velocity_mps: Vector3<f64>,
+}
+
+impl FrameMotion {
+    pub const STILL: Self = Self {
+        vehicle_rate_rad_s: Vector3::new(0.0, 0.0, 0.0),
+        vehicle_acceleration_rad_s2: Vector3::new(0.0, 0.0, 0.0),
+        deck_rate_rad_s: Vector3::new(0.0, 0.0, 0.0),
+        camera_velocity_mps: Vector3::new(0.0, 0.0, 0.0),
+    };
+
+    pub fn is_finite(&self) -> bool {
+        [
+            self.vehicle_rate_rad_s,
+            self.vehicle_acceleration_rad_s2,
+            self.deck_rate_rad_s,
+            self.camera_velocity_mps,
+        ]
+        .iter()
+        .all(|v| v.iter().all(|x| x.is_finite()))
+    }
 }
 
 impl PoseEstimator {
@@ -154,7 +213,23 @@ impl PoseEstimator {
         centres_corrected: bool,
         vehicle: &RotationMatrix,
     ) -> Result<PoseEstimate, PoseError> {
+        self.estimate_in_motion(markers, centres_corrected, vehicle, None)
+    }
+
+    /// The same for a rolling shutter: with `motion`, each marker is taken at its row's instant
+    /// and the pose is the frame's (the middle row's); without it (or with a global shutter,
+    /// `readout_s` 0) every marker is taken at the frame's instant.
+    pub fn estimate_in_motion(
+        &self,
+        markers: &[Option<[f64; 2]>],
+        centres_corrected: bool,
+        vehicle: &RotationMatrix,
+        motion: Option<&FrameMotion>,
+    ) -> Result<PoseEstimate, PoseError> {
         let n = self.deck.marker_count();
+        // Camera from world at the frame's instant: (R_V R_CW0^T)^T.
+        let r_cw = (vehicle * camera_from_world().transpose()).transpose();
+        let motion = motion.filter(|m| self.camera.readout_s > 0.0 && m.is_finite());
         if markers.len() != n {
             return Err(PoseError::WrongMarkerCount {
                 expected: n,
@@ -174,10 +249,31 @@ impl PoseEstimator {
                 .camera
                 .unproject(*uv)
                 .ok_or(PoseError::Undistortion { index })?;
+            let (turn_deck, turn_camera, shift) = match motion {
+                Some(m) => {
+                    // p(tau) = B (R_CW exp(tau [w_d]x) R P + t0 - tau R_CW v): the camera turned
+                    // by B = exp(-[R_CW (w_v tau + a_v tau^2 / 2)]x), the deck by its own rate,
+                    // the camera moved.
+                    let tau = self.camera.row_time_s(uv[1]);
+                    let vehicle_turn =
+                        m.vehicle_rate_rad_s * tau + m.vehicle_acceleration_rad_s2 * (0.5 * tau * tau);
+                    let turn_camera = *Rotation3::from_scaled_axis(-(r_cw * vehicle_turn)).matrix();
+                    let deck_turn = *Rotation3::from_scaled_axis(tau * (r_cw * m.deck_rate_rad_s)).matrix();
+                    (
+                        turn_camera * deck_turn,
+                        turn_camera,
+                        -tau * (turn_camera * (r_cw * m.camera_velocity_mps)),
+                    )
+                }
+                None => (Matrix3::identity(), Matrix3::identity(), Vector3::zeros()),
+            };
             obs.push(Observation {
                 index,
                 deck: self.deck.marker_position(index),
                 xy,
+                turn_deck,
+                turn_camera,
+                shift,
             });
         }
         let mut outliers = 0u32;
@@ -200,8 +296,8 @@ impl PoseEstimator {
         if self.config.correct_perspective && !centres_corrected {
             let measured: Vec<[f64; 2]> = obs.iter().map(|o| o.xy).collect();
             for _ in 0..2 {
-                let h = plane_homography(&pose);
                 for (o, m) in obs.iter_mut().zip(&measured) {
+                    let h = o.plane_homography(&pose);
                     let c = [o.deck.x, o.deck.y];
                     if let Some((centre, image)) =
                         homography::imaged_circle_centre(&h, c, self.deck.disc_radius(o.index))
@@ -215,10 +311,10 @@ impl PoseEstimator {
         Ok(self.result(&obs, &pose, outliers, vehicle))
     }
 
-    fn pixel_residuals(&self, obs: &[Observation], (r, t): &Pose) -> Option<Vec<f64>> {
+    fn pixel_residuals(&self, obs: &[Observation], pose: &Pose) -> Option<Vec<f64>> {
         let mut res = Vec::with_capacity(2 * obs.len());
         for o in obs {
-            let p = r * o.deck + t;
+            let p = o.camera_point(pose);
             if !(p.z > 0.0) {
                 return None;
             }
@@ -319,8 +415,7 @@ impl PoseEstimator {
     fn jacobian(&self, obs: &[Observation], (r, t): &Pose) -> Option<Vec<SVector<f64, 6>>> {
         let mut rows = Vec::with_capacity(2 * obs.len());
         for o in obs {
-            let q = r * o.deck; // rotated deck point
-            let p = q + t;
+            let p = o.camera_point(&(*r, *t));
             if !(p.z > 0.0) {
                 return None;
             }
@@ -328,25 +423,17 @@ impl PoseEstimator {
             // d(x/z)/dp and d(y/z)/dp.
             let dx = Vector3::new(iz, 0.0, -p.x * iz * iz);
             let dy = Vector3::new(0.0, iz, -p.y * iz * iz);
-            // dp/d(delta) for R exp([delta]x): -R [P]x.
-            let dp_dd = -(r.matrix() * o.deck.cross_matrix());
+            // dp/d(delta) for R exp([delta]x): -A R [P]x; dp/dt: B (A, B: the row's turns).
+            let dp_dd = -(o.turn_deck * r.matrix() * o.deck.cross_matrix());
             let rx = dp_dd.transpose() * dx * self.camera.fx;
             let ry = dp_dd.transpose() * dy * self.camera.fy;
+            let tx = o.turn_camera.transpose() * dx * self.camera.fx;
+            let ty = o.turn_camera.transpose() * dy * self.camera.fy;
             rows.push(SVector::<f64, 6>::from_column_slice(&[
-                rx.x,
-                rx.y,
-                rx.z,
-                dx.x * self.camera.fx,
-                dx.y * self.camera.fx,
-                dx.z * self.camera.fx,
+                rx.x, rx.y, rx.z, tx.x, tx.y, tx.z,
             ]));
             rows.push(SVector::<f64, 6>::from_column_slice(&[
-                ry.x,
-                ry.y,
-                ry.z,
-                dy.x * self.camera.fy,
-                dy.y * self.camera.fy,
-                dy.z * self.camera.fy,
+                ry.x, ry.y, ry.z, ty.x, ty.y, ty.z,
             ]));
         }
         Some(rows)
@@ -403,12 +490,6 @@ impl PoseEstimator {
             rpy_covariance_deg2: cov_rpy,
         }
     }
-}
-
-/// Deck plane (x, y) -> normalised image coordinates of a pose.
-fn plane_homography((r, t): &Pose) -> Matrix3<f64> {
-    let m = r.matrix();
-    Matrix3::from_columns(&[m.column(0).into_owned(), m.column(1).into_owned(), *t])
 }
 
 #[cfg(test)]
@@ -527,5 +608,76 @@ mod tests {
         let e = est.estimate(&noisy, true).unwrap();
         let sd = e.rpy_std_deg();
         assert!(sd.iter().all(|s| s.is_finite() && *s > 0.0 && *s < 1.0), "{sd:?}");
+    }
+
+    #[test]
+    fn a_rolling_shutter_is_undone_by_the_frame_motion() {
+        // A camera whose rows are read over 30 ms, turning at 30 deg/s with 300 deg/s^2 while
+        // the deck rolls at 8 deg/s and the camera sinks towards it at 0.8 m/s.
+        let cam = CameraModel {
+            readout_s: 0.030,
+            ..CameraModel::preset("rpi-v2").unwrap()
+        };
+        let deck = DeckLayout::paper();
+        let est = PoseEstimator::new(cam, deck, PoseConfig::default());
+        let motion = FrameMotion {
+            vehicle_rate_rad_s: Vector3::new(0.3, -0.4, 0.1).normalize() * 30f64.to_radians(),
+            vehicle_acceleration_rad_s2: Vector3::new(-300f64.to_radians(), 0.0, 0.0),
+            deck_rate_rad_s: Vector3::new(8f64.to_radians(), 2f64.to_radians(), 0.0),
+            camera_velocity_mps: Vector3::new(0.1, 0.0, -0.8),
+        };
+        let (deck_rpy, vehicle_rpy) = (
+            Rpy::from_degrees(6.0, -3.0, 25.0),
+            Rpy::from_degrees(4.0, -7.0, 10.0),
+        );
+        let scene_at = |tau: f64| {
+            let turn = |w: Vector3<f64>| *Rotation3::from_scaled_axis(w).matrix();
+            let vehicle = turn(
+                motion.vehicle_rate_rad_s * tau + motion.vehicle_acceleration_rad_s2 * (0.5 * tau * tau),
+            ) * vehicle_rpy.to_matrix();
+            let c = Vector3::new(0.2, -0.1, 5.0) + motion.camera_velocity_mps * tau;
+            SceneGeometry {
+                attitude: turn(motion.deck_rate_rad_s * tau) * deck_rpy.to_matrix(),
+                viewpoint: Viewpoint::level(c.x, c.y, c.z).with_vehicle_attitude(vehicle),
+            }
+        };
+        // Each marker where it appears: at its own row's instant.
+        let px: Vec<Option<[f64; 2]>> = (0..9)
+            .map(|i| {
+                let p = deck.marker_position(i);
+                let mut uv = scene_at(0.0).project_deck_point(&cam, &p)?;
+                for _ in 0..6 {
+                    uv = scene_at(cam.row_time_s(uv[1])).project_deck_point(&cam, &p)?;
+                }
+                Some(uv)
+            })
+            .collect();
+        let r_v = vehicle_rpy.to_matrix();
+        let still = est.estimate_in_motion(&px, true, &r_v, None).unwrap();
+        let moving = est.estimate_in_motion(&px, true, &r_v, Some(&motion)).unwrap();
+        let e_still = rpy_error_deg(&still.attitude.rpy, &deck_rpy);
+        let e_moving = rpy_error_deg(&moving.attitude.rpy, &deck_rpy);
+        assert!(
+            e_still.iter().any(|v| *v > 0.1),
+            "the readout matters: {e_still:?}"
+        );
+        assert!(
+            e_moving.iter().all(|v| *v < 1e-6),
+            "{e_moving:?} (ignored: {e_still:?})"
+        );
+        assert!((moving.viewpoint.altitude_m - 5.0).abs() < 1e-6);
+        // A global shutter ignores the motion.
+        let global = PoseEstimator::new(
+            CameraModel::preset("rpi-v2").unwrap(),
+            deck,
+            PoseConfig::default(),
+        );
+        let px0 = scene_at(0.0).project_markers(global.camera(), &deck);
+        let e = global
+            .estimate_in_motion(&px0, true, &r_v, Some(&motion))
+            .unwrap();
+        assert!(rpy_error_deg(&e.attitude.rpy, &deck_rpy)
+            .iter()
+            .all(|v| *v < 1e-8));
     }
 }

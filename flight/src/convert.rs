@@ -62,7 +62,10 @@ pub fn recording_of(mcap: &Path, max_bytes: u64) -> Result<ReplayableFlight, Fli
             columns[6..9].iter_mut().for_each(|on| *on = true);
         }
         if g.vehicle_height_m.is_some() || g.deck_heave_m.is_some() {
-            columns[9..].iter_mut().for_each(|on| *on = true);
+            columns[9..11].iter_mut().for_each(|on| *on = true);
+        }
+        if g.vehicle_rate_dps().is_some() {
+            columns[11..14].iter_mut().for_each(|on| *on = true);
         }
         rows.push(FrameRecord {
             index,

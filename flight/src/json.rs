@@ -198,24 +198,34 @@ pub fn field<T: JsonField>(object: &Map<String, Value>, name: &str) -> Result<T,
     T::from_json(v).map_err(|e| e.within(name))
 }
 
-/// `JsonField` for a struct: every field, by name (a field left out does not compile).
+/// `JsonField` for a struct: every field, by name (a field left out does not compile). Fields
+/// added after recordings were made follow a `;` with the value older files imply
+/// (`added = default`): written like the others, read as that value when absent.
 macro_rules! json_struct {
-    ($ty:ty { $($field:ident),+ $(,)? }) => {
+    ($ty:ty { $($field:ident),+ $(,)? $(; $($added:ident = $default:expr),+ $(,)?)? }) => {
         impl JsonField for $ty {
             fn to_json(&self) -> Value {
                 let mut m = Map::new();
                 $(m.insert(stringify!($field).to_string(), self.$field.to_json());)+
+                $($(m.insert(stringify!($added).to_string(), self.$added.to_json());)+)?
                 Value::Object(m)
             }
 
             fn from_json(v: &Value) -> Result<Self, FieldError> {
                 let m = v.as_object().ok_or_else(|| FieldError::expected("an object", v))?;
-                Ok(Self { $($field: field(m, stringify!($field))?,)+ })
+                Ok(Self {
+                    $($field: field(m, stringify!($field))?,)+
+                    $($($added: match m.get(stringify!($added)) {
+                        Some(_) => field(m, stringify!($added))?,
+                        None => $default,
+                    },)+)?
+                })
             }
 
             fn json_schema() -> Value {
                 let mut properties = Map::new();
                 $(properties.insert(stringify!($field).to_string(), schema_of::<$ty, _>(|s| &s.$field));)+
+                $($(properties.insert(stringify!($added).to_string(), schema_of::<$ty, _>(|s| &s.$added));)+)?
                 json!({
                     "type": "object",
                     "properties": Value::Object(properties),
@@ -248,7 +258,8 @@ json_struct!(CameraModel {
     fy,
     cx,
     cy,
-    distortion
+    distortion;
+    readout_s = 0.0
 });
 json_struct!(DeckLayout {
     ring_radius_m,
@@ -288,7 +299,9 @@ json_struct!(VehicleAttitude {
     compensation,
     rpy,
     age_ms,
-    height_m
+    height_m;
+    rate_dps = [f64::NAN; 3],
+    acceleration_dps2 = [f64::NAN; 3]
 });
 json_struct!(FrameContext {
     source,

@@ -68,6 +68,8 @@ pub struct CameraFrame {
     /// else the time the request completed.
     pub timestamp_ns: u64,
     pub sensor_timestamp: bool,
+    /// The frame's exposure time (the request's `ExposureTime` metadata), when reported.
+    pub exposure_us: Option<u32>,
     /// Frames the sensor produced but deckwatch never got, just before this one.
     pub dropped_before: u64,
 }
@@ -198,6 +200,7 @@ impl LibcameraSource {
             sequence: None,
             timestamp_ns: c.completed_ns,
             sensor_timestamp: false,
+            exposure_us: None,
             dropped_before: 0,
         };
         if let Some((status, sequence, timestamp)) = meta {
@@ -220,6 +223,9 @@ impl LibcameraSource {
                     frame.sensor_timestamp = true;
                 }
             }
+        }
+        if let Ok(t) = c.request.metadata().get::<controls::ExposureTime>() {
+            frame.exposure_us = u32::try_from(t.0).ok();
         }
         let first = planes.first().ok_or("the buffer has no planes")?;
         s.layout.extract(

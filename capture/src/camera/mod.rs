@@ -13,6 +13,18 @@ use deckwatch_common::{CameraModel, DeckLayout};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
+/// A frame's instant (its middle row's mid-exposure: `CameraModel::row_time_s`) from the
+/// sensor's timestamp. libcamera's `SensorTimestamp` is the start of the frame on the CSI-2
+/// link on Raspberry Pi (and most pipelines): the first row's readout, at the end of its
+/// exposure. The middle row is read `readout_s / 2` later and was exposed over the
+/// `exposure_us` before its readout; without the exposure (no metadata), half of it is not
+/// taken off.
+pub fn frame_instant_ns(sensor_timestamp_ns: u64, exposure_us: Option<u32>, readout_s: f64) -> u64 {
+    let half_readout_ns = (readout_s.clamp(0.0, 1.0) * 0.5e9).round() as u64;
+    let half_exposure_ns = exposure_us.map_or(0, |us| u64::from(us) * 500);
+    (sensor_timestamp_ns + half_readout_ns).saturating_sub(half_exposure_ns)
+}
+
 /// Whether this build has the libcamera source (the `libcamera` feature).
 pub const LIBCAMERA_BUILT_IN: bool = cfg!(feature = "libcamera");
 
@@ -431,6 +443,31 @@ pub fn list_cameras() -> Result<(String, Vec<CameraDescription>), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_shipped_pi_calibration_reads_with_its_readout() {
+        let config = CameraConfig {
+            calibration: Some(PathBuf::from(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/../deploy/camera-module-3-2304x1296/camera.json"
+            ))),
+            ..CameraConfig::default()
+        };
+        let (camera, _) = config.read_calibration().unwrap().unwrap();
+        assert_eq!((camera.width, camera.height), (2304, 1296));
+        assert!((camera.readout_s - 0.0178).abs() < 1e-12, "{camera:?}");
+    }
+
+    #[test]
+    fn the_frame_instant_is_the_middle_rows_mid_exposure() {
+        // Readout 20 ms, exposure 4 ms: the middle row is read 10 ms after the first row and
+        // exposed from 4 ms before that.
+        assert_eq!(frame_instant_ns(1_000_000_000, Some(4000), 0.020), 1_008_000_000);
+        assert_eq!(frame_instant_ns(1_000_000_000, None, 0.020), 1_010_000_000);
+        // A global shutter: the exposure alone.
+        assert_eq!(frame_instant_ns(1_000_000_000, Some(4000), 0.0), 998_000_000);
+        assert_eq!(frame_instant_ns(1_000, Some(4000), 0.0), 0);
+    }
 
     #[test]
     fn planar_formats_copy_rows_and_drop_padding() {

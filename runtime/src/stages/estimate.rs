@@ -16,7 +16,8 @@ use deckwatch_common::vehicle::{
 use deckwatch_common::{Attitude, RotationMatrix, Rpy};
 use deckwatch_estimate::config::paper_variant;
 use deckwatch_estimate::{
-    EstimateConfig, NotEstimable, PaperEstimator, PaperVariant, PoseConfig, PoseError, PoseEstimator,
+    DeckMotionHistory, EstimateConfig, FrameMotion, NotEstimable, PaperEstimator, PaperVariant, PoseConfig,
+    PoseError, PoseEstimator,
 };
 use deckwatch_viz::Item;
 
@@ -89,6 +90,13 @@ pub struct EstimateStage {
     primary: EstimatorKind,
     secondary: Option<EstimatorKind>,
     estimators: Option<Estimators>,
+    /// Correct the full pose for a rolling shutter (`[estimate] rolling_shutter`).
+    rolling_shutter: bool,
+    /// The deck's recent poses (in the vehicle attitude's frame), for its rate within a frame.
+    deck_motion: DeckMotionHistory,
+    /// Rolling-shutter frames whose motion was partly unknown (no vehicle rate, or no recent
+    /// deck poses: the first frames, after a gap): that part was taken as still.
+    pub motion_unknown: u64,
     vehicle: VehicleConfig,
     /// The autopilot's attitude samples (`[vehicle] attitude = "autopilot"`).
     track: VehicleTrack,
@@ -112,6 +120,9 @@ impl EstimateStage {
             primary: config.estimator,
             secondary: config.secondary(),
             estimators: None,
+            rolling_shutter: config.rolling_shutter,
+            deck_motion: DeckMotionHistory::new(),
+            motion_unknown: 0,
             vehicle: vehicle.clone(),
             track: VehicleTrack::new(512),
             heading: MeanHeading::default(),
@@ -146,7 +157,8 @@ impl EstimateStage {
         self.uncompensated += (vehicle.compensation == Compensation::Missing) as u64;
         // With the autopilot's north-referenced attitude, W's x is the ship's mean heading.
         let mut to_w = RotationMatrix::identity();
-        let primary = self.run(self.primary, m, &camera);
+        let motion = self.frame_motion(m, &vehicle);
+        let primary = self.run(self.primary, m, &camera, motion.as_ref());
         if let Ok(e) = &primary.result {
             if self.vehicle.attitude == VehicleAttitudeSource::Autopilot && vehicle.known() {
                 let t_s = m.context.source_timestamp_ns as f64 / 1e9;
@@ -163,6 +175,16 @@ impl EstimateStage {
             rpy: Rpy::from_matrix(&(to_w * r_v)),
             ..vehicle
         };
+        if primary.kind == EstimatorKind::FullPose {
+            match &primary.result {
+                Ok(e) => self.deck_motion.push(
+                    m.context.source_timestamp_ns as f64 / 1e9,
+                    &e.attitude.matrix,
+                    nalgebra::Vector3::from(e.camera_position_m),
+                ),
+                Err(_) => self.deck_motion.clear(),
+            }
+        }
         match primary.result {
             Ok(mut e) => {
                 out.camera_rpy = Rpy::from_matrix(&(camera.transpose() * e.attitude.matrix));
@@ -177,7 +199,7 @@ impl EstimateStage {
         }
         out.valid = (out.failure == AttitudeFailure::None).into();
         if let Some(kind) = self.secondary {
-            let mut second = self.run(kind, m, &camera);
+            let mut second = self.run(kind, m, &camera, motion.as_ref());
             if let Ok(e) = &mut second.result {
                 e.attitude = Attitude::from_matrix(to_w * e.attitude.matrix);
                 // The paper's method has no position: the full pose beside it gives the heave.
@@ -230,7 +252,36 @@ impl EstimateStage {
         }
     }
 
-    fn run(&mut self, kind: EstimatorKind, m: &MarkerMessage, camera_attitude: &RotationMatrix) -> Outcome {
+    /// How the camera moved against the deck during a rolling shutter's readout: the vehicle's
+    /// rate from its attitude, the deck's from its recent poses; None for a global shutter or
+    /// with `rolling_shutter` off. What is unknown is taken as still (and counted).
+    fn frame_motion(&mut self, m: &MarkerMessage, vehicle: &VehicleAttitude) -> Option<FrameMotion> {
+        if !(self.rolling_shutter && m.context.camera.readout_s > 0.0) {
+            return None;
+        }
+        let t_s = m.context.source_timestamp_ns as f64 / 1e9;
+        let deck = self.deck_motion.rates_at(t_s);
+        let vehicle_rate = vehicle.rate_rad_s();
+        self.motion_unknown += (deck.is_none() || vehicle_rate.is_none()) as u64;
+        let still = FrameMotion::STILL;
+        Some(FrameMotion {
+            vehicle_rate_rad_s: vehicle_rate.unwrap_or(still.vehicle_rate_rad_s),
+            // Without it, a constant rate over the readout.
+            vehicle_acceleration_rad_s2: vehicle
+                .acceleration_rad_s2()
+                .unwrap_or(still.vehicle_acceleration_rad_s2),
+            deck_rate_rad_s: deck.map_or(still.deck_rate_rad_s, |d| d.deck_rate_rad_s),
+            camera_velocity_mps: deck.map_or(still.camera_velocity_mps, |d| d.camera_velocity_mps),
+        })
+    }
+
+    fn run(
+        &mut self,
+        kind: EstimatorKind,
+        m: &MarkerMessage,
+        camera_attitude: &RotationMatrix,
+        motion: Option<&FrameMotion>,
+    ) -> Outcome {
         let fail = |failure| Outcome {
             kind,
             result: Err(failure),
@@ -286,10 +337,12 @@ impl EstimateStage {
                 }
             }
             None => {
-                match est
-                    .pose
-                    .estimate_with_vehicle(&pixels, m.markers.perspective_corrected.get(), &vehicle)
-                {
+                match est.pose.estimate_in_motion(
+                    &pixels,
+                    m.markers.perspective_corrected.get(),
+                    &vehicle,
+                    motion,
+                ) {
                     Ok(e) => Outcome {
                         kind,
                         result: Ok(Estimate {
@@ -348,8 +401,16 @@ impl Stage for EstimateStage {
     }
 
     fn summary(&self) -> String {
+        let motion = if self.motion_unknown > 0 {
+            format!(
+                ", {} rolling-shutter frames with part of their motion unknown",
+                self.motion_unknown
+            )
+        } else {
+            String::new()
+        };
         format!(
-            "{} marker sets, {} attitudes, {} dropped, {} not compensated for the vehicle",
+            "{} marker sets, {} attitudes, {} dropped, {} not compensated for the vehicle{motion}",
             self.processed, self.estimated, self.dropped, self.uncompensated
         )
     }

@@ -400,6 +400,43 @@ impl<P: MotionProfile> MotionProfile for Lulled<P> {
     }
 }
 
+/// A descent onto the deck: the camera's height over the deck centre goes from `from_m` to
+/// `to_m` over `duration_s`, slowing as it nears the deck (`to + (from - to) (1 - t/T)^2`), then
+/// holds; the inner profile's deck motion and horizontal offset are kept.
+pub struct Descent<P> {
+    pub inner: P,
+    pub from_m: f64,
+    pub to_m: f64,
+    pub duration_s: f64,
+}
+
+impl<P> Descent<P> {
+    /// 20 m down to 1 m in 60 s: the whole approach, through the altitudes where the ring
+    /// leaves a Pi camera's view (below about 1.5 m).
+    pub fn approach(inner: P) -> Self {
+        Self {
+            inner,
+            from_m: 20.0,
+            to_m: 1.0,
+            duration_s: 60.0,
+        }
+    }
+
+    /// The camera's height over the deck centre at `t_s` (m).
+    pub fn altitude_m(&self, t_s: f64) -> f64 {
+        let u = (t_s / self.duration_s).clamp(0.0, 1.0);
+        self.to_m + (self.from_m - self.to_m) * (1.0 - u).powi(2)
+    }
+}
+
+impl<P: MotionProfile> MotionProfile for Descent<P> {
+    fn sample(&self, t_s: f64) -> MotionSample {
+        let mut s = self.inner.sample(t_s);
+        s.viewpoint.altitude_m = self.altitude_m(t_s);
+        s
+    }
+}
+
 /// (amplitude m, period s) of the deck's heave at sea state 6 for a frigate-size ship: periods
 /// near the roll's waves (7-13 s), amplitudes summing to 1.2 m; the largest vertical speed
 /// (amplitude x 2 pi / period, summed) is 0.84 m/s. Ship-helicopter operating limits put the

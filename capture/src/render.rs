@@ -50,6 +50,11 @@ pub struct RenderOptions {
     /// Specular glints per frame: saturated spots of 2-40 px radius at random places (seeded
     /// per frame), some of them marker-sized.
     pub glints: u32,
+    /// A glow around each marker (the bloom and halo of a light at night): the light's
+    /// coverage spread by a Gaussian, times this fraction of `marker_dn` (0 = none)...
+    pub halo: f64,
+    /// ...and its Gaussian spread in pixels.
+    pub halo_px: f64,
 }
 
 impl Default for RenderOptions {
@@ -70,6 +75,8 @@ impl Default for RenderOptions {
             deck_size_m: 10.0,
             occluded_marker: None,
             glints: 0,
+            halo: 0.0,
+            halo_px: 0.0,
         }
     }
 }
@@ -89,6 +96,25 @@ impl RenderOptions {
         }
     }
 
+    /// The deck at night: the markers are lights (overexposed: saturated cores), with a glow
+    /// around them, on a dark deck and sea; a high gain (noisy) for a short exposure. The glow's
+    /// spread is for a full-resolution (3280 px wide) image.
+    pub fn night() -> Self {
+        Self {
+            optical_blur_px: 1.0,
+            marker_dn: 900.0,
+            deck_dn: 6.0,
+            sea_dn: 2.0,
+            texture: 0.3,
+            vignetting: 0.5,
+            read_noise_dn: 3.0,
+            shot_noise_dn: 1.0,
+            halo: 0.15,
+            halo_px: 8.0,
+            ..Self::default()
+        }
+    }
+
     /// Checks the options; the error names the field.
     pub fn validate(&self) -> Result<(), String> {
         if !(1..=64).contains(&self.supersample) {
@@ -99,7 +125,8 @@ impl RenderOptions {
         }
         let fields = [
             ("optical_blur_px", self.optical_blur_px, 0.0, 20.0),
-            ("marker_dn", self.marker_dn, 0.0, 255.0),
+            // Lights overexpose: up to 16x the sensor's full scale, clipped to 255.
+            ("marker_dn", self.marker_dn, 0.0, 4080.0),
             ("deck_dn", self.deck_dn, 0.0, 255.0),
             ("sea_dn", self.sea_dn, 0.0, 255.0),
             ("texture", self.texture, 0.0, 1.0),
@@ -108,6 +135,8 @@ impl RenderOptions {
             ("read_noise_dn", self.read_noise_dn, 0.0, 100.0),
             ("shot_noise_dn", self.shot_noise_dn, 0.0, 100.0),
             ("deck_size_m", self.deck_size_m, 0.0, 1e4),
+            ("halo", self.halo, 0.0, 1.0),
+            ("halo_px", self.halo_px, 0.0, 100.0),
         ];
         for (name, v, lo, hi) in fields {
             if !(v >= lo && v <= hi) {
@@ -170,6 +199,8 @@ struct Patch {
     h: usize,
     /// Coverage in [0, 1], row-major w x h.
     cov: Vec<f32>,
+    /// The glow: the coverage blurred by the halo's Gaussian (empty without a halo).
+    halo: Vec<f32>,
 }
 
 /// The scene over one frame's exposure, as the renderer samples it.
@@ -234,6 +265,8 @@ pub struct Renderer {
     sea_tex: Vec<u8>,
     gauss: Vec<f32>,
     blur_kernel: Vec<f32>,
+    /// The halo's Gaussian (empty: no halo).
+    halo_kernel: Vec<f32>,
     /// Normalised undistorted coordinates on a grid (only with lens distortion).
     undistort_grid: Option<UndistortGrid>,
     /// Illumination gradient x vignetting per pixel, fixed point (GAIN_ONE = 1); None = even.
@@ -262,15 +295,14 @@ impl Renderer {
             .map(|i| inverse_normal_cdf((i as f64 + 0.5) / n as f64) as f32)
             .collect();
         let blur_kernel = if options.optical_blur_px > 0.0 {
-            let s = options.optical_blur_px;
-            let r = (3.0 * s).ceil() as i64;
-            let k: Vec<f64> = (-r..=r)
-                .map(|i| (-(i * i) as f64 / (2.0 * s * s)).exp())
-                .collect();
-            let sum: f64 = k.iter().sum();
-            k.iter().map(|v| (v / sum) as f32).collect()
+            gaussian_kernel(options.optical_blur_px)
         } else {
             vec![1.0]
+        };
+        let halo_kernel = if options.halo > 0.0 && options.halo_px > 0.0 {
+            gaussian_kernel(options.halo_px)
+        } else {
+            Vec::new()
         };
         let undistort_grid = (!camera.distortion.is_none()).then(|| UndistortGrid::new(&camera));
         let gain = (options.illumination_gradient > 0.0 || options.vignetting > 0.0)
@@ -284,6 +316,7 @@ impl Renderer {
             sea_tex,
             gauss,
             blur_kernel,
+            halo_kernel,
             undistort_grid,
             gain,
             patches: vec![Patch::default(); deck.marker_count()],
@@ -392,7 +425,7 @@ impl Renderer {
     fn draw_patches(&mut self, exposure: &Exposure<'_>) {
         let camera = self.camera;
         let (w, h) = (camera.width as i64, camera.height as i64);
-        let pad = (self.blur_kernel.len() / 2) as i64 + 2;
+        let pad = (self.blur_kernel.len().max(self.halo_kernel.len()) / 2) as i64 + 2;
         let steps = exposure.steps();
         let n_sub = steps as f32;
         let n = self.options.supersample as usize;
@@ -535,16 +568,23 @@ impl Renderer {
     }
 
     /// Separable Gaussian blur of each patch's coverage (the patch is padded by the kernel
-    /// radius, so nothing is cut at its border but at the image's).
+    /// radius, so nothing is cut at its border but at the image's), and the halo's wider one.
     fn blur_patches(&mut self) {
-        if self.blur_kernel.len() == 1 {
-            return;
-        }
         for p in self.patches.iter_mut().filter(|p| p.w > 0) {
-            self.blur_tmp.clear();
-            self.blur_tmp.resize(p.w * p.h, 0.0);
-            convolve_axis(&p.cov, &mut self.blur_tmp, p.w, p.h, &self.blur_kernel, true);
-            convolve_axis(&self.blur_tmp, &mut p.cov, p.w, p.h, &self.blur_kernel, false);
+            p.halo.clear();
+            if self.blur_kernel.len() > 1 {
+                self.blur_tmp.clear();
+                self.blur_tmp.resize(p.w * p.h, 0.0);
+                convolve_axis(&p.cov, &mut self.blur_tmp, p.w, p.h, &self.blur_kernel, true);
+                convolve_axis(&self.blur_tmp, &mut p.cov, p.w, p.h, &self.blur_kernel, false);
+            }
+            if !self.halo_kernel.is_empty() {
+                self.blur_tmp.clear();
+                self.blur_tmp.resize(p.w * p.h, 0.0);
+                p.halo.resize(p.w * p.h, 0.0);
+                convolve_axis(&p.cov, &mut self.blur_tmp, p.w, p.h, &self.halo_kernel, true);
+                convolve_axis(&self.blur_tmp, &mut p.halo, p.w, p.h, &self.halo_kernel, false);
+            }
         }
     }
 
@@ -561,6 +601,7 @@ impl Renderer {
         let (w, h) = (self.camera.width as usize, self.camera.height as usize);
         let o = &self.options;
         let (sea_dn, marker_dn) = (o.sea_dn as f32, o.marker_dn as f32);
+        let halo_dn = (o.halo * o.marker_dn) as f32;
         let tex = Textures {
             half: o.deck_size_m / 2.0,
             deck_scale: TEX as f64 / o.deck_size_m,
@@ -639,13 +680,19 @@ impl Renderer {
                 .iter()
                 .filter(|p| p.w > 0 && y >= p.y0 && y < p.y0 + p.h)
             {
-                let cov = &p.cov[(y - p.y0) * p.w..(y - p.y0 + 1) * p.w];
+                let row = (y - p.y0) * p.w..(y - p.y0 + 1) * p.w;
+                let cov = &p.cov[row.clone()];
                 let (sig, alb) = (
                     &mut self.row_signal[p.x0..p.x0 + p.w],
                     &self.row_albedo[p.x0..p.x0 + p.w],
                 );
                 for ((s, a), c) in sig.iter_mut().zip(alb).zip(cov) {
                     *s += c.min(1.0) * (marker_dn - a);
+                }
+                if !p.halo.is_empty() {
+                    for (s, g) in sig.iter_mut().zip(&p.halo[row]) {
+                        *s += halo_dn * g;
+                    }
                 }
             }
             // Light falloff (camera-fixed gain map), noise, quantisation.
@@ -683,6 +730,16 @@ impl Renderer {
             }
         }
     }
+}
+
+/// A Gaussian of standard deviation `sigma` (px) over +-3 sigma, summing to 1.
+fn gaussian_kernel(sigma: f64) -> Vec<f32> {
+    let r = (3.0 * sigma).ceil() as i64;
+    let k: Vec<f64> = (-r..=r)
+        .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp())
+        .collect();
+    let sum: f64 = k.iter().sum();
+    k.iter().map(|v| (v / sum) as f32).collect()
 }
 
 /// `dst` = `src` (w x h, row-major) convolved with the odd-length kernel `k` along x or y;

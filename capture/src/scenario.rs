@@ -2,7 +2,8 @@
 //! (optionally with Gaussian pixel noise) for a motion sample.
 
 use crate::motion::{
-    Case1Sweep, DeckHeave, Heaving, LullCycle, Lulled, MotionProfile, MotionSample, ShipMotion, TrackingError,
+    Case1Sweep, DeckHeave, Descent, Heaving, LullCycle, Lulled, MotionProfile, MotionSample, ShipMotion,
+    TrackingError,
 };
 use crate::rng::SplitMix64;
 use deckwatch_common::marker_table::MarkerRow;
@@ -25,10 +26,21 @@ pub enum Scenario {
     /// The camera 30 m away from the deck at 5 m: only the sea in view.
     #[cfg_attr(feature = "cli", value(name = "nodeck"))]
     NoDeck,
+    /// The approach: from 20 m over the deck down to 1 m in 60 s ([`Descent::approach`]),
+    /// 0.15 m off the centre, over the sea of `lulls`; below about 1.5 m the ring leaves a Pi
+    /// camera's view.
+    Approach,
 }
 
 impl Scenario {
-    pub const ALL: [Self; 5] = [Self::Case1, Self::Ship, Self::Lulls, Self::Offset, Self::NoDeck];
+    pub const ALL: [Self; 6] = [
+        Self::Case1,
+        Self::Ship,
+        Self::Lulls,
+        Self::Offset,
+        Self::NoDeck,
+        Self::Approach,
+    ];
 
     pub fn name(&self) -> &'static str {
         match self {
@@ -37,6 +49,7 @@ impl Scenario {
             Self::Lulls => "lulls",
             Self::Offset => "offset",
             Self::NoDeck => "nodeck",
+            Self::Approach => "approach",
         }
     }
 
@@ -66,13 +79,18 @@ impl Scenario {
                 offset_m: 30.0,
                 ..TrackingError::offset_0_3m(seed)
             })),
+            Self::Approach => Box::new(Descent::approach(sea().with_tracking(TrackingError {
+                offset_m: 0.15,
+                altitude_amplitude_m: 0.0,
+                ..TrackingError::offset_0_3m(seed)
+            }))),
         };
         let deck: Box<dyn MotionProfile + Send + Sync> = match heave {
             Some(heave) => Box::new(Heaving { inner: deck, heave }),
             None => deck,
         };
         match self {
-            Self::Lulls => Box::new(Lulled {
+            Self::Lulls | Self::Approach => Box::new(Lulled {
                 inner: deck,
                 cycle: LullCycle::DEMO,
             }),
@@ -95,8 +113,8 @@ impl Scenario {
 #[cfg_attr(feature = "cli", derive(clap::Args))]
 #[serde(default, deny_unknown_fields)]
 pub struct SimulationArgs {
-    /// Scenario: lulls (a moderate sea with calm spells), ship (sea state 6), case1, offset or
-    /// nodeck.
+    /// Scenario: lulls (a moderate sea with calm spells), ship (sea state 6), case1, offset,
+    /// nodeck or approach (20 m down to 1 m).
     #[cfg_attr(feature = "cli", arg(long, default_value = "lulls"))]
     pub scenario: Scenario,
     /// Number of frames.
@@ -105,7 +123,7 @@ pub struct SimulationArgs {
     /// Frame rate (Hz).
     #[cfg_attr(feature = "cli", arg(long, default_value_t = 10.0))]
     pub rate: f64,
-    /// Camera preset (paper, rpi-v2); default: the scenario's.
+    /// Camera preset (paper, rpi-v2, rpi-v3-wide); default: the scenario's.
     #[cfg_attr(feature = "cli", arg(long))]
     pub camera: Option<String>,
     /// The vehicle carrying the camera: `level` (the paper's camera) or `sway` (a hovering

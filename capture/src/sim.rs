@@ -227,8 +227,9 @@ pub struct ImageArgs {
     /// Image height; default: the preset's.
     #[cfg_attr(feature = "cli", arg(long))]
     pub height: Option<u32>,
-    /// Starting point of the look: `clean` (sharp, noiseless, even light) or `realistic`
-    /// (blur, noise, uneven light, vignetting); the options below override it.
+    /// Starting point of the look: `clean` (sharp, noiseless, even light), `realistic` (blur,
+    /// noise, uneven light, vignetting) or `night` (lights on a dark deck); the options below
+    /// override it.
     #[cfg_attr(feature = "cli", arg(long, default_value = "realistic"))]
     pub look: Look,
     /// Optical blur, Gaussian sigma in pixels.
@@ -262,6 +263,10 @@ pub struct ImageArgs {
     /// Specular glints per frame (saturated spots at random places).
     #[cfg_attr(feature = "cli", arg(long))]
     pub glints: Option<u32>,
+    /// The glow around each marker light, as a fraction of its brightness (0 = none; the night
+    /// look has 0.15).
+    #[cfg_attr(feature = "cli", arg(long))]
+    pub halo: Option<f64>,
     /// Lens distortion k1,k2,p1,p2,k3 (OpenCV order).
     #[cfg_attr(feature = "cli", arg(long, value_delimiter = ',', num_args = 5))]
     pub distortion: Option<Vec<f64>>,
@@ -269,6 +274,11 @@ pub struct ImageArgs {
     /// shutter). The Pi cameras take about 20-30 ms at full resolution.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = 0.0))]
     pub readout_ms: f64,
+    /// The pipeline is told a calibration this far off the lens that renders the frames
+    /// (`ImageArgs::calibrated`): 1 = focal lengths 0.3 % off, the principal point 0.2 % of
+    /// the width and 0.15 % of the height off, k1 +0.01, k2 -0.002; 0 = exact.
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 0.0))]
+    pub calibration_error: f64,
 }
 
 /// The starting point of a rendered image's look (`--look`, `[image] look`).
@@ -280,6 +290,9 @@ pub enum Look {
     Clean,
     /// Blur, noise, uneven light, vignetting.
     Realistic,
+    /// Night: the markers are lights (saturated cores, a glow around them) on a dark deck,
+    /// a noisy high gain.
+    Night,
 }
 
 impl Look {
@@ -287,6 +300,7 @@ impl Look {
         match self {
             Self::Clean => "clean",
             Self::Realistic => "realistic",
+            Self::Night => "night",
         }
     }
 }
@@ -308,13 +322,32 @@ impl Default for ImageArgs {
             contrast: None,
             occlude: None,
             glints: None,
+            halo: None,
             distortion: None,
             readout_ms: 0.0,
+            calibration_error: 0.0,
         }
     }
 }
 
 impl ImageArgs {
+    /// The calibration the pipeline is told for frames `camera` renders: `camera` itself, or
+    /// off by `calibration_error` (the same pattern of errors for every lens, scaled).
+    pub fn calibrated(&self, camera: &CameraModel) -> CameraModel {
+        let e = self.calibration_error;
+        if e == 0.0 {
+            return *camera;
+        }
+        let mut c = *camera;
+        c.fx *= 1.0 + 0.003 * e;
+        c.fy *= 1.0 + 0.003 * e;
+        c.cx += 0.002 * e * f64::from(c.width);
+        c.cy -= 0.0015 * e * f64::from(c.height);
+        c.distortion.k1 += 0.01 * e;
+        c.distortion.k2 -= 0.002 * e;
+        c
+    }
+
     /// The camera (preset scaled to the resolution, with the lens) and the render options.
     pub fn resolve(&self, sim: &Simulation) -> Result<(CameraModel, RenderOptions), String> {
         let mut camera = sim.camera;
@@ -336,11 +369,23 @@ impl ImageArgs {
             camera.distortion = Distortion::from_array(a);
         }
         camera.readout_s = self.readout_ms / 1e3;
+        if !(self.calibration_error.is_finite() && self.calibration_error.abs() <= 10.0) {
+            return Err(format!(
+                "--calibration-error: must be within [-10, 10], got {}",
+                self.calibration_error
+            ));
+        }
+        self.calibrated(&camera)
+            .validate()
+            .map_err(|e| format!("--calibration-error: the calibration told: {e}"))?;
         camera.validate().map_err(|e| format!("camera: {e}"))?;
         let mut o = match self.look {
             Look::Clean => RenderOptions::default(),
             Look::Realistic => RenderOptions::realistic(),
+            Look::Night => RenderOptions::night(),
         };
+        // The glow's spread is the optics': it scales with the image.
+        o.halo_px = RenderOptions::night().halo_px * f64::from(camera.width) / 3280.0;
         let set = |field: &mut f64, v: Option<f64>| {
             if let Some(v) = v {
                 *field = v;
@@ -352,6 +397,7 @@ impl ImageArgs {
         set(&mut o.vignetting, self.vignetting);
         set(&mut o.illumination_gradient, self.gradient);
         set(&mut o.texture, self.texture);
+        set(&mut o.halo, self.halo);
         if let Some(c) = self.contrast {
             if !(c.is_finite() && c > 0.0 && c <= 2.0) {
                 return Err(format!("--contrast: must be within (0, 2], got {c}"));

@@ -202,7 +202,8 @@ impl CaptureConfig {
         )
         .map_err(|e| SourceError::Simulator(format!("[sim] {e}")))?;
         Ok(CaptureSource {
-            camera,
+            // What the pipeline is told (the renderer keeps the lens itself).
+            camera: self.image.calibrated(&camera),
             deck: sim.deck,
             altimeter: self.source.altimeter,
             inner: Inner::Sim {

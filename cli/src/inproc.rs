@@ -93,6 +93,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
     );
     let mut costs: [Vec<f64>; 4] = Default::default();
     let mut accuracy = ErrorStats::default();
+    let mut leaving = 0;
     let (mut frames, mut ok, mut partial, mut no_deck, mut tracked, mut estimated, mut false_attitudes) =
         (0, 0, 0, 0, 0, 0, 0);
     let mut states = [0u64; DecisionState::ALL.len()];
@@ -118,6 +119,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
             _ => no_deck += 1,
         }
         tracked += usize::from(set.tracked.get());
+        leaving += usize::from(set.out_of_view != 0);
         if let Some(i) = DecisionState::ALL.iter().position(|s| *s == out.decision.state) {
             states[i] += 1;
         }
@@ -146,8 +148,12 @@ pub fn run(a: RunArgs) -> Result<(), String> {
             let err = err.map_or(String::new(), |e| {
                 format!(", error {:.3}/{:.3}/{:.3}", e[0], e[1], e[2])
             });
+            let out_of_view = match set.out_of_view.count_ones() {
+                0 => String::new(),
+                n => format!(", {n} out of view"),
+            };
             println!(
-                "frame {:5} t {:8.3} s: {:?} {} markers{} | {att}{err} | {} ({})",
+                "frame {:5} t {:8.3} s: {:?} {} markers{}{out_of_view} | {att}{err} | {} ({})",
                 out.markers.context.source_index,
                 out.markers.context.source_timestamp_ns as f64 / 1e9,
                 set.status,
@@ -160,7 +166,8 @@ pub fn run(a: RunArgs) -> Result<(), String> {
     }
     let bad = chain.drops().bad_frames;
     println!(
-        "{frames} frames ({bad} bad, skipped): {ok} ok, {partial} partial, {no_deck} no deck; {tracked} tracked; \
+        "{frames} frames ({bad} bad, skipped): {ok} ok, {partial} partial ({leaving} with markers out of view), \
+         {no_deck} no deck; {tracked} tracked; \
          {estimated} attitudes"
     );
     let states: Vec<String> = DecisionState::ALL

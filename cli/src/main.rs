@@ -174,8 +174,14 @@ fn record(a: RecordArgs) -> Result<(), String> {
         a.exposure_steps,
         a.sim.seed,
     )?;
-    let mut writer = RecordingWriter::create(&a.out, &camera, &sim.deck, a.sim.truth_columns())
-        .map_err(|e| e.to_string())?;
+    // camera.json holds the calibration the pipeline is told (the frames are the lens's).
+    let mut writer = RecordingWriter::create(
+        &a.out,
+        &a.image.calibrated(&camera),
+        &sim.deck,
+        a.sim.truth_columns(),
+    )
+    .map_err(|e| e.to_string())?;
     let mut virtual_camera = a
         .virtual_camera
         .as_deref()

@@ -47,7 +47,7 @@ pub struct EstimateTableArgs {
     /// Marker table to read; `-` for stdin.
     #[arg(default_value = "-")]
     input: String,
-    /// Camera preset (paper, rpi-v2), used when --recording is not given.
+    /// Camera preset (paper, rpi-v2, rpi-v3-wide), used when --recording is not given.
     #[arg(long, default_value = "rpi-v2")]
     camera: String,
     /// Take camera and deck from this recording's camera.json instead.

@@ -113,7 +113,7 @@ pub struct CameraModel {
 }
 
 /// The camera presets deckwatch knows by name.
-pub const CAMERA_PRESETS: [&str; 2] = ["paper", "rpi-v2"];
+pub const CAMERA_PRESETS: [&str; 3] = ["paper", "rpi-v2", "rpi-v3-wide"];
 
 /// The largest image side accepted (px): beyond any sensor, and small enough that a frame's
 /// size in bytes cannot overflow.
@@ -159,11 +159,32 @@ impl CameraModel {
         Self::centred(3280, 2464, f, f)
     }
 
+    /// The Raspberry Pi Camera Module 3 Wide (Sony IMX708): 4608x2592, 2.75 mm lens, 1.4 um
+    /// pixels (fx = fy = 1964 px), 120 deg diagonal field of view. A field that wide needs
+    /// strong barrel distortion: k1 and k2 are chosen so that the 60 deg half-diagonal images
+    /// onto the sensor's corner (1 + 3 k1 + 9 k2 = 0.777, k2 = 0.01) with the mapping monotonic
+    /// out to it. A nominal lens, not a calibration.
+    pub fn rpi_v3_wide() -> Self {
+        let f = 2.75e-3 / 1.4e-6;
+        let corner = (2304.0f64.hypot(1296.0) / f) / 60f64.to_radians().tan();
+        let k2 = 0.01;
+        let k1 = (corner - 1.0 - 9.0 * k2) / 3.0;
+        Self {
+            distortion: Distortion {
+                k1,
+                k2,
+                ..Distortion::NONE
+            },
+            ..Self::centred(4608, 2592, f, f)
+        }
+    }
+
     /// A preset by name (see [`CAMERA_PRESETS`]).
     pub fn preset(name: &str) -> Option<Self> {
         match name {
             "paper" => Some(Self::paper()),
             "rpi-v2" => Some(Self::rpi_v2()),
+            "rpi-v3-wide" => Some(Self::rpi_v3_wide()),
             _ => None,
         }
     }

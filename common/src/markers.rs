@@ -57,7 +57,7 @@ pub struct RejectCounts {
 /// The markers of one frame, by marker index (0 centre, 1 bow, 2.. counter-clockwise).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.MarkerSet.v1"))]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.MarkerSet.v2"))]
 pub struct MarkerSet {
     pub status: WireCode<DetectionStatus>,
     /// Number of valid markers.
@@ -69,6 +69,9 @@ pub struct MarkerSet {
     pub perspective_corrected: WireBool,
     pub markers: [Marker; MAX_MARKERS],
     pub rejected: RejectCounts,
+    /// Markers not found that the found ones put outside the image (bit i = marker i): the
+    /// pattern is leaving the view (low over the deck, or off to a side).
+    pub out_of_view: u32,
 }
 
 // bytemuck has `AnyBitPattern` for arrays of `Pod` only, and `Marker` has padding (it is not
@@ -80,6 +83,7 @@ const _: () = {
     any_bit_pattern::<WireBool>();
     any_bit_pattern::<Marker>();
     any_bit_pattern::<RejectCounts>();
+    any_bit_pattern::<u32>();
 };
 // SAFETY: `repr(C)` of fields that each accept any bytes (checked above): an array of such a
 // type does too, and so does the struct; zero is a value of each.

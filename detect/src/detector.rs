@@ -14,7 +14,7 @@
 //! Tracking: the next frame first looks only in regions around the previous markers; when that
 //! does not give a consistent marker set it falls back to the full frame.
 
-use crate::identify::{identify, Blob};
+use crate::identify::{identify, identify_partial, Blob};
 use deckwatch_common::deck::MAX_MARKERS;
 use deckwatch_common::homography;
 use deckwatch_common::image::{GrayView, ImageError};
@@ -48,13 +48,14 @@ pub struct DetectorConfig {
 }
 
 impl DetectorConfig {
-    /// Defaults for a camera and deck: discs from 1.5 m to 15 m away.
+    /// Defaults for a camera and deck: discs from 0.8 m to 25 m away (the whole approach,
+    /// down to a camera about to touch down).
     pub fn for_camera(camera: &CameraModel, deck: &DeckLayout) -> Self {
         let f = camera.fx.min(camera.fy);
         Self {
             min_contrast: 25.0,
-            min_radius_px: (f * deck.marker_radius_m / 15.0).max(1.0),
-            max_radius_px: f * deck.bow_marker_radius_m / 1.5,
+            min_radius_px: (f * deck.marker_radius_m / 25.0).max(1.0),
+            max_radius_px: f * deck.bow_marker_radius_m / 0.8,
             min_roundness: 0.3,
             fill_tolerance: 0.3,
             max_residual_px: 2.0,
@@ -189,7 +190,7 @@ impl Detector {
         self.candidates.clear();
         let (w, h) = (frame.width(), frame.height());
         // Coarse scan: one cell per `step` x `step` pixels, sampled at its corner.
-        let step = (self.config.min_radius_px.floor() as usize).clamp(1, 4);
+        let step = self.coarse_step();
         let (gw, gh) = (w.div_ceil(step), h.div_ceil(step));
         self.coarse.clear();
         self.coarse.resize(gw * gh, 0);
@@ -258,6 +259,11 @@ impl Detector {
         set
     }
 
+    /// The full search's coarse grid step (px): dense enough to hit the smallest disc.
+    fn coarse_step(&self) -> usize {
+        (self.config.min_radius_px.floor() as usize).clamp(1, 4)
+    }
+
     /// Looks only around the previous markers; None when that does not give a consistent set
     /// with as many markers as before.
     fn detect_tracked(
@@ -266,26 +272,49 @@ impl Detector {
         prev: &[Option<(f64, f64, f64)>; MAX_MARKERS],
     ) -> Option<MarkerSet> {
         let (w, h) = (frame.width() as f64, frame.height() as f64);
+        let step = self.coarse_step();
         let mut found = [None; MAX_MARKERS];
-        let expected = prev.iter().flatten().count();
+        // Markers whose region the image border cuts may leave the view (descending onto the
+        // deck): tracking goes on without them while four remain (the bow too may go: the
+        // identities are the previous frame's, which go back to a frame that had it).
+        let mut expected = prev.iter().flatten().count();
         for (i, p) in prev.iter().enumerate() {
             let Some((u, v, r)) = p else { continue };
-            // The disc, the background border the measurement needs, and the motion allowance.
-            let half = r + 4.0 + self.config.track_margin_px;
+            // The disc, the background border the measurement needs, and the motion allowance
+            // (image motion grows as the discs do: near the deck a frame moves them further).
+            let half = 2.0 * r + 4.0 + self.config.track_margin_px;
+            let cut = u - half < 0.0 || v - half < 0.0 || u + half > w || v + half > h;
             let roi = (
                 (u - half).max(0.0) as usize,
                 (v - half).max(0.0) as usize,
                 ((u + half).ceil().min(w)) as usize,
                 ((v + half).ceil().min(h)) as usize,
             );
-            if roi.2 <= roi.0 + 2 || roi.3 <= roi.1 + 2 {
-                return None;
+            let measured = if roi.2 <= roi.0 + 2 || roi.3 <= roi.1 + 2 {
+                None
+            } else {
+                // Found in the search region, measured again in a region as tight as the full
+                // search's (the background plane is fitted to the region's border).
+                self.measure(frame, roi).ok().and_then(|c| {
+                    let half = c.radius + 2.0 * step as f64 + 3.0;
+                    let tight = (
+                        (c.u - half).max(0.0) as usize,
+                        (c.v - half).max(0.0) as usize,
+                        ((c.u + half).ceil().min(w)) as usize,
+                        ((c.v + half).ceil().min(h)) as usize,
+                    );
+                    self.measure(frame, tight).ok()
+                })
+            };
+            match measured {
+                Some(c) => found[i] = Some(c),
+                None if cut => expected -= 1,
+                None => return None,
             }
-            found[i] = Some(self.measure(frame, roi).ok()?);
         }
         let n = self.deck.marker_count();
         let assigned: Vec<(usize, Candidate)> = (0..n).filter_map(|i| found[i].map(|c| (i, c))).collect();
-        if assigned.len() < expected {
+        if assigned.len() < expected.max(4) {
             return None;
         }
         let residual = self.fit_residual(&assigned)?;
@@ -546,19 +575,50 @@ impl Detector {
                         .enumerate()
                         .filter_map(|(m, id)| id.map(|b| (m, cands[subset[b]])))
                         .collect();
-                    let Some(res) = self.fit_residual(&assigned) else {
+                    let Some(res) = self.consistency(&assigned) else {
                         return;
                     };
-                    if res <= self.config.max_residual_px
-                        && best
-                            .as_ref()
-                            .is_none_or(|(k, r, _)| assigned.len() > *k || (assigned.len() == *k && res < *r))
+                    if best
+                        .as_ref()
+                        .is_none_or(|(k, r, _)| assigned.len() > *k || (assigned.len() == *k && res < *r))
                     {
                         best = Some((assigned.len(), res, assigned));
                     }
                 });
                 if best.is_some() {
                     break; // the largest consistent set wins
+                }
+            }
+        }
+        // Low over the deck the ring leaves the view: the centre, the bow and part of the ring.
+        if best.is_none() && n >= 4 && n <= n_markers + MAX_EXTRAS {
+            let min_size = 4.max(n.saturating_sub(MAX_EXTRAS));
+            for size in (min_size..=n.min(n_markers)).rev() {
+                for_each_subset(n, size, &mut |subset: &[usize]| {
+                    let blobs: Vec<Blob> = subset
+                        .iter()
+                        .map(|&i| Blob {
+                            u: cands[i].u,
+                            v: cands[i].v,
+                            area: cands[i].area,
+                        })
+                        .collect();
+                    for ids in identify_partial(&blobs, &self.deck, &self.camera) {
+                        let assigned: Vec<(usize, Candidate)> = ids
+                            .iter()
+                            .enumerate()
+                            .filter_map(|(m, id)| id.map(|b| (m, cands[subset[b]])))
+                            .collect();
+                        let Some(score) = self.consistency(&assigned) else {
+                            continue;
+                        };
+                        if best.as_ref().is_none_or(|(_, r, _)| score < *r) {
+                            best = Some((assigned.len(), score, assigned));
+                        }
+                    }
+                });
+                if best.is_some() {
+                    break;
                 }
             }
         }
@@ -576,6 +636,45 @@ impl Detector {
                 }
             }
         }
+    }
+
+    /// How well an identification fits the image (lower is better), or None when it does not:
+    /// the homography through the markers must leave them within `max_residual_px` (with five
+    /// or more), show the deck from above (not mirrored), and give every disc the size it was
+    /// measured at, up to one scale common to all (blur and overexposure grow every disc
+    /// alike). The ring alone is symmetric: the sizes are what tells the bow apart when
+    /// perspective makes a near ring disc look large (low over a tilted deck), and a wrong
+    /// slot when four markers fit any homography. Small discs' areas are uncertain by about
+    /// twice their radius' (a pixel of edge), so the tolerance widens for them.
+    fn consistency(&self, assigned: &[(usize, Candidate)]) -> Option<f64> {
+        let (src, dst) = self.correspondences(assigned)?;
+        let h = homography::fit(&src, &dst)?;
+        let residual = homography::rms_residual(&h, &src, &dst);
+        if !(residual <= self.config.max_residual_px) {
+            return None;
+        }
+        let mut log_ratios = Vec::with_capacity(assigned.len());
+        for (k, (m, c)) in assigned.iter().enumerate() {
+            let (_, det) = disc_image(&h, src[k])?;
+            // Deck +x is image up and +y image left from above: a negative determinant.
+            if !(det < 0.0) {
+                return None;
+            }
+            let r = self.deck.disc_radius(*m);
+            let predicted = std::f64::consts::PI * r * r * -det;
+            log_ratios.push((c.area / predicted).ln());
+        }
+        let mut sorted = log_ratios.clone();
+        sorted.sort_by(f64::total_cmp);
+        let median = sorted[sorted.len() / 2];
+        let spread = log_ratios.iter().map(|l| (l - median).abs()).fold(0.0, f64::max);
+        let smallest_px = assigned
+            .iter()
+            .map(|(_, c)| c.radius)
+            .fold(f64::INFINITY, f64::min);
+        // Sizes within 35 % of one another (more for small discs), the common scale within 2x.
+        let tolerance = 1.35f64.ln() + 2.0 / smallest_px.max(1.0);
+        (spread <= tolerance && median.abs() <= 2f64.ln()).then_some(spread + residual)
     }
 
     /// RMS residual (pixels) of the deck-to-image homography through the assigned markers.
@@ -638,6 +737,20 @@ impl Detector {
                 quality: (c.roundness * contrast_score * residual_score).clamp(0.0, 1.0),
             };
         }
+        // The markers not found whose discs the found ones put (partly) outside the image.
+        if let Some((h, _, _)) = &fit {
+            let (w, hgt) = (f64::from(self.camera.width), f64::from(self.camera.height));
+            for m in (0..self.deck.marker_count()).filter(|m| !set.markers[*m].valid.get()) {
+                let p = self.deck.marker_position(m);
+                if let Some((ideal, det)) = disc_image(h, [p.x, p.y]) {
+                    let [u, v] = self.camera.distort_pixel(ideal);
+                    let r = self.deck.disc_radius(m) * det.abs().sqrt();
+                    if !(u - r >= -0.5 && v - r >= -0.5 && u + r <= w - 0.5 && v + r <= hgt - 0.5) {
+                        set.out_of_view |= 1 << m;
+                    }
+                }
+            }
+        }
         set.count = assigned.len() as u32;
         set.status = if set.count as usize == self.deck.marker_count() {
             DetectionStatus::Ok.into()
@@ -660,6 +773,25 @@ impl Detector {
             self.previous = None;
         }
     }
+}
+
+/// Where a homography (deck plane -> pixels) puts a deck point, and the determinant of its
+/// Jacobian there (image area per deck area; negative for the deck seen from above). None
+/// at the horizon.
+fn disc_image(h: &nalgebra::Matrix3<f64>, [x, y]: [f64; 2]) -> Option<([f64; 2], f64)> {
+    let p = h * nalgebra::Vector3::new(x, y, 1.0);
+    if !(p.z.abs() > 1e-12) {
+        return None;
+    }
+    let (u, v) = (p.x / p.z, p.y / p.z);
+    let j = [
+        (h[(0, 0)] - u * h[(2, 0)]) / p.z,
+        (h[(0, 1)] - u * h[(2, 1)]) / p.z,
+        (h[(1, 0)] - v * h[(2, 0)]) / p.z,
+        (h[(1, 1)] - v * h[(2, 1)]) / p.z,
+    ];
+    let det = j[0] * j[3] - j[1] * j[2];
+    det.is_finite().then_some(([u, v], det))
 }
 
 /// Least-squares plane `z = p0 + p1 x + p2 y` from its normal equations, over integer pixel

@@ -124,6 +124,55 @@ pub fn identify(
     Ok(out)
 }
 
+/// Identifications of a part of the pattern (low over the deck, where the ring leaves the view):
+/// the centre, the bow and at least two more ring markers, every blob among them. Each pair of
+/// blobs is tried as (bow, centre); the others take the ring slots their angle around the
+/// centre gives. The angles from the centre's image are right up to the local affine
+/// distortion of the deck plane's view (lines through the centre stay lines), whatever the
+/// perspective elsewhere, so a partial ring falls into its slots as a whole one does. Several
+/// hypotheses can pass: the caller checks each against the image (disc sizes, homography).
+pub fn identify_partial(blobs: &[Blob], deck: &DeckLayout, camera: &CameraModel) -> Vec<Vec<Option<usize>>> {
+    let n = blobs.len();
+    let valid = blobs
+        .iter()
+        .all(|b| b.u.is_finite() && b.v.is_finite() && b.area.is_finite() && b.area > 0.0);
+    if !(4..=deck.marker_count()).contains(&n) || !valid {
+        return Vec::new();
+    }
+    let xy = |b: &Blob| (b.u / camera.fx, b.v / camera.fy);
+    let spacing = TAU / deck.n_ring as f64;
+    let mut out = Vec::new();
+    for bow in 0..n {
+        for centre in (0..n).filter(|&c| c != bow) {
+            let (cx, cy) = xy(&blobs[centre]);
+            let angle = |i: usize| {
+                let (x, y) = xy(&blobs[i]);
+                (-(x - cx)).atan2(-(y - cy))
+            };
+            let a_bow = angle(bow);
+            let mut ids = vec![None; deck.marker_count()];
+            ids[0] = Some(centre);
+            ids[deck.ring_index(0)] = Some(bow);
+            let consistent = (0..n).filter(|&i| i != bow && i != centre).all(|i| {
+                let rel = (angle(i) - a_bow).rem_euclid(TAU) / spacing;
+                let slot = rel.round();
+                let index = deck.ring_index(slot as usize % deck.n_ring);
+                let free = ids[index].is_none();
+                if free && (rel - slot).abs() <= SLOT_TOLERANCE {
+                    ids[index] = Some(i);
+                    true
+                } else {
+                    false
+                }
+            });
+            if consistent {
+                out.push(ids);
+            }
+        }
+    }
+    out
+}
+
 /// Marker pixels by marker index, from blobs and an identification.
 pub fn marker_pixels(blobs: &[Blob], ids: &[Option<usize>]) -> Vec<Option<[f64; 2]>> {
     ids.iter()
@@ -204,6 +253,29 @@ mod tests {
             let blobs: Vec<Blob> = pts.iter().map(|&(u, v, area)| Blob { u, v, area }).collect();
             let _ = identify(&blobs, &DeckLayout::paper(), &CameraModel::rpi_v2());
         }
+    }
+
+    #[test]
+    fn a_partial_pattern_is_among_the_hypotheses() {
+        // Low over the deck, tilted: the centre, the bow and two ring markers in view.
+        let cam = CameraModel::rpi_v2();
+        let deck = DeckLayout::paper();
+        let all = blobs_for(
+            Rpy::from_degrees(12.0, -6.0, 30.0),
+            Viewpoint::level(0.1, 0.05, 1.2),
+            &cam,
+        );
+        for keep in [vec![0, 1, 2, 8], vec![0, 1, 3, 4, 5], vec![1, 0, 7, 6, 2]] {
+            let blobs: Vec<Blob> = keep.iter().map(|&i| all[i]).collect();
+            let hypotheses = identify_partial(&blobs, &deck, &cam);
+            let truth: Vec<Option<usize>> = (0..9).map(|m| keep.iter().position(|&k| k == m)).collect();
+            assert!(hypotheses.contains(&truth), "{keep:?}: {hypotheses:?}");
+        }
+        // Too few, or garbage: none.
+        assert!(identify_partial(&all[..3], &deck, &cam).is_empty());
+        let mut bad = all[..5].to_vec();
+        bad[2].area = -1.0;
+        assert!(identify_partial(&bad, &deck, &cam).is_empty());
     }
 
     #[test]

@@ -213,18 +213,22 @@ impl PoseEstimator {
         centres_corrected: bool,
         vehicle: &RotationMatrix,
     ) -> Result<PoseEstimate, PoseError> {
-        self.estimate_in_motion(markers, centres_corrected, vehicle, None)
+        self.estimate_in_motion(markers, centres_corrected, vehicle, None, true)
     }
 
     /// The same for a rolling shutter: with `motion`, each marker is taken at its row's instant
     /// and the pose is the frame's (the middle row's); without it (or with a global shutter,
-    /// `readout_s` 0) every marker is taken at the frame's instant.
+    /// `readout_s` 0) every marker is taken at the frame's instant. `bow_required`: the bow
+    /// must be among the markers (it is what identifies them); false only for markers whose
+    /// identities were carried over from frames that had it (tracking, low over the deck when
+    /// the bow has left the view).
     pub fn estimate_in_motion(
         &self,
         markers: &[Option<[f64; 2]>],
         centres_corrected: bool,
         vehicle: &RotationMatrix,
         motion: Option<&FrameMotion>,
+        bow_required: bool,
     ) -> Result<PoseEstimate, PoseError> {
         let n = self.deck.marker_count();
         // Camera from world at the frame's instant: (R_V R_CW0^T)^T.
@@ -236,7 +240,7 @@ impl PoseEstimator {
                 got: markers.len(),
             });
         }
-        if markers[BOW].is_none() {
+        if bow_required && markers[BOW].is_none() {
             return Err(PoseError::BowMissing);
         }
         let mut obs = Vec::with_capacity(n);
@@ -554,6 +558,13 @@ mod tests {
         let mut no_bow = px.clone();
         no_bow[1] = None;
         assert_eq!(est.estimate(&no_bow, true).unwrap_err(), PoseError::BowMissing);
+        // Identities carried over from frames that had the bow: the rest suffice.
+        let tracked = est
+            .estimate_in_motion(&no_bow, true, &RotationMatrix::identity(), None, false)
+            .unwrap();
+        assert!(rpy_error_deg(&tracked.attitude.rpy, &truth)
+            .iter()
+            .all(|v| *v < 1e-7));
         let mut three = vec![None; 9];
         for i in [0, 1, 3] {
             three[i] = px[i];
@@ -653,8 +664,10 @@ mod tests {
             })
             .collect();
         let r_v = vehicle_rpy.to_matrix();
-        let still = est.estimate_in_motion(&px, true, &r_v, None).unwrap();
-        let moving = est.estimate_in_motion(&px, true, &r_v, Some(&motion)).unwrap();
+        let still = est.estimate_in_motion(&px, true, &r_v, None, true).unwrap();
+        let moving = est
+            .estimate_in_motion(&px, true, &r_v, Some(&motion), true)
+            .unwrap();
         let e_still = rpy_error_deg(&still.attitude.rpy, &deck_rpy);
         let e_moving = rpy_error_deg(&moving.attitude.rpy, &deck_rpy);
         assert!(
@@ -674,7 +687,7 @@ mod tests {
         );
         let px0 = scene_at(0.0).project_markers(global.camera(), &deck);
         let e = global
-            .estimate_in_motion(&px0, true, &r_v, Some(&motion))
+            .estimate_in_motion(&px0, true, &r_v, Some(&motion), true)
             .unwrap();
         assert!(rpy_error_deg(&e.attitude.rpy, &deck_rpy)
             .iter()

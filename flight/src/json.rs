@@ -341,7 +341,8 @@ json_struct!(MarkerSet {
     tracked,
     perspective_corrected,
     markers,
-    rejected,
+    rejected;
+    out_of_view = 0
 });
 json_struct!(MarkerMessage {
     stamp,

@@ -56,6 +56,10 @@ pub const LATENCY: &str = "latency";
 /// Frames lost so far, by where (cumulative): `drops/<where>`.
 pub const DROPS: &str = "drops";
 /// The vehicle's attitude from the autopilot (deg; north-west-up) and the link's clock.
+/// How many markers were found, and how many the found ones put outside the image (the pattern
+/// leaving the view, low over the deck).
+pub const MARKERS_FOUND: &str = "detection/markers_found";
+pub const MARKERS_OUT_OF_VIEW: &str = "detection/markers_out_of_view";
 pub const VEHICLE_ROLL: &str = "vehicle/roll";
 pub const VEHICLE_PITCH: &str = "vehicle/pitch";
 pub const LINK_CLOCK_OFFSET: &str = "link/clock_offset_ms";
@@ -241,7 +245,17 @@ pub fn marker_items(m: &MarkerMessage, crop: Option<DeckCrop>) -> Vec<Item> {
         radius_ui: MARKER_RADIUS_UI,
         crop,
     };
-    vec![item(m.stamp.seq, m.stamp.times.captured_ns, kind)]
+    let counts = ItemKind::Scalars(vec![
+        (MARKERS_FOUND.into(), f64::from(m.markers.count)),
+        (
+            MARKERS_OUT_OF_VIEW.into(),
+            f64::from(m.markers.out_of_view.count_ones()),
+        ),
+    ]);
+    vec![
+        item(m.stamp.seq, m.stamp.times.captured_ns, kind),
+        item(m.stamp.seq, m.stamp.times.captured_ns, counts),
+    ]
 }
 
 /// The crop of the deck region of a frame as an image item.

@@ -337,11 +337,13 @@ impl EstimateStage {
                 }
             }
             None => {
+                // Tracked markers keep the identities of frames that had the bow.
                 match est.pose.estimate_in_motion(
                     &pixels,
                     m.markers.perspective_corrected.get(),
                     &vehicle,
                     motion,
+                    !m.markers.tracked.get(),
                 ) {
                     Ok(e) => Outcome {
                         kind,

@@ -5,22 +5,8 @@
 //! estimator are checked: the autopilot-like stream of a recording (`vehicle.csv`, replayed by
 //! `deckwatch eval`) and the simulator's own frames (`deckwatch inproc`).
 
-use deckwatch_tests::workspace_binary;
+use deckwatch_tests::run_deckwatch as run;
 use std::path::Path;
-use std::process::Command;
-
-fn run(args: &[&str]) -> String {
-    let out = Command::new(workspace_binary("deckwatch"))
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "deckwatch {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
 
 /// The RMSE of roll, pitch and yaw in an eval table's row.
 fn rmse(table: &str, recording: &str, estimator: &str) -> [f64; 3] {

@@ -82,6 +82,8 @@ struct Candidate {
 /// Marker index and the candidate assigned to it.
 type Assignment = Vec<(usize, Candidate)>;
 type Points = Vec<[f64; 2]>;
+/// Identifications to try: per hypothesis, the blob of each marker index.
+type Identifications = Vec<Vec<Option<usize>>>;
 
 enum Rejection {
     Area,
@@ -281,8 +283,8 @@ impl Detector {
         for (i, p) in prev.iter().enumerate() {
             let Some((u, v, r)) = p else { continue };
             // The disc, the background border the measurement needs, and the motion allowance
-            // (image motion grows as the discs do: near the deck a frame moves them further).
-            let half = 2.0 * r + 4.0 + self.config.track_margin_px;
+            // (half a radius more: near the deck a frame moves the discs further, as they grow).
+            let half = 1.5 * r + 4.0 + self.config.track_margin_px;
             let cut = u - half < 0.0 || v - half < 0.0 || u + half > w || v + half > h;
             let roi = (
                 (u - half).max(0.0) as usize,
@@ -551,76 +553,13 @@ impl Detector {
             cands.retain(|c| c.plateau < SATURATED as f64 - 2.0);
             rejected.unassigned += (before - cands.len()) as u32;
         }
-        // (markers, residual, assignment) of the best consistent subset so far.
-        let mut best: Option<(usize, f64, Assignment)> = None;
         // At most 4 extras (or missing markers) are searched: beyond, the frame is not a deck.
-        let n = cands.len();
-        if n >= 6 && n <= n_markers + MAX_EXTRAS {
-            let min_size = 6.max(n.saturating_sub(MAX_EXTRAS));
-            for size in (min_size..=n.min(n_markers)).rev() {
-                for_each_subset(n, size, &mut |subset: &[usize]| {
-                    let blobs: Vec<Blob> = subset
-                        .iter()
-                        .map(|&i| Blob {
-                            u: cands[i].u,
-                            v: cands[i].v,
-                            area: cands[i].area,
-                        })
-                        .collect();
-                    let Ok(ids) = identify(&blobs, &self.deck, &self.camera) else {
-                        return;
-                    };
-                    let assigned: Vec<(usize, Candidate)> = ids
-                        .iter()
-                        .enumerate()
-                        .filter_map(|(m, id)| id.map(|b| (m, cands[subset[b]])))
-                        .collect();
-                    let Some(res) = self.consistency(&assigned) else {
-                        return;
-                    };
-                    if best
-                        .as_ref()
-                        .is_none_or(|(k, r, _)| assigned.len() > *k || (assigned.len() == *k && res < *r))
-                    {
-                        best = Some((assigned.len(), res, assigned));
-                    }
-                });
-                if best.is_some() {
-                    break; // the largest consistent set wins
-                }
-            }
-        }
+        let whole = |blobs: &[Blob]| identify(blobs, &self.deck, &self.camera).into_iter().collect();
+        let partial = |blobs: &[Blob]| identify_partial(blobs, &self.deck, &self.camera);
+        let mut best = self.best_subset(&cands, 6, &whole);
         // Low over the deck the ring leaves the view: the centre, the bow and part of the ring.
-        if best.is_none() && n >= 4 && n <= n_markers + MAX_EXTRAS {
-            let min_size = 4.max(n.saturating_sub(MAX_EXTRAS));
-            for size in (min_size..=n.min(n_markers)).rev() {
-                for_each_subset(n, size, &mut |subset: &[usize]| {
-                    let blobs: Vec<Blob> = subset
-                        .iter()
-                        .map(|&i| Blob {
-                            u: cands[i].u,
-                            v: cands[i].v,
-                            area: cands[i].area,
-                        })
-                        .collect();
-                    for ids in identify_partial(&blobs, &self.deck, &self.camera) {
-                        let assigned: Vec<(usize, Candidate)> = ids
-                            .iter()
-                            .enumerate()
-                            .filter_map(|(m, id)| id.map(|b| (m, cands[subset[b]])))
-                            .collect();
-                        let Some(score) = self.consistency(&assigned) else {
-                            continue;
-                        };
-                        if best.as_ref().is_none_or(|(_, r, _)| score < *r) {
-                            best = Some((assigned.len(), score, assigned));
-                        }
-                    }
-                });
-                if best.is_some() {
-                    break;
-                }
-            }
+        if best.is_none() {
+            best = self.best_subset(&cands, 4, &partial);
         }
         self.candidates = cands;
         match best {
@@ -636,6 +575,52 @@ impl Detector {
                 }
             }
         }
+    }
+
+    /// The largest consistent identification of a subset of the candidates (at least
+    /// `min_markers`, at most [`MAX_EXTRAS`] left out), the best fitting of that size:
+    /// (markers, fit, assignment). `identify` gives each subset's identifications to try.
+    fn best_subset(
+        &self,
+        cands: &[Candidate],
+        min_markers: usize,
+        identify: &dyn Fn(&[Blob]) -> Identifications,
+    ) -> Option<(usize, f64, Assignment)> {
+        let (n, n_markers) = (cands.len(), self.deck.marker_count());
+        if n < min_markers || n > n_markers + MAX_EXTRAS {
+            return None;
+        }
+        let mut best: Option<(usize, f64, Assignment)> = None;
+        let min_size = min_markers.max(n.saturating_sub(MAX_EXTRAS));
+        for size in (min_size..=n.min(n_markers)).rev() {
+            for_each_subset(n, size, &mut |subset: &[usize]| {
+                let blobs: Vec<Blob> = subset
+                    .iter()
+                    .map(|&i| Blob {
+                        u: cands[i].u,
+                        v: cands[i].v,
+                        area: cands[i].area,
+                    })
+                    .collect();
+                for ids in identify(&blobs) {
+                    let assigned: Vec<(usize, Candidate)> = ids
+                        .iter()
+                        .enumerate()
+                        .filter_map(|(m, id)| id.map(|b| (m, cands[subset[b]])))
+                        .collect();
+                    let Some(fit) = self.consistency(&assigned) else {
+                        continue;
+                    };
+                    if best.as_ref().is_none_or(|(_, f, _)| fit < *f) {
+                        best = Some((assigned.len(), fit, assigned));
+                    }
+                }
+            });
+            if best.is_some() {
+                break; // the largest consistent set wins
+            }
+        }
+        best
     }
 
     /// How well an identification fits the image (lower is better), or None when it does not:

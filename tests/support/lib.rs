@@ -180,6 +180,21 @@ pub fn peer_python(module: &str) -> std::path::PathBuf {
     panic!("no python3 with {module}: run ci/peers.sh (or set DECKWATCH_PYTHON)");
 }
 
+/// Runs `deckwatch ARGS` and returns its standard output; a failure is the test's, with the
+/// command's standard error.
+pub fn run_deckwatch(args: &[&str]) -> String {
+    let out = std::process::Command::new(workspace_binary("deckwatch"))
+        .args(args)
+        .output()
+        .expect("deckwatch runs");
+    assert!(
+        out.status.success(),
+        "deckwatch {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).expect("UTF-8 output")
+}
+
 /// rerun-sdk's `rerun` command (the venv of `ci/peers.sh`, else the one on PATH), version 0.36.3.
 pub fn peer_rerun() -> std::path::PathBuf {
     let python = peer_python("rerun");

@@ -282,32 +282,30 @@ impl Detector {
         let mut expected = prev.iter().flatten().count();
         for (i, p) in prev.iter().enumerate() {
             let Some((u, v, r)) = p else { continue };
-            // The disc, the background border the measurement needs, and the motion allowance
-            // (half a radius more: near the deck a frame moves the discs further, as they grow).
-            let half = 1.5 * r + 4.0 + self.config.track_margin_px;
-            let cut = u - half < 0.0 || v - half < 0.0 || u + half > w || v + half > h;
-            let roi = (
-                (u - half).max(0.0) as usize,
-                (v - half).max(0.0) as usize,
-                ((u + half).ceil().min(w)) as usize,
-                ((v + half).ceil().min(h)) as usize,
-            );
-            let measured = if roi.2 <= roi.0 + 2 || roi.3 <= roi.1 + 2 {
-                None
-            } else {
-                // Found in the search region, measured again in a region as tight as the full
-                // search's (the background plane is fitted to the region's border).
-                self.measure(frame, roi).ok().and_then(|c| {
-                    let half = c.radius + 2.0 * step as f64 + 3.0;
-                    let tight = (
-                        (c.u - half).max(0.0) as usize,
-                        (c.v - half).max(0.0) as usize,
-                        ((c.u + half).ceil().min(w)) as usize,
-                        ((c.v + half).ceil().min(h)) as usize,
-                    );
-                    self.measure(frame, tight).ok()
-                })
+            // The disc, the background border the measurement needs, and the motion allowance;
+            // where the disc is not in that, a region half a radius wider (near the deck a frame
+            // moves the discs further, as they grow), the disc found there measured again in a
+            // region as tight as the full search's (the background plane is fitted to the
+            // region's border, so its size matters).
+            let region = |u: f64, v: f64, half: f64| {
+                let roi = (
+                    (u - half).max(0.0) as usize,
+                    (v - half).max(0.0) as usize,
+                    ((u + half).ceil().min(w)) as usize,
+                    ((v + half).ceil().min(h)) as usize,
+                );
+                (roi.2 > roi.0 + 2 && roi.3 > roi.1 + 2).then_some(roi)
             };
+            let near = r + 4.0 + self.config.track_margin_px;
+            let wide = near + 0.5 * r;
+            let cut = u - wide < 0.0 || v - wide < 0.0 || u + wide > w || v + wide > h;
+            let measured = region(*u, *v, near)
+                .and_then(|roi| self.measure(frame, roi).ok())
+                .or_else(|| {
+                    let c = self.measure(frame, region(*u, *v, wide)?).ok()?;
+                    self.measure(frame, region(c.u, c.v, c.radius + 2.0 * step as f64 + 3.0)?)
+                        .ok()
+                });
             match measured {
                 Some(c) => found[i] = Some(c),
                 None if cut => expected -= 1,

@@ -5,7 +5,7 @@
 //! against the baseline at full resolution and at 640x480. The full tables are in
 //! BENCHMARKS.md (bench/camera_effects.py).
 
-use deckwatch_tests::{peer_python, run_deckwatch as deckwatch};
+use deckwatch_tests::{eval_table_row, peer_python, run_deckwatch as deckwatch};
 use std::collections::HashMap;
 use std::path::Path;
 use std::process::Command;
@@ -20,12 +20,7 @@ fn record(dir: &Path, name: &str, options: &[&str]) -> String {
 
 /// (frames, estimated, missed, false decks, RMSE roll pitch yaw) of an eval table's row.
 fn eval_row(table: &str, recording: &str, estimator: &str) -> (u32, u32, u32, u32, [f64; 3]) {
-    let row: Vec<&str> = table
-        .lines()
-        .find(|l| l.starts_with(recording) && l.split_whitespace().nth(1) == Some(estimator))
-        .unwrap_or_else(|| panic!("{recording} {estimator} in\n{table}"))
-        .split_whitespace()
-        .collect();
+    let row = eval_table_row(table, recording, estimator);
     let n = |i: usize| row[i].parse::<u32>().unwrap();
     (
         n(2),

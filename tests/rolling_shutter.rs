@@ -5,17 +5,12 @@
 //! estimator are checked: the autopilot-like stream of a recording (`vehicle.csv`, replayed by
 //! `deckwatch eval`) and the simulator's own frames (`deckwatch inproc`).
 
-use deckwatch_tests::run_deckwatch as run;
+use deckwatch_tests::{eval_table_row, run_deckwatch as run};
 use std::path::Path;
 
 /// The RMSE of roll, pitch and yaw in an eval table's row.
 fn rmse(table: &str, recording: &str, estimator: &str) -> [f64; 3] {
-    let row: Vec<&str> = table
-        .lines()
-        .find(|l| l.starts_with(recording) && l.split_whitespace().nth(1) == Some(estimator))
-        .unwrap_or_else(|| panic!("{recording} {estimator} in\n{table}"))
-        .split_whitespace()
-        .collect();
+    let row = eval_table_row(table, recording, estimator);
     assert_eq!(row[4], "0", "no misses: {row:?}");
     [6, 7, 8].map(|i| row[i].parse().unwrap())
 }

@@ -195,6 +195,18 @@ pub fn run_deckwatch(args: &[&str]) -> String {
     String::from_utf8(out.stdout).expect("UTF-8 output")
 }
 
+/// The whitespace-separated fields of `deckwatch eval`'s table row for a recording and
+/// estimator (recording, estimator, frames, estimated, missed, no-deck attitudes, RMSE roll
+/// pitch yaw, max ...); a missing row fails the test with the table.
+pub fn eval_table_row<'a>(table: &'a str, recording: &str, estimator: &str) -> Vec<&'a str> {
+    table
+        .lines()
+        .find(|l| l.starts_with(recording) && l.split_whitespace().nth(1) == Some(estimator))
+        .unwrap_or_else(|| panic!("{recording} {estimator} in\n{table}"))
+        .split_whitespace()
+        .collect()
+}
+
 /// rerun-sdk's `rerun` command (the venv of `ci/peers.sh`, else the one on PATH), version 0.36.3.
 pub fn peer_rerun() -> std::path::PathBuf {
     let python = peer_python("rerun");

@@ -458,6 +458,7 @@ fn wild_u32() -> impl Strategy<Value = u32> {
 fn stages_hold(n: u32) {
     use deckwatch_common::messages::{AttitudeMessage, FrameHeader, MarkerMessage};
     use deckwatch_common::{CameraModel, DeckLayout, Rpy};
+    use deckwatch_runtime::stage::Stage;
     use deckwatch_runtime::stages::{DecideStage, DetectStage, EstimateStage};
     let side = || prop_oneof![4 => 1..64u32, 1 => wild_u32()];
     let detected = std::cell::Cell::new(0u32);
@@ -557,6 +558,7 @@ fn stages_hold(n: u32) {
             a.stamp.drops.estimate = drops;
             a.stamp.drops.capture = drops;
             let d = stage.process(&a, received);
+            stage.after_outputs();
             let finite = r.is_finite() && p.is_finite() && h.is_finite();
             prop_assert!(
                 (valid && finite) || d.state != DecisionState::ClearToLand,

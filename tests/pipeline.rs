@@ -350,3 +350,56 @@ fn a_killed_stage_is_restarted_and_frames_flow_again() {
     );
     assert!(leftovers(&d).is_empty(), "{:?}", leftovers(&d));
 }
+
+/// `deckwatch budget`: each process's CPU per frame (user, system), context switches and memory
+/// at a frame rate, and the Pi 5 column scaled by the larger factor.
+#[test]
+fn budget_reports_every_process_per_frame() {
+    let domain = format!("budget-{}", std::process::id());
+    let out = deckwatch_tests::run_deckwatch(&[
+        "budget",
+        "--rates",
+        "10",
+        "--seconds",
+        "3",
+        "--settle-s",
+        "2",
+        "--recording",
+        "tests/data/ship-640x480",
+        "--pi5-cpu-factor",
+        "2",
+        "--pi5-memory-factor",
+        "3",
+        "--domain",
+        &domain,
+    ]);
+    assert!(out.contains("10 fps:") && out.contains("x 3.00"), "{out}");
+    for process in ["capture", "detect", "estimate", "decide", "launcher", "all"] {
+        let row: Vec<&str> = out
+            .lines()
+            .find(|l| l.split_whitespace().next() == Some(process))
+            .unwrap_or_else(|| panic!("no row for {process} in\n{out}"))
+            .split_whitespace()
+            .collect();
+        let num = |i: usize| row[i].parse::<f64>().unwrap_or_else(|_| panic!("{row:?}"));
+        let (user, system, pct) = (num(1), num(2), num(3));
+        assert!(
+            user >= 0.0 && system >= 0.0 && pct >= 0.0 && num(5) > 0.0,
+            "{row:?}"
+        );
+        let pi5 = num(row.len() - 1);
+        assert!((pi5 - 3.0 * (user + system)).abs() <= 0.02, "{row:?}");
+    }
+    // The stages wake once per frame (or more): voluntary context switches per frame.
+    let detect = out.lines().find(|l| l.starts_with("detect")).unwrap();
+    let switches: f64 = detect
+        .split_whitespace()
+        .nth(4)
+        .unwrap()
+        .split('/')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(switches >= 0.5, "{detect}");
+}

@@ -6,6 +6,7 @@
 //! - `deckwatch replay FILE.mcap`, `diff`, `convert`, `recover`: flight recordings (MCAP).
 //! - `deckwatch inproc`: the same stages in one process, for profiling the algorithms.
 //! - `deckwatch soak`: a long run on full-size frames, watching memory and drops.
+//! - `deckwatch budget`: each process's CPU and memory per frame at 10 and 30 fps, and on a Pi 5.
 //! - `deckwatch sim markers` / `deckwatch estimate-table`: the marker-table tools.
 //! - `deckwatch sweep`: simulate a scenario at the level of marker points and run every variant of
 //!   the paper's estimator on it, side by side (accuracy and per-frame cost).
@@ -37,6 +38,7 @@ struct Cli {
     command: Command,
 }
 
+mod budget;
 mod decide_eval;
 mod decisions_csv;
 mod doctor;
@@ -81,6 +83,10 @@ enum Command {
     /// replay), printing each process's resident memory and the domain's shared memory as it
     /// runs; fails if memory grows or frames are dropped.
     Soak(soak::SoakArgs),
+    /// Each process's CPU (user, system), context switches, private and shared memory per frame
+    /// at 10 and 30 fps of 3280x2464 frames (a looped replay), and the estimate for a Raspberry
+    /// Pi 5.
+    Budget(budget::BudgetArgs),
     /// Evaluate the landing decision on long simulated ship-motion series against the truth,
     /// beside the naive rule: unsafe clearances and availability.
     DecideEval(decide_eval::DecideEvalArgs),
@@ -435,6 +441,7 @@ fn main() -> ExitCode {
         Command::Inproc(a) => inproc::run(*a),
         Command::DecideEval(a) => decide_eval::run(a),
         Command::Soak(a) => soak::run(a),
+        Command::Budget(a) => budget::run(a),
         Command::Eval(a) => eval::run(a),
         Command::EstimateTable(a) => match tables::estimate_table(a) {
             Ok(true) => Ok(()),

@@ -36,18 +36,24 @@ pub struct SoakArgs {
 }
 
 /// CPU time of a process so far (user + system, s): `/proc/<pid>/stat` fields 14 and 15.
-fn cpu_s(pid: u32) -> Option<f64> {
+pub(crate) fn cpu_s(pid: u32) -> Option<f64> {
+    cpu_split_s(pid).map(|(user, system)| user + system)
+}
+
+/// CPU time of a process so far, (user, system) in seconds: `/proc/<pid>/stat` fields 14, 15.
+pub(crate) fn cpu_split_s(pid: u32) -> Option<(f64, f64)> {
     let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
     // The command name (field 2) may hold spaces and parentheses: count from the last `)`.
     let fields: Vec<&str> = stat.rsplit_once(')')?.1.split_whitespace().collect();
-    let ticks = fields.get(11)?.parse::<u64>().ok()? + fields.get(12)?.parse::<u64>().ok()?;
+    let user = fields.get(11)?.parse::<u64>().ok()?;
+    let system = fields.get(12)?.parse::<u64>().ok()?;
     // SAFETY: sysconf only reads a system constant.
     let hz = unsafe { libc::sysconf(libc::_SC_CLK_TCK) }.max(1) as f64;
-    Some(ticks as f64 / hz)
+    Some((user as f64 / hz, system as f64 / hz))
 }
 
 /// Context switches of a process so far: (voluntary, involuntary).
-fn context_switches(pid: u32) -> Option<(u64, u64)> {
+pub(crate) fn context_switches(pid: u32) -> Option<(u64, u64)> {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
     let get = |key: &str| {
         status
@@ -68,20 +74,28 @@ fn context_switches(pid: u32) -> Option<(u64, u64)> {
 /// stacks, where a leak shows. (`VmRSS` also counts the shared-memory pages a process has
 /// touched, which grow whenever the transport first uses another of its fixed pool of frame
 /// samples; those are in the domain's shared-memory column.)
-fn private_mib(pid: u32) -> Option<f64> {
+pub(crate) fn private_mib(pid: u32) -> Option<f64> {
+    status_kib(pid, "RssAnon:").map(|kib| kib / 1024.0)
+}
+
+/// Shared memory a process has touched (MiB): `RssShmem` of `/proc/<pid>/status`.
+pub(crate) fn shared_mib(pid: u32) -> Option<f64> {
+    status_kib(pid, "RssShmem:").map(|kib| kib / 1024.0)
+}
+
+fn status_kib(pid: u32, key: &str) -> Option<f64> {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    let kib: f64 = status
+    status
         .lines()
-        .find(|l| l.starts_with("RssAnon:"))?
+        .find(|l| l.starts_with(key))?
         .split_whitespace()
         .nth(1)?
         .parse()
-        .ok()?;
-    Some(kib / 1024.0)
+        .ok()
 }
 
 /// Shared memory the domain holds (MiB allocated in /dev/shm, and files).
-fn shm_mib(domain: &str) -> (f64, usize) {
+pub(crate) fn shm_mib(domain: &str) -> (f64, usize) {
     use std::os::unix::fs::MetadataExt;
     let prefix = deckwatch_runtime::bus::domain_prefix(domain);
     let Ok(entries) = std::fs::read_dir("/dev/shm") else {
@@ -100,10 +114,10 @@ fn shm_mib(domain: &str) -> (f64, usize) {
 }
 
 /// A folder removed when dropped.
-struct TempDir(PathBuf);
+pub(crate) struct TempDir(pub(crate) PathBuf);
 
 impl TempDir {
-    fn path(&self) -> &Path {
+    pub(crate) fn path(&self) -> &Path {
         &self.0
     }
 }
@@ -112,6 +126,72 @@ impl Drop for TempDir {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.0);
     }
+}
+
+/// `deckwatch run --quiet --json --config CONFIG` in the background (a soak's, a budget's), its
+/// JSON report read as it ends.
+pub(crate) struct BackgroundRun {
+    launcher: std::process::Child,
+    reader: std::thread::JoinHandle<String>,
+}
+
+impl BackgroundRun {
+    pub(crate) fn start(me: &Path, config: &Path) -> Result<Self, String> {
+        let mut launcher = Command::new(me)
+            .args(["run", "--quiet", "--json", "--config"])
+            .arg(config)
+            .stdout(Stdio::piped())
+            .spawn()
+            .map_err(|e| format!("deckwatch run: {e}"))?;
+        let mut stdout = launcher.stdout.take().ok_or("no stdout")?;
+        let reader = std::thread::spawn(move || {
+            let mut s = String::new();
+            let _ = std::io::Read::read_to_string(&mut stdout, &mut s);
+            s
+        });
+        Ok(Self { launcher, reader })
+    }
+
+    /// The launcher's process id.
+    pub(crate) fn id(&self) -> u32 {
+        self.launcher.id()
+    }
+
+    /// Whether the run has ended.
+    pub(crate) fn finished(&mut self) -> Result<bool, String> {
+        Ok(self.launcher.try_wait().map_err(|e| e.to_string())?.is_some())
+    }
+
+    /// Waits for the end: the run's report, or why there is none.
+    pub(crate) fn report(mut self) -> Result<serde_json::Value, String> {
+        let status = self.launcher.wait().map_err(|e| e.to_string())?;
+        let out = self.reader.join().map_err(|_| "the report reader failed")?;
+        if !status.success() {
+            return Err(format!("deckwatch run failed ({status})"));
+        }
+        out.find('{')
+            .and_then(|i| serde_json::from_str(&out[i..]).ok())
+            .ok_or_else(|| format!("no report from deckwatch run: {out}"))
+    }
+}
+
+/// Renders 60 frames of the simulator at 3280x2464 into `dir`/recording (what a soak or a budget
+/// replays in a loop when given no recording).
+pub(crate) fn render_recording(me: &Path, dir: &Path, rate: f64, who: &str) -> Result<PathBuf, String> {
+    let r = dir.join("recording");
+    eprintln!("{who}: rendering 60 frames of 3280x2464 into {}", r.display());
+    let status = Command::new(me)
+        .args(["sim", "record", "--frames", "60", "--rate"])
+        .arg(rate.to_string())
+        .arg("--out")
+        .arg(&r)
+        .stdout(Stdio::null())
+        .status()
+        .map_err(|e| format!("deckwatch sim record: {e}"))?;
+    if !status.success() {
+        return Err("deckwatch sim record failed".into());
+    }
+    Ok(r)
 }
 
 pub fn run(a: SoakArgs) -> Result<(), String> {
@@ -124,22 +204,7 @@ pub fn run(a: SoakArgs) -> Result<(), String> {
     std::fs::create_dir_all(dir.path()).map_err(|e| format!("{}: {e}", dir.path().display()))?;
     let recording = match a.recording {
         Some(r) => r,
-        None => {
-            let r = dir.path().join("recording");
-            eprintln!("soak: rendering 60 frames of 3280x2464 into {}", r.display());
-            let status = Command::new(&me)
-                .args(["sim", "record", "--frames", "60", "--rate"])
-                .arg(a.rate.to_string())
-                .arg("--out")
-                .arg(&r)
-                .stdout(Stdio::null())
-                .status()
-                .map_err(|e| format!("deckwatch sim record: {e}"))?;
-            if !status.success() {
-                return Err("deckwatch sim record failed".into());
-            }
-            r
-        }
+        None => render_recording(&me, dir.path(), a.rate, "soak")?,
     };
     let frames = (a.minutes * 60.0 * a.rate).round() as u64;
     let config = dir.path().join("soak.toml");
@@ -155,18 +220,7 @@ pub fn run(a: SoakArgs) -> Result<(), String> {
         ),
     )
     .map_err(|e| format!("{}: {e}", config.display()))?;
-    let mut launcher = Command::new(&me)
-        .args(["run", "--quiet", "--json", "--config"])
-        .arg(&config)
-        .stdout(Stdio::piped())
-        .spawn()
-        .map_err(|e| format!("deckwatch run: {e}"))?;
-    let mut stdout = launcher.stdout.take().ok_or("no stdout")?;
-    let reader = std::thread::spawn(move || {
-        let mut s = String::new();
-        let _ = std::io::Read::read_to_string(&mut stdout, &mut s);
-        s
-    });
+    let mut run = BackgroundRun::start(&me, &config)?;
     println!(
         "soak: {} min at {} fps of {} ({frames} frames); every {} s, each process's CPU since the last sample (% of a core, user + system) / private resident memory (RssAnon, MiB), and the domain's shared memory",
         a.minutes,
@@ -189,14 +243,14 @@ pub fn run(a: SoakArgs) -> Result<(), String> {
     let mut switches: [Option<(u64, u64)>; 5] = [None; 5];
     let mut next = Duration::from_secs_f64(a.every_s.min(10.0));
     loop {
-        if launcher.try_wait().map_err(|e| e.to_string())?.is_some() {
+        if run.finished()? {
             break;
         }
         if start.elapsed() >= next {
             next += Duration::from_secs_f64(a.every_s);
             let pids = deckwatch_runtime::stage::stage_processes(&a.domain);
             let pid_of: [Option<u32>; 5] = PROCESSES.map(|p| match p {
-                "launcher" => Some(launcher.id()),
+                "launcher" => Some(run.id()),
                 stage => pids.iter().find(|(n, _)| n == stage).map(|(_, pid)| *pid),
             });
             let rss: [Option<f64>; 5] = pid_of.map(|pid| pid.and_then(private_mib));
@@ -242,15 +296,7 @@ pub fn run(a: SoakArgs) -> Result<(), String> {
         }
         std::thread::sleep(Duration::from_millis(200));
     }
-    let status = launcher.wait().map_err(|e| e.to_string())?;
-    let out = reader.join().map_err(|_| "the report reader failed")?;
-    if !status.success() {
-        return Err(format!("deckwatch run failed ({status})"));
-    }
-    let report: serde_json::Value = out
-        .find('{')
-        .and_then(|i| serde_json::from_str(&out[i..]).ok())
-        .ok_or_else(|| format!("no report from deckwatch run: {out}"))?;
+    let report = run.report()?;
     let drops = &report["drops"];
     let total_drops: u64 = [
         "capture",

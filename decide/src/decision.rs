@@ -498,6 +498,31 @@ impl LandingDecider {
         self.transition(verdict, now)
     }
 
+    /// Fits the motion model now when the next frame, expected `lead_s` after the newest
+    /// sample, would fit it: called once a decision is out, the fit (a millisecond or more
+    /// every `refit_interval_s`) runs between frames instead of on a frame's path. That frame
+    /// then decides with the model fitted up to the sample before it, as every other frame
+    /// decides with one fitted up to a second earlier. Does nothing during warm-up, in a gap,
+    /// or before a first model (that fit stays with the frame that completes the warm-up).
+    pub fn refit_ahead(&mut self, lead_s: f64) {
+        if let Some(t) = self.refit_due(lead_s) {
+            self.last_fit = t;
+            self.models = self.fit();
+        }
+    }
+
+    /// Whether [`Self::refit_ahead`] would fit now: the newest sample's time if so.
+    pub fn refit_due(&self, lead_s: f64) -> Option<f64> {
+        let c = &self.config;
+        let &(t, _) = self.history.back()?;
+        let span = t - self.history.front().map_or(t, |h| h.0);
+        // Half a frame to spare: a refit due exactly at the next frame (a retry 9 frames of
+        // 1/30 s later) must not be missed by a rounding.
+        let due = t + 1.5 * lead_s.max(0.0) - self.last_fit >= c.refit_interval_s;
+        let ready = self.models.is_some() && t >= self.gap_until && span >= c.min_history_s;
+        (due && ready && lead_s.is_finite()).then_some(t)
+    }
+
     /// Called when no input arrived: once the newest attitude is older than `max_age_ms`, the
     /// decision becomes stale (`Abort` if committed, else `NoDeck`).
     pub fn timeout(&mut self, now: f64) -> Option<Decision> {
@@ -993,6 +1018,56 @@ mod tests {
             }
         }
         assert!(out.iter().any(|(_, d)| d.calm_window.is_some()));
+    }
+
+    /// Fitting between frames (`refit_ahead` after each decision, as the stage does) clears into
+    /// the same calm windows, only ever safe ones; before warm-up and with a lead that is no
+    /// number it does nothing.
+    #[test]
+    fn fitting_between_frames_decides_alike() {
+        let mut ahead = LandingDecider::new(DecisionConfig::default()).unwrap();
+        ahead.refit_ahead(f64::NAN);
+        ahead.refit_ahead(0.1);
+        assert!(ahead.models.is_none());
+        let mut inline = LandingDecider::new(DecisionConfig::default()).unwrap();
+        let c = inline.config().clone();
+        let (mut commits_ahead, mut commits_inline) = (Vec::new(), Vec::new());
+        let mut t = 0.0;
+        while t < 150.0 {
+            let d = ahead.update(t, Some(sea(t, 0.8)), t + 0.005);
+            ahead.refit_ahead(0.1);
+            if d.new_commit {
+                commits_ahead.push(t);
+            }
+            if inline.update(t, Some(sea(t, 0.8)), t + 0.005).new_commit {
+                commits_inline.push(t);
+            }
+            t += 0.1;
+        }
+        // The models are fitted up to the sample before the frame that would refit: the same
+        // fits but for that sample, so nearly all the same windows, within a frame or two.
+        let matched = |a: &[f64], b: &[f64]| {
+            a.iter()
+                .filter(|x| b.iter().any(|y| (*x - y).abs() <= 0.25))
+                .count()
+        };
+        for (a, b) in [
+            (&commits_ahead, &commits_inline),
+            (&commits_inline, &commits_ahead),
+        ] {
+            assert!(
+                a.len() >= 40 && matched(a, b) * 10 >= a.len() * 9,
+                "{a:?} vs {b:?}"
+            );
+        }
+        for tc in commits_ahead {
+            let mut t = tc;
+            while t <= tc + c.touchdown_s {
+                let d = sea(t, 0.8);
+                assert!(d.roll_deg.abs() <= c.max_abs_roll_deg && d.pitch_deg.abs() <= c.max_abs_pitch_deg);
+                t += 0.01;
+            }
+        }
     }
 
     #[test]

@@ -75,15 +75,17 @@ impl SinusoidModel {
         // Grid fine enough to land within a quarter of the window's frequency resolution.
         let df = 0.25 / span;
         let steps = ((f_max_hz - f_min_hz) / df).ceil() as usize + 1;
+        let grid: Vec<f64> = (0..steps)
+            .map(|j| TAU * (f_min_hz + j as f64 * df).min(f_max_hz))
+            .collect();
         for _ in 0..components {
             let residual = residuals(&tau, y, &omegas, &params);
+            let gains = periodogram_gains(&tau, &residual, &w, &grid);
             let mut best = (0.0, f64::NAN);
-            for j in 0..steps {
-                let om = TAU * (f_min_hz + j as f64 * df).min(f_max_hz);
+            for (&om, &gain) in grid.iter().zip(&gains) {
                 if omegas.iter().any(|&o| (o - om).abs() < 0.5 * TAU * df) {
                     continue;
                 }
-                let gain = periodogram_gain(&tau, &residual, &w, om);
                 if gain > best.0 {
                     best = (gain, om);
                 }
@@ -132,25 +134,49 @@ fn weights(tau: &[f64], memory_s: f64) -> Vec<f64> {
         .collect()
 }
 
-/// Weighted least-squares reduction of the residual by one sinusoid of frequency `w`.
-fn periodogram_gain(tau: &[f64], r: &[f64], wts: &[f64], w: f64) -> f64 {
-    let (mut cc, mut ss, mut cs, mut rc, mut rs) = (0.0, 0.0, 0.0, 0.0, 0.0);
+/// Weighted least-squares reduction of the residual by one sinusoid, for every frequency of
+/// `grid` (evenly spaced but for a last one that may be closer). A sample's phasor is turned
+/// from one frequency to the next by a multiplication (two trigonometric evaluations per sample
+/// instead of one per sample and frequency; the rounding that accumulates over a grid of a few
+/// hundred steps is ~1e-13, far below what separates two candidate frequencies).
+fn periodogram_gains(tau: &[f64], r: &[f64], wts: &[f64], grid: &[f64]) -> Vec<f64> {
+    let n = grid.len();
+    // Per frequency: cc, ss, cs, rc, rs.
+    let mut acc = vec![[0.0f64; 5]; n];
+    let step = if n >= 2 { grid[1] - grid[0] } else { 0.0 };
     for ((&t, &v), &q) in tau.iter().zip(r).zip(wts) {
-        let (s, c) = (w * t).sin_cos();
-        let (s, c, v) = (s * q.sqrt(), c * q.sqrt(), v * q.sqrt());
-        cc += c * c;
-        ss += s * s;
-        cs += c * s;
-        rc += v * c;
-        rs += v * s;
+        let sq = q.sqrt();
+        let v = v * sq;
+        let (s0, c0) = (grid[0] * t).sin_cos();
+        let (ds, dc) = (step * t).sin_cos();
+        let (mut s, mut c) = (s0, c0);
+        for (j, a) in acc.iter_mut().enumerate() {
+            // The grid's last frequency is clamped to its upper end: evaluated directly.
+            let (sj, cj) = if j + 1 == n && j > 0 && (grid[j] - grid[j - 1] - step).abs() > 1e-12 {
+                (grid[j] * t).sin_cos()
+            } else {
+                (s, c)
+            };
+            let (sj, cj) = (sj * sq, cj * sq);
+            a[0] += cj * cj;
+            a[1] += sj * sj;
+            a[2] += cj * sj;
+            a[3] += v * cj;
+            a[4] += v * sj;
+            (s, c) = (s * dc + c * ds, c * dc - s * ds);
+        }
     }
-    let det = cc * ss - cs * cs;
-    if !(det.abs() > 1e-12) {
-        return 0.0;
-    }
-    let a = (rc * ss - rs * cs) / det;
-    let b = (rs * cc - rc * cs) / det;
-    a * rc + b * rs
+    acc.iter()
+        .map(|&[cc, ss, cs, rc, rs]| {
+            let det = cc * ss - cs * cs;
+            if !(det.abs() > 1e-12) {
+                return 0.0;
+            }
+            let a = (rc * ss - rs * cs) / det;
+            let b = (rs * cc - rc * cs) / det;
+            a * rc + b * rs
+        })
+        .collect()
 }
 
 /// Mean and amplitudes for fixed frequencies: `[c, a_1, b_1, ...]`.
@@ -189,15 +215,43 @@ fn residuals(tau: &[f64], y: &[f64], omegas: &[f64], p: &[f64]) -> Vec<f64> {
     tau.iter().zip(y).map(|(&t, &v)| v - eval(t, omegas, p)).collect()
 }
 
-fn cost(tau: &[f64], y: &[f64], wts: &[f64], omegas: &[f64], p: &[f64]) -> f64 {
-    residuals(tau, y, omegas, p)
-        .iter()
-        .zip(wts)
-        .map(|(r, q)| q * r * r)
-        .sum()
+/// `(sin, cos)` of `w_q t_i` for every sample `i` and component `q` (row-major by sample): the
+/// one trigonometric evaluation per sample and component that the Jacobian, the residuals and
+/// the cost of a parameter set all share.
+fn phases(tau: &[f64], omegas: &[f64]) -> Vec<(f64, f64)> {
+    tau.iter()
+        .flat_map(|&t| omegas.iter().map(move |&w| (w * t).sin_cos()))
+        .collect()
 }
 
-/// Levenberg-Marquardt on `[c, a_k, b_k]` and the frequencies together.
+/// The weighted residuals `sqrt(q_i) (y_i - model(t_i))` from the phases of the model's
+/// frequencies, and their weighted sum of squares.
+fn weighted_residuals(y: &[f64], wts: &[f64], sc: &[(f64, f64)], k: usize, p: &[f64]) -> (Vec<f64>, f64) {
+    let mut cost = 0.0;
+    let r = y
+        .iter()
+        .zip(wts)
+        .enumerate()
+        .map(|(i, (&v, &q))| {
+            let model = p[0]
+                + (0..k)
+                    .map(|c| {
+                        let (s, co) = sc[i * k + c];
+                        p[1 + 2 * c] * co + p[2 + 2 * c] * s
+                    })
+                    .sum::<f64>();
+            let r = v - model;
+            cost += q * r * r;
+            q.sqrt() * r
+        })
+        .collect();
+    (r, cost)
+}
+
+/// Levenberg-Marquardt on `[c, a_k, b_k]` and the frequencies together. The phases of the
+/// current frequencies are kept from the step that accepted them: an iteration evaluates the
+/// trigonometric functions once per sample and component (for its trial step) instead of for
+/// every entry of the Jacobian.
 fn refine(
     tau: &[f64],
     y: &[f64],
@@ -209,33 +263,29 @@ fn refine(
 ) -> SinusoidModel {
     let k = omegas.len();
     let (mut w, mut p) = (omegas.to_vec(), p.to_vec());
-    let mut c = cost(tau, y, wts, &w, &p);
+    let mut sc = phases(tau, &w);
+    let (mut r, mut c) = weighted_residuals(y, wts, &sc, k, &p);
     let total_weight: f64 = wts.iter().sum();
     let mut lambda = 1e-3;
     for _ in 0..20 {
         // Parameters: p (1 + 2k) then w (k).
         let m = 1 + 3 * k;
         let jac = DMatrix::from_fn(tau.len(), m, |i, j| {
-            let t = tau[i];
             let sw = wts[i].sqrt();
-            if j < 1 + 2 * k {
-                sw * basis(t, &w, j)
-            } else {
-                let q = j - 1 - 2 * k;
-                let (s, co) = (w[q] * t).sin_cos();
-                sw * t * (p[2 + 2 * q] * co - p[1 + 2 * q] * s)
+            if j == 0 {
+                return sw;
             }
+            if j < 1 + 2 * k {
+                let (s, co) = sc[i * k + (j - 1) / 2];
+                return sw * if j % 2 == 1 { co } else { s };
+            }
+            let q = j - 1 - 2 * k;
+            let (s, co) = sc[i * k + q];
+            sw * tau[i] * (p[2 + 2 * q] * co - p[1 + 2 * q] * s)
         });
-        let r = DVector::from_iterator(
-            tau.len(),
-            residuals(tau, y, &w, &p)
-                .iter()
-                .zip(wts)
-                .map(|(r, q)| r * q.sqrt()),
-        );
         let jt = jac.transpose();
         let mut h = &jt * &jac;
-        let g = &jt * r;
+        let g = &jt * DVector::from_column_slice(&r);
         for d in 0..m {
             h[(d, d)] *= 1.0 + lambda;
         }
@@ -247,10 +297,11 @@ fn refine(
             .enumerate()
             .map(|(q, a)| (a + step[1 + 2 * k + q]).clamp(TAU * f_min, TAU * f_max))
             .collect();
-        let c2 = cost(tau, y, wts, &w2, &p2);
+        let sc2 = phases(tau, &w2);
+        let (r2, c2) = weighted_residuals(y, wts, &sc2, k, &p2);
         if c2 < c {
             let converged = (c - c2) < 1e-12 * c.max(1e-300);
-            (p, w, c) = (p2, w2, c2);
+            (p, w, c, r, sc) = (p2, w2, c2, r2, sc2);
             lambda = (lambda * 0.3).max(1e-9);
             if converged {
                 break;

@@ -12,7 +12,10 @@
 //! homography: the centre of an imaged disc is not the image of the disc's centre.
 //!
 //! Tracking: the next frame first looks only in regions around the previous markers; when that
-//! does not give a consistent marker set it falls back to the full frame.
+//! does not give a consistent marker set (a marker moved beyond its box: a swaying camera, a
+//! jump), the same search as the full frame's runs in a window around the previous pattern (its
+//! box grown by half its size), and only when that does not find as many markers the whole
+//! frame is searched.
 
 use crate::identify::{identify, identify_partial, Blob};
 use deckwatch_common::deck::MAX_MARKERS;
@@ -102,7 +105,22 @@ pub struct Detector {
     stack: Vec<(u32, u32)>,
     seeds: Vec<u32>,
     mask: Vec<u8>,
+    /// One mask row, copied for the erosion.
+    row_copy: Vec<u8>,
     candidates: Vec<Candidate>,
+    searches: SearchCounts,
+}
+
+/// How a detector found the markers of its frames: counts of frames by the search that gave
+/// their marker set.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SearchCounts {
+    /// Boxes around the previous frame's markers.
+    pub tracked: u64,
+    /// The region around the previous frame's pattern, after tracking lost a marker.
+    pub window: u64,
+    /// The whole frame (no previous markers, or neither of the above found them).
+    pub full: u64,
 }
 
 impl Detector {
@@ -116,7 +134,9 @@ impl Detector {
             stack: Vec::new(),
             seeds: Vec::new(),
             mask: Vec::new(),
+            row_copy: Vec::new(),
             candidates: Vec::new(),
+            searches: SearchCounts::default(),
         }
     }
 
@@ -161,7 +181,20 @@ impl Detector {
         }
         if let Some(prev) = self.previous {
             if let Some(set) = self.detect_tracked(frame, &prev) {
+                self.searches.tracked += 1;
                 return set;
+            }
+            // Markers that moved beyond their boxes (a swaying camera) are still near the
+            // pattern: search around it before the whole frame.
+            if let Some(window) = self.search_window(frame, &prev) {
+                let set = self.detect_in(frame, window);
+                let before = prev.iter().flatten().count();
+                if matches!(set.status.get(), DetectionStatus::Ok | DetectionStatus::Partial)
+                    && set.count as usize >= before
+                {
+                    self.searches.window += 1;
+                    return set;
+                }
             }
         }
         self.detect_full(frame)
@@ -169,42 +202,95 @@ impl Detector {
 
     /// Full-frame detection (ignores and then replaces the tracking state).
     pub fn detect_full(&mut self, frame: GrayView<'_>) -> MarkerSet {
+        self.searches.full += 1;
+        self.detect_in(frame, (0, 0, frame.width(), frame.height()))
+    }
+
+    /// How often each kind of search gave the frame's markers so far.
+    pub fn searches(&self) -> SearchCounts {
+        self.searches
+    }
+
+    /// The region a search after lost tracking looks at first: the previous markers' box grown
+    /// by half its size on every side (and by the tracking allowance); None when that is most of
+    /// the frame anyway.
+    fn search_window(
+        &self,
+        frame: GrayView<'_>,
+        prev: &[Option<(f64, f64, f64)>; MAX_MARKERS],
+    ) -> Option<(usize, usize, usize, usize)> {
+        let (w, h) = (frame.width() as f64, frame.height() as f64);
+        let (mut u0, mut v0, mut u1, mut v1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+        for &(u, v, r) in prev.iter().flatten() {
+            (u0, v0, u1, v1) = (u0.min(u - r), v0.min(v - r), u1.max(u + r), v1.max(v + r));
+        }
+        let grow = 0.5 * (u1 - u0).max(v1 - v0) + self.config.track_margin_px;
+        let window = (
+            (u0 - grow).clamp(0.0, w) as usize,
+            (v0 - grow).clamp(0.0, h) as usize,
+            (u1 + grow).clamp(0.0, w).ceil() as usize,
+            (v1 + grow).clamp(0.0, h).ceil() as usize,
+        );
+        let area = (window.2.saturating_sub(window.0) * window.3.saturating_sub(window.1)) as f64;
+        (area > 0.0 && area < 0.5 * w * h).then_some(window)
+    }
+
+    /// Detection over a region of the frame (x0, y0, x1, y1), half-open; the threshold is the
+    /// whole frame's.
+    fn detect_in(&mut self, frame: GrayView<'_>, window: (usize, usize, usize, usize)) -> MarkerSet {
         let Some((threshold, unsaturated)) = self.global_threshold(frame) else {
             self.previous = None;
             return MarkerSet::default(); // no contrast: no deck
         };
-        let set = self.detect_at(frame, threshold);
+        let set = self.detect_at(frame, threshold, window);
         // Saturated glints pull the threshold above dull markers: try again at the markers' level.
         match unsaturated {
             Some(t)
                 if set.status == DetectionStatus::NoDeck
                     && threshold - t >= self.config.min_contrast / 2.0 =>
             {
-                self.detect_at(frame, t)
+                self.detect_at(frame, t, window)
             }
             _ => set,
         }
     }
 
-    /// Full-frame detection at one global threshold.
-    fn detect_at(&mut self, frame: GrayView<'_>, threshold: f64) -> MarkerSet {
+    /// Detection at one global threshold over a region (x0, y0, x1, y1) of the frame.
+    fn detect_at(
+        &mut self,
+        frame: GrayView<'_>,
+        threshold: f64,
+        (x0, y0, x1, y1): (usize, usize, usize, usize),
+    ) -> MarkerSet {
         let mut rejected = RejectCounts::default();
         self.candidates.clear();
         let (w, h) = (frame.width(), frame.height());
-        // Coarse scan: one cell per `step` x `step` pixels, sampled at its corner.
+        // Coarse scan: one cell per `step` x `step` pixels, sampled at its corner; the grid
+        // covers the region, its cell (0, 0) at pixel (ox, oy).
         let step = self.coarse_step();
-        let (gw, gh) = (w.div_ceil(step), h.div_ceil(step));
+        let (ox, oy) = (x0 / step * step, y0 / step * step);
+        let (gw, gh) = ((x1.min(w) - ox).div_ceil(step), (y1.min(h) - oy).div_ceil(step));
         self.coarse.clear();
         self.coarse.resize(gw * gh, 0);
         self.seeds.clear();
         let t = threshold as u8;
+        // Most of a frame is below the threshold: a chunk of cells is skipped on its maximum
+        // (a vectorised read of the row, as fast as memory), and only a chunk holding something
+        // bright is sampled cell by cell.
+        const CHUNK_CELLS: usize = 16;
         for gy in 0..gh {
-            let row = frame.row(gy * step);
+            let row = &frame.row(oy + gy * step)[ox..(ox + gw * step).min(w)];
             let cells = &mut self.coarse[gy * gw..(gy + 1) * gw];
-            for (gx, (c, &p)) in cells.iter_mut().zip(row.iter().step_by(step)).enumerate() {
-                if p >= t {
-                    *c = 1;
-                    self.seeds.push((gy * gw + gx) as u32);
+            for (k, chunk) in row.chunks(CHUNK_CELLS * step).enumerate() {
+                if chunk.iter().fold(0u8, |a, &p| a.max(p)) < t {
+                    continue;
+                }
+                let gx0 = k * CHUNK_CELLS;
+                for (j, &p) in chunk.iter().step_by(step).enumerate() {
+                    if p >= t {
+                        cells[gx0 + j] = 1;
+                        self.seeds.push((gy * gw + gx0 + j) as u32);
+                    }
                 }
             }
         }
@@ -244,10 +330,10 @@ impl Detector {
             }
             let pad = step + 3;
             let roi = (
-                (x0 * step).saturating_sub(pad),
-                (y0 * step).saturating_sub(pad),
-                ((x1 + 1) * step + pad).min(w),
-                ((y1 + 1) * step + pad).min(h),
+                (ox + x0 * step).saturating_sub(pad),
+                (oy + y0 * step).saturating_sub(pad),
+                (ox + (x1 + 1) * step + pad).min(w),
+                (oy + (y1 + 1) * step + pad).min(h),
             );
             match self.measure(frame, roi) {
                 Ok(c) => self.candidates.push(c),
@@ -368,6 +454,11 @@ impl Detector {
     }
 
     /// Measures the blob in a region (x0, y0, x1, y1), half-open.
+    ///
+    /// Every pass is a straight loop over row slices (the compiler vectorises the peak, the
+    /// mask and the erosion), and the costly per-pixel work, the coverage ratio with its
+    /// division, is done only for pixels that are not deep inside the disc: a tracked frame's
+    /// nine regions cost about as much as reading them.
     fn measure(
         &mut self,
         frame: GrayView<'_>,
@@ -378,17 +469,15 @@ impl Detector {
         if rw < 3 || rh < 3 {
             return Err(Rejection::Area);
         }
-        // Peak (the seed) and the background plane from the region's border.
+        // Peak (the seed): a row's maximum first (vectorised), its position only in a row that
+        // raises it.
         let (mut peak, mut seed) = (0u8, (x0, y0));
         for y in y0..y1 {
             let row = &frame.row(y)[x0..x1];
-            let m = *row.iter().max().expect("region not empty");
+            let m = row.iter().fold(0u8, |a, &p| a.max(p));
             if m > peak {
                 peak = m;
-                seed = (
-                    x0 + row.iter().position(|&p| p == m).expect("max is in the row"),
-                    y,
-                );
+                seed = (x0 + row.iter().position(|&p| p == m).unwrap_or(0), y);
             }
         }
         let bg = fit_border_plane(frame, roi, peak);
@@ -401,9 +490,9 @@ impl Detector {
         let level = (0.5 * (peak as f64 + b_at(seed.0, seed.1)))
             .ceil()
             .clamp(0.0, 255.0) as u8;
-        // One pass: the mask of pixels at or above the level, with integer moments per row. A
-        // region holds one marker (its search box); anything else bright in it spoils the shape
-        // and is rejected below.
+        // The mask of pixels at or above the level, and its integer moments, row by row over
+        // the span between a row's first and last mask pixel. A region holds one marker (its
+        // search box); anything else bright in it spoils the shape and is rejected below.
         self.mask.clear();
         self.mask.resize(rw * rh, 0);
         let (mut n, mut sx, mut sy, mut sxx, mut syy, mut sxy) = (0u64, 0u64, 0u64, 0u64, 0u64, 0u64);
@@ -411,31 +500,31 @@ impl Detector {
         for y in 0..rh {
             let row = &frame.row(y0 + y)[x0..x1];
             let mrow = &mut self.mask[y * rw..(y + 1) * rw];
-            let (mut rn, mut rsx, mut rsxx) = (0u64, 0u64, 0u64);
-            for (x, (m, &p)) in mrow.iter_mut().zip(row).enumerate() {
-                let on = p >= level;
-                *m = on as u8;
-                let (o, xx) = (on as u64, x as u64);
-                rn += o;
-                rsx += o * xx;
-                rsxx += o * xx * xx;
+            let mut any = 0u8;
+            for (m, &p) in mrow.iter_mut().zip(row) {
+                *m = (p >= level) as u8;
+                any |= *m;
             }
-            if rn > 0 {
-                let yy = y as u64;
-                (n, sx, sxx) = (n + rn, sx + rsx, sxx + rsxx);
-                (sy, syy, sxy) = (sy + rn * yy, syy + rn * yy * yy, sxy + rsx * yy);
-                by0 = by0.min(y);
-                by1 = y;
-                bx0 = bx0.min(mrow.iter().position(|&m| m == 1).expect("row has mask pixels"));
-                bx1 = bx1.max(
-                    rw - 1
-                        - mrow
-                            .iter()
-                            .rev()
-                            .position(|&m| m == 1)
-                            .expect("row has mask pixels"),
-                );
+            if any == 0 {
+                continue;
             }
+            let first = mrow.iter().position(|&m| m != 0).unwrap_or(0);
+            let last = rw - 1 - mrow.iter().rev().position(|&m| m != 0).unwrap_or(0);
+            let span = &mrow[first..=last];
+            let [rn, rsxl, rsxxl] = if span.len() <= 1024 {
+                mask_row_sums::<u32>(span).map(u64::from)
+            } else {
+                mask_row_sums::<u64>(span)
+            };
+            let f = first as u64;
+            let (rsx, rsxx) = (rsxl + rn * f, rsxxl + 2 * f * rsxl + rn * f * f);
+            let yy = y as u64;
+            (n, sx, sxx) = (n + rn, sx + rsx, sxx + rsxx);
+            (sy, syy, sxy) = (sy + rn * yy, syy + rn * yy * yy, sxy + rsx * yy);
+            by0 = by0.min(y);
+            by1 = y;
+            bx0 = bx0.min(first);
+            bx1 = bx1.max(last);
         }
         let touches = n > 0 && (bx0 == 0 || by0 == 0 || bx1 + 1 == rw || by1 + 1 == rh);
         let (area, sx, sy, sxx, syy, sxy) =
@@ -467,38 +556,62 @@ impl Detector {
             return Err(Rejection::Shape);
         }
         // Depth of each mask pixel inside the disc (0 outside, 1 at the edge, capped at 3), by
-        // repeated 4-neighbour erosion over the component's box.
-        for d in 2..=3u8 {
-            for y in by0.max(1)..by1.min(rh - 2) + 1 {
-                for x in bx0.max(1)..bx1.min(rw - 2) + 1 {
-                    let k = y * rw + x;
-                    if self.mask[k] == d - 1
-                        && self.mask[k - 1] >= d - 1
-                        && self.mask[k + 1] >= d - 1
-                        && self.mask[k - rw] >= d - 1
-                        && self.mask[k + rw] >= d - 1
-                    {
-                        self.mask[k] = d;
+        // repeated 4-neighbour erosion over the component's box. A pixel is promoted from the
+        // row's copy: promoting in place gives the same depths (a promoted neighbour still
+        // qualifies), the copy lets the loop vectorise.
+        let (xlo, xhi) = (bx0.max(1), bx1.min(rw - 2));
+        let (ylo, yhi) = (by0.max(1), by1.min(rh - 2));
+        if xlo <= xhi {
+            let span = xhi - xlo + 1;
+            for d in 2..=3u8 {
+                for y in ylo..=yhi {
+                    let (head, tail) = self.mask.split_at_mut(y * rw);
+                    let up = &head[(y - 1) * rw + xlo..][..span];
+                    let (cur, below) = tail.split_at_mut(rw);
+                    let down = &below[xlo..][..span];
+                    self.row_copy.clear();
+                    self.row_copy.extend_from_slice(&cur[xlo - 1..xhi + 2]);
+                    let (left, mid, right) = (
+                        &self.row_copy[..span],
+                        &self.row_copy[1..=span],
+                        &self.row_copy[2..],
+                    );
+                    let out = &mut cur[xlo..=xhi];
+                    for i in 0..span {
+                        // `&`, not `&&`: no branches, so that the loop vectorises.
+                        let deep = (mid[i] == d - 1)
+                            & (left[i] >= d - 1)
+                            & (right[i] >= d - 1)
+                            & (up[i] >= d - 1)
+                            & (down[i] >= d - 1);
+                        out[i] = if deep { d } else { mid[i] };
                     }
                 }
             }
         }
         // Plateau: a plane through the disc's interior (2 or more pixels deep), so that a light
-        // gradient across the disc does not tilt the coverage.
+        // gradient across the disc does not tilt the coverage. Sums per row, then per region.
         let mut pn = PlaneFit::default();
         for y in by0..=by1 {
-            for x in bx0..=bx1 {
-                if self.mask[y * rw + x] >= 2 {
-                    pn.add(x, y, frame.get(x0 + x, y0 + y));
-                }
-            }
+            let mrow = &self.mask[y * rw + bx0..=y * rw + bx1];
+            let row = &frame.row(y0 + y)[x0 + bx0..=x0 + bx1];
+            // Sums over x from the box's left edge: 32-bit lanes (twice as many per vector) when
+            // they cannot overflow (span^3 < 2^32), then moved to the region's x exactly.
+            let [n, sxl, sxxl, sz, sxzl] = if mrow.len() <= 1024 {
+                deep_row_sums::<u32>(mrow, row).map(u64::from)
+            } else {
+                deep_row_sums::<u64>(mrow, row)
+            };
+            let b = bx0 as u64;
+            let sums = [n, sxl + n * b, sxxl + 2 * b * sxl + n * b * b, sz, sxzl + b * sz];
+            pn.add_row(y as i64, sums.map(|v| v as i64));
         }
         let plateau_plane = pn.solve().unwrap_or([peak as f64, 0.0, 0.0]);
         let p_at = |x: usize, y: usize| {
             plateau_plane[0] + plateau_plane[1] * (x - x0) as f64 + plateau_plane[2] * (y - y0) as f64
         };
         // Coverage-weighted centre in a window reaching 2 pixels beyond the disc: pixels 2 deep
-        // count as fully covered (no interior noise), the rest by
+        // count as fully covered (no interior noise; integer sums), the rest by
         // (I - background) / (plateau - background).
         let a = 2.0 * l1.sqrt();
         let reach = a + 2.0;
@@ -507,24 +620,48 @@ impl Detector {
         let wx1 = ((cx + reach).ceil().min((x1 - 1) as f64)) as usize;
         let wy0 = ((cy - reach).floor().max(y0 as f64)) as usize;
         let wy1 = ((cy + reach).ceil().min((y1 - 1) as f64)) as usize;
+        let (mut full_n, mut full_x, mut full_y) = (0u64, 0u64, 0u64);
         let (mut cw, mut cu, mut cv) = (0.0, 0.0, 0.0);
         for y in wy0..=wy1 {
-            for (x, &pixel) in frame.row(y).iter().enumerate().take(wx1 + 1).skip(wx0) {
-                let (dx, dy) = (x as f64 - cx, y as f64 - cy);
-                if dx * dx + dy * dy > reach * reach {
-                    continue;
-                }
-                let c = if self.mask[(y - y0) * rw + (x - x0)] >= 2 {
-                    1.0
+            let dy = y as f64 - cy;
+            let inside = |x: usize| {
+                let dx = x as f64 - cx;
+                dx * dx + dy * dy <= reach * reach
+            };
+            // The row's pixels within reach: a run, trimmed from both ends.
+            let (mut xa, mut xb) = (wx0, wx1);
+            while xa <= xb && !inside(xa) {
+                xa += 1;
+            }
+            while xb > xa && !inside(xb) {
+                xb -= 1;
+            }
+            if xa > xb {
+                continue;
+            }
+            let mrow = &self.mask[(y - y0) * rw + (xa - x0)..=(y - y0) * rw + (xb - x0)];
+            let row = &frame.row(y)[xa..=xb];
+            let (mut rn, mut rx) = (0u64, 0u64);
+            let (mut rw_sum, mut ru) = (0.0, 0.0);
+            for ((x, &m), &pixel) in (xa..).zip(mrow).zip(row) {
+                if m >= 2 {
+                    rn += 1;
+                    rx += x as u64;
                 } else {
                     let b = b_at(x, y);
-                    ((pixel as f64 - b) / (p_at(x, y) - b)).min(1.0)
-                };
-                cw += c;
-                cu += c * x as f64;
-                cv += c * y as f64;
+                    let c = ((pixel as f64 - b) / (p_at(x, y) - b)).min(1.0);
+                    rw_sum += c;
+                    ru += c * x as f64;
+                }
             }
+            full_n += rn;
+            full_x += rx;
+            full_y += rn * y as u64;
+            cw += rw_sum;
+            cu += ru;
+            cv += rw_sum * y as f64;
         }
+        let (cw, cu, cv) = (cw + full_n as f64, cu + full_x as f64, cv + full_y as f64);
         if !(cw > 0.0) {
             return Err(Rejection::Shape);
         }
@@ -777,6 +914,53 @@ fn disc_image(h: &nalgebra::Matrix3<f64>, [x, y]: [f64; 2]) -> Option<([f64; 2],
     det.is_finite().then_some(([u, v], det))
 }
 
+/// Sums over the pixels of a mask row (values 0 or 1): count, x, x^2, with x counted from the
+/// row's start.
+fn mask_row_sums<T>(mask: &[u8]) -> [T; 3]
+where
+    T: Copy + Default + From<u8> + std::ops::Add<Output = T> + std::ops::Mul<Output = T>,
+{
+    let (mut n, mut sx, mut sxx) = (T::default(), T::default(), T::default());
+    let mut x = T::default();
+    let one = T::from(1);
+    for &m in mask {
+        let o = T::from(m);
+        n = n + o;
+        sx = sx + o * x;
+        sxx = sxx + o * x * x;
+        x = x + one;
+    }
+    [n, sx, sxx]
+}
+
+/// Sums over the pixels 2 or more deep in a mask row (`mask`, with the pixels `z` under it):
+/// count, x, x^2, z, x z, with x counted from the row's start.
+fn deep_row_sums<T>(mask: &[u8], z: &[u8]) -> [T; 5]
+where
+    T: Copy + Default + From<u8> + std::ops::Add<Output = T> + std::ops::Mul<Output = T>,
+{
+    let (mut n, mut sx, mut sxx, mut sz, mut sxz) = (
+        T::default(),
+        T::default(),
+        T::default(),
+        T::default(),
+        T::default(),
+    );
+    let mut x = T::default();
+    let one = T::from(1);
+    for (&m, &p) in mask.iter().zip(z) {
+        let w = T::from((m >= 2) as u8);
+        let wz = w * T::from(p);
+        n = n + w;
+        sx = sx + w * x;
+        sxx = sxx + w * x * x;
+        sz = sz + wz;
+        sxz = sxz + wz * x;
+        x = x + one;
+    }
+    [n, sx, sxx, sz, sxz]
+}
+
 /// Least-squares plane `z = p0 + p1 x + p2 y` from its normal equations, over integer pixel
 /// coordinates and values (exact integer sums: cheap per pixel, no rounding).
 #[derive(Default)]
@@ -792,6 +976,17 @@ impl PlaneFit {
             .s
             .iter_mut()
             .zip([1, x, y, x * x, y * y, x * y, z, x * z, y * z])
+        {
+            *acc += v;
+        }
+    }
+
+    /// The pixels of row `y`, from their sums over the row: count, x, x^2, z, x z.
+    fn add_row(&mut self, y: i64, [n, sx, sxx, sz, sxz]: [i64; 5]) {
+        for (acc, v) in self
+            .s
+            .iter_mut()
+            .zip([n, sx, n * y, sxx, n * y * y, sx * y, sz, sxz, sz * y])
         {
             *acc += v;
         }
@@ -881,6 +1076,55 @@ fn for_each_subset(n: usize, k: usize, f: &mut dyn FnMut(&[usize])) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A pattern that jumps beyond its tracking boxes (a swaying camera) is found again by the
+    /// search around the previous pattern, exactly as the whole frame's search finds it.
+    #[test]
+    fn a_jump_beyond_the_boxes_is_found_around_the_pattern() {
+        use deckwatch_capture::{FrameSimulator, RenderOptions, Renderer, Scenario};
+        use deckwatch_common::GrayImage;
+        let cam = CameraModel::rpi_v2();
+        let deck = DeckLayout::paper();
+        let r = Renderer::new(cam, deck, RenderOptions::realistic(), 3).unwrap();
+        let mut sim = FrameSimulator::new(Scenario::Ship.profile(3, 1.0), r, 1.0, 0.0, 1, 3).unwrap();
+        let (w, h) = (cam.width as usize, cam.height as usize);
+        let mut first = GrayImage::new(w, h);
+        sim.render_frame(0, &mut first.view_mut()).unwrap();
+        // The same picture moved right and down by whole coarse cells (the grid then samples
+        // the same pixels of every disc).
+        let (dx, dy) = (120usize, 60usize);
+        let mut moved = GrayImage::new(w, h);
+        for y in 0..h {
+            let src = first.view().row(y.saturating_sub(dy));
+            let row = &mut moved.data[y * w..(y + 1) * w];
+            row[dx..].copy_from_slice(&src[..w - dx]);
+            row[..dx].fill(src[0]);
+        }
+        let mut det = Detector::new(cam, deck, DetectorConfig::for_camera(&cam, &deck));
+        let a = det.detect(first.view());
+        assert_eq!((a.count, det.searches().full), (9, 1));
+        let b = det.detect(moved.view());
+        assert_eq!(
+            det.searches(),
+            SearchCounts {
+                tracked: 0,
+                window: 1,
+                full: 1
+            }
+        );
+        assert_eq!(b.count, 9);
+        for (ma, mb) in a.markers.iter().zip(&b.markers).take(9) {
+            assert!((mb.u - ma.u - dx as f64).abs() < 1e-6 && (mb.v - ma.v - dy as f64).abs() < 1e-6);
+        }
+        let full = det.detect_full(moved.view());
+        assert_eq!(
+            full.markers, b.markers,
+            "the window finds what the whole frame does"
+        );
+        // Now tracked.
+        det.detect(moved.view());
+        assert_eq!(det.searches().tracked, 1);
+    }
 
     #[test]
     fn subsets() {

@@ -6,5 +6,5 @@
 pub mod detector;
 pub mod identify;
 
-pub use detector::{Detector, DetectorConfig};
+pub use detector::{Detector, DetectorConfig, SearchCounts};
 pub use identify::{identify, marker_pixels, Blob, IdentifyError};

@@ -120,6 +120,8 @@ pub fn resimulate(
                 .get(&rec.stamp.seq)
                 .map(|a| decide.step(a, received))
         };
+        // As the process does once its decisions are out.
+        decide.after_outputs();
         if let Some(mut d) = d {
             d.stamp.times = rec.stamp.times;
             out.decisions.push(d);

@@ -62,6 +62,10 @@ pub trait Stage: Sized {
     /// that arrived with it.
     fn vehicle_sample(&mut self, _sample: &VehicleSample) {}
 
+    /// Work that can wait until the outputs of the inputs at hand are published (the decider's
+    /// model refit): run before the next input is taken.
+    fn after_outputs(&mut self) {}
+
     /// What was wrong with the last input, if anything (said once, on stderr).
     fn take_warning(&mut self) -> Option<String> {
         None
@@ -471,6 +475,7 @@ pub fn run<S: Stage>(args: &StageArgs) -> Result<String, RunError> {
                 Ok(())
             },
         )?;
+        stage.after_outputs();
         let rejections = std::iter::once(input.rejections()).chain(vehicle.as_ref().map(|v| v.rejections()));
         for r in rejections {
             if let Some(line) = r.report(monotonic_ns()) {

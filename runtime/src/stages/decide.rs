@@ -24,6 +24,9 @@ pub struct DecideStage {
     last: Option<LandingDecision>,
     /// The newest input: its time on the frames' timeline (s) and when it arrived (ns).
     last_input: Option<(f64, u64)>,
+    /// The time between the newest two inputs on the frames' timeline (s): when the next
+    /// frame is expected.
+    frame_interval_s: Option<f64>,
     /// What the viewer was last shown (state changes, the calm window drawn ahead).
     view: deckwatch_viz::entities::DecisionView,
     pub dropped: u64,
@@ -55,6 +58,7 @@ impl DecideStage {
             gaps: GapCounter::new(joined_late),
             last: None,
             last_input: None,
+            frame_interval_s: None,
             view,
             dropped: 0,
             processed: 0,
@@ -84,6 +88,9 @@ impl DecideStage {
         } else {
             self.decider.update_at_capture(t, deck, age_s)
         };
+        if let Some((previous, _)) = self.last_input {
+            self.frame_interval_s = Some(t - previous).filter(|dt| *dt > 0.0 && *dt < 1.0);
+        }
         self.last_input = Some((t, received_ns));
         let (start, length) = d.calm_window.unwrap_or((f64::NAN, f64::NAN));
         let mut out = LandingDecision {
@@ -139,6 +146,16 @@ impl Stage for DecideStage {
 
     fn step(&mut self, a: &AttitudeMessage, received_ns: u64) -> LandingDecision {
         self.process(a, received_ns)
+    }
+
+    fn after_outputs(&mut self) {
+        let Some(lead) = self.frame_interval_s else { return };
+        if self.decider.refit_due(lead).is_some() {
+            // The processes the decision just woke (the link, the launcher) go first where
+            // they share this core: the refit is not on their path.
+            std::thread::yield_now();
+            self.decider.refit_ahead(lead);
+        }
     }
 
     /// Half the freshness limit: a silence is noticed within 1.5 times the limit.

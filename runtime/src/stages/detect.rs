@@ -72,9 +72,11 @@ impl Stage for DetectStage {
     }
 
     fn summary(&self) -> String {
+        let searches = self.detector.as_ref().map(|d| d.searches()).unwrap_or_default();
         format!(
-            "{} frames processed, {} dropped, {} bad",
-            self.processed, self.dropped, self.bad_frames
+            "{} frames processed, {} dropped, {} bad; markers found by tracking {}, around the \
+             last pattern {}, in the whole frame {}",
+            self.processed, self.dropped, self.bad_frames, searches.tracked, searches.window, searches.full
         )
     }
 }

@@ -1,0 +1,69 @@
+//! The landing decision's cost per attitude, one thread: `cargo bench -p deckwatch-decide --bench
+//! decide`.
+//!
+//! A deck rolling and pitching like a ship in a moderate sea (three swells each) at 30 frames a
+//! second, fed one attitude at a time to the decider with its default configuration: the mean
+//! includes the motion model's refits (about once a second), which the second case measures
+//! alone as the worst single attitude.
+
+use criterion::Criterion;
+use deckwatch_decide::{DecisionConfig, DeckObservation, LandingDecider};
+use std::hint::black_box;
+
+/// The deck at `t_s`: roll, pitch (deg) and heave (m) of a few swells.
+fn deck_at(t_s: f64) -> DeckObservation {
+    let swell =
+        |a: f64, period_s: f64, phase: f64| a * (std::f64::consts::TAU * t_s / period_s + phase).sin();
+    DeckObservation::new(
+        swell(3.0, 9.0, 0.0) + swell(1.2, 6.5, 1.0) + swell(0.5, 4.1, 2.0),
+        swell(1.5, 7.5, 0.5) + swell(0.8, 5.2, 1.5) + swell(0.3, 3.7, 2.5),
+        swell(0.6, 8.0, 0.2) + swell(0.2, 5.5, 1.1),
+    )
+}
+
+fn main() {
+    const RATE_HZ: f64 = 30.0;
+    let mut c = Criterion::default().sample_size(50).configure_from_args();
+    let mut group = c.benchmark_group("decide");
+    // Warmed up over two minutes of deck motion, then one attitude per iteration.
+    let warm = |decider: &mut LandingDecider| {
+        for k in 0..(120.0 * RATE_HZ) as u64 {
+            let t = k as f64 / RATE_HZ;
+            decider.update(t, Some(deck_at(t)), t);
+        }
+        (120.0 * RATE_HZ) as u64
+    };
+    let mut decider = LandingDecider::new(DecisionConfig::default()).expect("default configuration");
+    let mut k = warm(&mut decider);
+    group.bench_function("per_attitude_30hz", |b| {
+        b.iter(|| {
+            k += 1;
+            let t = k as f64 / RATE_HZ;
+            decider.update(t, Some(black_box(deck_at(t))), t)
+        })
+    });
+    // The attitude that refits the motion model: a fresh decider warmed to just before a refit
+    // is not reachable from outside, so every attitude of a second is timed and the slowest
+    // kept.
+    let mut decider = LandingDecider::new(DecisionConfig::default()).expect("default configuration");
+    let mut k = warm(&mut decider);
+    group.bench_function("slowest_attitude_of_a_second", |b| {
+        b.iter_custom(|iters| {
+            let mut total = std::time::Duration::ZERO;
+            for _ in 0..iters {
+                let mut slowest = std::time::Duration::ZERO;
+                for _ in 0..RATE_HZ as u64 {
+                    k += 1;
+                    let t = k as f64 / RATE_HZ;
+                    let t0 = std::time::Instant::now();
+                    black_box(decider.update(t, Some(deck_at(t)), t));
+                    slowest = slowest.max(t0.elapsed());
+                }
+                total += slowest;
+            }
+            total
+        })
+    });
+    group.finish();
+    c.final_summary();
+}

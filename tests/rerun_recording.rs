@@ -3,7 +3,7 @@
 //! rows: an image, the markers, the ellipse, the reprojected deck, the angles (both estimators
 //! and the truth) and the decision for every frame.
 
-use deckwatch_tests::{peer_rerun, workspace_binary};
+use deckwatch_tests::{assert_rrd_verifies, peer_rerun, workspace_binary};
 use std::process::Command;
 
 #[test]
@@ -65,17 +65,8 @@ fn saved_recording_holds_every_stage() {
     assert!(get("decision_now") >= 2, "{rows:?}");
     assert!(get("decision_log") >= 2, "{rows:?}");
     // rerun's own reader: the file verifies, and names the run with its properties.
+    assert_rrd_verifies(&rrd);
     let rerun = peer_rerun();
-    let verify = Command::new(&rerun)
-        .args(["rrd", "verify"])
-        .arg(&rrd)
-        .output()
-        .unwrap();
-    assert!(
-        verify.status.success(),
-        "{}",
-        String::from_utf8_lossy(&verify.stderr)
-    );
     let print = Command::new(&rerun)
         .args(["rrd", "print", "-vvv"])
         .arg(&rrd)

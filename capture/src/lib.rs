@@ -5,6 +5,7 @@
 
 pub mod autopilot;
 pub mod camera;
+pub mod landing;
 pub mod motion;
 pub mod render;
 pub mod rng;

@@ -515,6 +515,8 @@ pub struct SpectrumShipMotion {
     pitch: Vec<(f64, f64, f64)>,
     heave: Vec<(f64, f64, f64)>,
     yaw_deg: Vec<Sinusoid>,
+    /// The waves' mean heading off the bow (rad).
+    mean_heading: f64,
     pub tracking: TrackingError,
 }
 
@@ -525,6 +527,12 @@ impl SpectrumShipMotion {
     /// The JONSWAP sea of significant wave height `hs_m` and peak period `tp_s`, phases and
     /// frequencies from `seed`.
     pub fn jonswap(hs_m: f64, tp_s: f64, seed: u64) -> Self {
+        Self::jonswap_from(hs_m, tp_s, seed, 60.0)
+    }
+
+    /// The same with the waves coming from `mean_heading_deg` off the bow on average (0: head
+    /// seas, mostly pitch; 90: beam seas, mostly roll).
+    pub fn jonswap_from(hs_m: f64, tp_s: f64, seed: u64, mean_heading_deg: f64) -> Self {
         let mut rng = SplitMix64::new(seed ^ 0x0005_EA5B_EC7A);
         let wp = TAU / tp_s;
         let spectrum = |w: f64| {
@@ -544,7 +552,7 @@ impl SpectrumShipMotion {
         // Scaled so that 4 sqrt(m0) = Hs.
         let m0: f64 = waves.iter().map(|(_, e)| e).sum();
         let scale = (hs_m / 4.0).powi(2) / m0;
-        let (speed_mps, mean_heading) = (5.0, 60f64.to_radians());
+        let (speed_mps, mean_heading) = (5.0, mean_heading_deg.to_radians());
         let (wr, zeta, wpitch, wheave) = (TAU / 11.0, 0.1, TAU / 6.0, TAU / 8.0);
         let (mut roll, mut pitch, mut heave) = (Vec::new(), Vec::new(), Vec::new());
         for (w, e) in waves {
@@ -567,6 +575,7 @@ impl SpectrumShipMotion {
             pitch,
             heave,
             yaw_deg,
+            mean_heading,
             tracking: TrackingError::hover(5.0),
         }
     }
@@ -576,9 +585,14 @@ impl SpectrumShipMotion {
         sea_state_waves(sea_state).map(|(hs, tp)| Self::jonswap(hs, tp, seed))
     }
 
-    /// The heading of the waves off the bow (rad): wandering +-25 deg over 10 min.
-    fn heading(t_s: f64) -> f64 {
-        (60.0 + 25.0 * (TAU * t_s / 600.0).sin()).to_radians()
+    /// The same with the waves from `mean_heading_deg` off the bow.
+    pub fn sea_state_from(sea_state: u32, seed: u64, mean_heading_deg: f64) -> Option<Self> {
+        sea_state_waves(sea_state).map(|(hs, tp)| Self::jonswap_from(hs, tp, seed, mean_heading_deg))
+    }
+
+    /// The heading of the waves off the bow (rad): wandering +-25 deg over 10 min about the mean.
+    fn heading(&self, t_s: f64) -> f64 {
+        self.mean_heading + (25.0 * (TAU * t_s / 600.0).sin()).to_radians()
     }
 
     fn sum(c: &[(f64, f64, f64)], t_s: f64) -> f64 {
@@ -593,7 +607,7 @@ impl SpectrumShipMotion {
 
 impl MotionProfile for SpectrumShipMotion {
     fn sample(&self, t_s: f64) -> MotionSample {
-        let chi = Self::heading(t_s);
+        let chi = self.heading(t_s);
         MotionSample {
             t_s,
             attitude: Rpy::from_degrees(

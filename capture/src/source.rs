@@ -189,11 +189,21 @@ impl CaptureConfig {
     }
 
     fn open_sim(&self) -> Result<CaptureSource, SourceError> {
+        self.open_sim_with(self.sim.profile())
+    }
+
+    /// The configured simulator (camera, image, rate, seed) rendering `profile` instead of the
+    /// configured scenario's motion: a closed-loop landing's scene
+    /// ([`crate::landing::ClosedLoopScene`]).
+    pub fn open_sim_with(
+        &self,
+        profile: Box<dyn crate::motion::MotionProfile + Send + Sync>,
+    ) -> Result<CaptureSource, SourceError> {
         let (sim, camera, options) = self.resolve_sim()?;
         let renderer = Renderer::new(camera, sim.deck, options, self.sim.seed)
             .map_err(|e| SourceError::Simulator(format!("[image] {e}")))?;
         let frames = FrameSimulator::new(
-            self.sim.profile(),
+            profile,
             renderer,
             self.sim.rate,
             self.image.exposure_ms / 1e3,

@@ -59,6 +59,7 @@ pub fn replay(a: ReplayArgs) -> Result<(), String> {
         status: !a.quiet,
         decisions_csv: None,
         stage_dir: a.stage_dir,
+        ..Default::default()
     };
     print_report(&launch(&c, &file, &options)?);
     Ok(())

@@ -49,6 +49,7 @@ mod launch;
 mod pipeline;
 mod soak;
 mod tables;
+mod trials;
 
 #[derive(Subcommand)]
 enum Command {
@@ -90,6 +91,9 @@ enum Command {
     /// Evaluate the landing decision on long simulated ship-motion series against the truth,
     /// beside the naive rule: unsafe clearances and availability.
     DecideEval(decide_eval::DecideEvalArgs),
+    /// Closed-loop landing trials: a simulated vehicle lands on the spectrum seas through the
+    /// stage chain, judged at contact; beside the naive rule and an oracle.
+    Trials(trials::TrialsArgs),
     /// Run the paper's estimator on a marker table (CSV), one attitude row per frame.
     EstimateTable(tables::EstimateTableArgs),
     /// Simulate a scenario (exact marker pixels, optional noise) and compare the estimator variants.
@@ -440,6 +444,7 @@ fn main() -> ExitCode {
         },
         Command::Inproc(a) => inproc::run(*a),
         Command::DecideEval(a) => decide_eval::run(a),
+        Command::Trials(a) => trials::run(a),
         Command::Soak(a) => soak::run(a),
         Command::Budget(a) => budget::run(a),
         Command::Eval(a) => eval::run(a),

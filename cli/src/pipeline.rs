@@ -223,6 +223,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
         status: !a.quiet,
         decisions_csv: a.decisions,
         stage_dir: a.stage_dir,
+        ..Default::default()
     };
     finish(
         launch(&c, &file, &options)?,
@@ -286,6 +287,7 @@ pub fn latency(a: LatencyArgs) -> Result<(), String> {
         status: false,
         decisions_csv: a.decisions,
         stage_dir: a.stage_dir,
+        ..Default::default()
     };
     finish(
         launch(&c, &file, &options)?,

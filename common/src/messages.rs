@@ -597,13 +597,22 @@ pub enum AttitudeFailure {
     NoAltitude = 4,
     /// The marker geometry was degenerate or inconsistent.
     Degenerate = 5,
+    /// The markers are bit for bit those of the frames before ([`FROZEN_IMAGE_REPEATS`] times):
+    /// the camera delivers the same image again (frozen, a stuck driver). A real sensor's noise
+    /// never repeats a sub-pixel centre to the bit; with the vehicle swaying, the compensated
+    /// attitude of a frozen image moves and would not look frozen to the decision.
+    FrozenImage = 6,
 }
 
 wire_enum!(
     AttitudeFailure,
     on_bad_code: Degenerate,
-    [None, NoDeck, BadFrame, TooFewMarkers, NoAltitude, Degenerate]
+    [None, NoDeck, BadFrame, TooFewMarkers, NoAltitude, Degenerate, FrozenImage]
 );
+
+/// Repeats of a marker set (after the first) that make an image frozen: the third bit-identical
+/// set in a row, as `[decide] frozen_input_count` = 3 is for attitudes.
+pub const FROZEN_IMAGE_REPEATS: u32 = 2;
 
 /// Estimate's output for one frame.
 #[repr(C)]
@@ -759,6 +768,9 @@ pub enum DecisionReason {
     /// A frame's time went backwards, or its capture is stamped in the future: the clock jumped.
     /// Three in a row start a new timeline (history cleared, warm-up again).
     ClockJump = 12,
+    /// ClearToLand: a committed touchdown goes on through a missing attitude (`[decide]
+    /// ride_through_ms`), on the prediction the last good one confirmed.
+    RideThrough = 13,
 }
 
 wire_enum!(
@@ -778,6 +790,7 @@ wire_enum!(
         NoDeckHeave,
         FrozenInput,
         ClockJump,
+        RideThrough,
     ]
 );
 
@@ -797,6 +810,7 @@ impl DecisionReason {
             Self::NoDeckHeave => "no-deck-heave",
             Self::FrozenInput => "frozen-input",
             Self::ClockJump => "clock-jump",
+            Self::RideThrough => "ride-through",
         }
     }
 }

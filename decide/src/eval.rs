@@ -54,23 +54,61 @@ impl RuleOutcome {
 /// The true deck at an instant: roll, pitch (deg) and the deck centre's height (m).
 pub type TrueDeck<'a> = &'a dyn Fn(f64) -> [f64; 3];
 
-/// The capacity as the truth is judged by: angles, rates and the heave rate, always (the
-/// capacity is the vehicle's; `heave = "off"` only says the decider cannot see the heave).
+/// The true deck at an instant with its rates, from [`TrueDeck`] by central differences.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct TrueDeckState {
+    pub roll_deg: f64,
+    pub pitch_deg: f64,
+    pub roll_rate_dps: f64,
+    pub pitch_rate_dps: f64,
+    pub heave_rate_mps: f64,
+}
+
+impl TrueDeckState {
+    pub fn at(truth: TrueDeck, t: f64) -> Self {
+        let h = 1e-3;
+        let [r, p, _] = truth(t);
+        let [r1, p1, z1] = truth(t + h);
+        let [r0, p0, z0] = truth(t - h);
+        Self {
+            roll_deg: r,
+            pitch_deg: p,
+            roll_rate_dps: (r1 - r0) / (2.0 * h),
+            pitch_rate_dps: (p1 - p0) / (2.0 * h),
+            heave_rate_mps: (z1 - z0) / (2.0 * h),
+        }
+    }
+
+    /// The capacity's limits this state breaks (none: within capacity). The capacity as the
+    /// truth is judged by: angles, rates and the heave rate, always (the capacity is the
+    /// vehicle's; `heave = "off"` only says the decider cannot see the heave).
+    pub fn violations(&self, c: &DecisionConfig) -> Vec<&'static str> {
+        self.limits(c)
+            .into_iter()
+            .filter(|(_, value, limit)| !(value.abs() <= *limit))
+            .map(|(name, _, _)| name)
+            .collect()
+    }
+
+    pub fn within(&self, c: &DecisionConfig) -> bool {
+        self.limits(c)
+            .iter()
+            .all(|(_, value, limit)| value.abs() <= *limit)
+    }
+
+    fn limits(&self, c: &DecisionConfig) -> [(&'static str, f64, f64); 5] {
+        [
+            ("roll", self.roll_deg, c.max_abs_roll_deg),
+            ("pitch", self.pitch_deg, c.max_abs_pitch_deg),
+            ("roll-rate", self.roll_rate_dps, c.max_abs_roll_rate_dps),
+            ("pitch-rate", self.pitch_rate_dps, c.max_abs_pitch_rate_dps),
+            ("heave-rate", self.heave_rate_mps, c.max_abs_heave_rate_mps),
+        ]
+    }
+}
+
 fn truly_within(truth: TrueDeck, c: &DecisionConfig, t: f64) -> bool {
-    let h = 1e-3;
-    let [r, p, _] = truth(t);
-    let [r1, p1, z1] = truth(t + h);
-    let [r0, p0, z0] = truth(t - h);
-    let (rr, pr, zr) = (
-        (r1 - r0) / (2.0 * h),
-        (p1 - p0) / (2.0 * h),
-        (z1 - z0) / (2.0 * h),
-    );
-    r.abs() <= c.max_abs_roll_deg
-        && p.abs() <= c.max_abs_pitch_deg
-        && rr.abs() <= c.max_abs_roll_rate_dps
-        && pr.abs() <= c.max_abs_pitch_rate_dps
-        && zr.abs() <= c.max_abs_heave_rate_mps
+    TrueDeckState::at(truth, t).within(c)
 }
 
 const TRUTH_STEP_S: f64 = 0.02;

@@ -8,7 +8,9 @@ use crate::stage::{Frame, RunError, Stage};
 use crate::stages::capture::{complete_header, new_header};
 use crate::stages::{DecideStage, DetectStage, EstimateStage};
 use deckwatch_capture::source::{CaptureSource, SourceError};
-use deckwatch_common::messages::{AttitudeMessage, DropCounts, FrameSource, LandingDecision, MarkerMessage};
+use deckwatch_common::messages::{
+    monotonic_ns, AttitudeMessage, DropCounts, FrameHeader, FrameSource, LandingDecision, MarkerMessage,
+};
 use std::time::{Duration, Instant};
 
 /// What every stage made of one frame, and how long each took.
@@ -46,7 +48,12 @@ impl StageChain {
             }
             .into());
         }
-        let source = config.capture().open()?;
+        Self::with_source(config, config.capture().open()?)
+    }
+
+    /// The stages of `config` behind a source opened elsewhere (say, the simulator rendering a
+    /// closed-loop landing: `CaptureConfig::open_sim_with`).
+    pub fn with_source(config: &PipelineConfig, source: CaptureSource) -> Result<Self, RunError> {
         Ok(Self {
             pixels: vec![0; source.frame_bytes()],
             source,
@@ -63,19 +70,43 @@ impl StageChain {
         &self.source
     }
 
+    /// The newest frame's pixels (packed rows), as detect saw them.
+    pub fn pixels(&self) -> &[u8] {
+        &self.pixels
+    }
+
     /// Frames the source could not deliver (counted and skipped).
     pub fn drops(&self) -> DropCounts {
         self.drops
     }
 }
 
-/// Frame by frame: the next frame through every stage; None when the source is exhausted. A
-/// frame the source cannot read is counted (`drops().bad_frames`) and reported as the error;
-/// the chain goes on with the next one.
-impl Iterator for StageChain {
-    type Item = Result<ChainOutput, SourceError>;
+/// The stages' clock when the chain runs faster (or slower) than its frames: every frame is
+/// captured at `epoch_ns` plus its source time, and each stage takes `stage_latency_ns`. The
+/// decisions then depend on the frames alone, however fast this machine is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimulatedClock {
+    pub epoch_ns: u64,
+    pub stage_latency_ns: u64,
+}
 
-    fn next(&mut self) -> Option<Self::Item> {
+impl SimulatedClock {
+    /// The clock's reading at a source time.
+    pub fn at(&self, source_ns: u64) -> u64 {
+        self.epoch_ns.saturating_add(source_ns)
+    }
+}
+
+impl StageChain {
+    /// The next frame through every stage, on `clock` (None: this machine's monotonic clock).
+    /// `inject` sees the captured frame before detect does and may change it (a fault); when it
+    /// returns false the frame is lost on the way (counted as a capture drop of the next frame,
+    /// as a lost frame is) and `Ok(None)` comes back. None when the source is exhausted.
+    pub fn next_frame(
+        &mut self,
+        clock: Option<SimulatedClock>,
+        inject: impl FnOnce(&mut FrameHeader, &mut [u8]) -> bool,
+    ) -> Option<Result<Option<ChainOutput>, SourceError>> {
         if self.source.len().is_some_and(|n| self.next_frame >= n) {
             return None;
         }
@@ -91,9 +122,19 @@ impl Iterator for StageChain {
                 return Some(Err(e));
             }
         }
+        let source_ns = header.context.source_timestamp_ns;
+        let now = |stage: u64, real: u64| match clock {
+            Some(c) => c.at(source_ns) + stage * c.stage_latency_ns,
+            None => real,
+        };
+        header.stamp.times.captured_ns = now(0, header.stamp.times.captured_ns);
+        if !inject(&mut header, &mut self.pixels) {
+            self.drops.capture += 1;
+            return Some(Ok(None));
+        }
         self.drops = header.stamp.drops;
         self.next_seq += 1;
-        header.stamp.times.published_ns = deckwatch_common::messages::monotonic_ns();
+        header.stamp.times.published_ns = now(0, monotonic_ns());
         let t1 = Instant::now();
         let frame = Frame {
             header: &header,
@@ -103,20 +144,43 @@ impl Iterator for StageChain {
         let t2 = Instant::now();
         let attitude = self
             .estimate
-            .step(&markers, markers.stamp.times.detect_finished_ns);
+            .step(&markers, now(1, markers.stamp.times.detect_finished_ns));
         let t3 = Instant::now();
         let decision = self
             .decide
-            .step(&attitude, attitude.stamp.times.estimate_finished_ns);
+            .step(&attitude, now(2, attitude.stamp.times.estimate_finished_ns));
         let t4 = Instant::now();
         // As the processes do once a decision is published (not counted in its cost).
         self.decide.after_outputs();
-        Some(Ok(ChainOutput {
+        Some(Ok(Some(ChainOutput {
             markers,
             attitude,
             decision,
             cost: [t1 - t0, t2 - t1, t3 - t2, t4 - t3],
-        }))
+        })))
+    }
+
+    /// What decide says when no attitude came for a while (its watchdog), at `now_ns` on the
+    /// chain's clock.
+    pub fn watchdog(&mut self, now_ns: u64) -> Option<LandingDecision> {
+        self.decide.tick(now_ns)
+    }
+}
+
+/// Frame by frame: the next frame through every stage; None when the source is exhausted. A
+/// frame the source cannot read is counted (`drops().bad_frames`) and reported as the error;
+/// the chain goes on with the next one.
+impl Iterator for StageChain {
+    type Item = Result<ChainOutput, SourceError>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        loop {
+            match self.next_frame(None, |_, _| true)? {
+                Ok(Some(out)) => return Some(Ok(out)),
+                Ok(None) => continue, // not without an injected fault
+                Err(e) => return Some(Err(e)),
+            }
+        }
     }
 }
 

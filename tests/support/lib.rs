@@ -208,6 +208,21 @@ pub fn eval_table_row<'a>(table: &'a str, recording: &str, estimator: &str) -> V
 }
 
 /// rerun-sdk's `rerun` command (the venv of `ci/peers.sh`, else the one on PATH), version 0.36.3.
+/// Asserts that rerun's own reader (`rerun rrd verify`) accepts `rrd`.
+pub fn assert_rrd_verifies(rrd: &std::path::Path) {
+    let verify = std::process::Command::new(peer_rerun())
+        .args(["rrd", "verify"])
+        .arg(rrd)
+        .output()
+        .unwrap();
+    assert!(
+        verify.status.success(),
+        "{}: {}",
+        rrd.display(),
+        String::from_utf8_lossy(&verify.stderr)
+    );
+}
+
 pub fn peer_rerun() -> std::path::PathBuf {
     let python = peer_python("rerun");
     let beside = python.with_file_name("rerun");

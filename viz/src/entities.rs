@@ -51,6 +51,8 @@ pub const HEAVE: &str = "heave";
 pub const HEAVE_MEASURED: &str = "heave/deck_height_m";
 pub const HEAVE_TRUTH: &str = "heave/truth_m";
 pub const HEAVE_RATE: &str = "heave/rate_mps";
+/// A closed-loop trial's vehicle: its camera's height over the deck centre (m).
+pub const VEHICLE_OVER_DECK: &str = "heave/vehicle_over_deck_m";
 /// Per-stage latency of each decided frame (ms): `latency/<interval>`.
 pub const LATENCY: &str = "latency";
 /// Frames lost so far, by where (cumulative): `drops/<where>`.
@@ -429,6 +431,7 @@ pub fn reason_text(reason: DecisionReason) -> &'static str {
         DecisionReason::NoDeckHeave => "no deck height for the heave",
         DecisionReason::FrozenInput => "the input repeats itself (frozen)",
         DecisionReason::ClockJump => "the frames' clock jumped",
+        DecisionReason::RideThrough => "committed: no attitude this frame, going on with the last prediction",
     }
 }
 

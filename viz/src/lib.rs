@@ -27,7 +27,19 @@ mod sink;
 mod sink;
 pub use sink::{merge_parts, open_viewer, Viewer};
 #[cfg(feature = "rerun")]
-pub use sink::{rrd_entity_rows, send_blueprint};
+pub use sink::{rrd_entity_rows, send_blueprint, send_trial_blueprint};
+
+/// Which views the viewer opens with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Layout {
+    /// A pipeline's run: the frame, the decision, angles, errors, latency.
+    #[default]
+    Pipeline,
+    /// A closed-loop landing trial (`deckwatch trials --rrd`): the frame, the decision and the
+    /// touchdown's verdict, the deck's angles against the capacity, the vehicle's height over
+    /// the deck beside the heave.
+    Trial,
+}
 
 /// Whether this build can log to rerun (the `rerun` feature).
 pub const RERUN_BUILT_IN: bool = cfg!(feature = "rerun");
@@ -99,6 +111,9 @@ pub struct RerunConfig {
     pub queue: usize,
     /// The recording all processes log into (the launcher sets one per run).
     pub recording_id: Option<String>,
+    /// The views the recording opens with (not a configuration key: a trial's own).
+    #[serde(skip)]
+    pub layout: Layout,
 }
 
 impl Default for RerunConfig {
@@ -111,6 +126,7 @@ impl Default for RerunConfig {
             image_downscale: 4,
             queue: 64,
             recording_id: None,
+            layout: Layout::Pipeline,
         }
     }
 }

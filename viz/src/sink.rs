@@ -64,7 +64,7 @@ pub fn open_viewer(
     let Some(stream) = open_stream(config, stage)? else {
         return Ok(None);
     };
-    send_blueprint(&stream)?;
+    send_layout(&stream, config.layout)?;
     let sink_error = |e: rerun::RecordingStreamError| VizError::Sink {
         sink: config.sink.name(),
         message: e.to_string(),
@@ -169,9 +169,11 @@ fn log_item(rec: &RecordingStream, item: &Item, downscale: f32, clock: TimeBase)
             r
         }
         ItemKind::Text(t) => rec.log(entities::DECISION_LOG, &rerun::TextLog::new(t.clone())),
+        // Leaving a state is an empty one (a null state is not valid data: `rerun rrd verify`
+        // refuses it, and the viewer ignored it, so the lane never ended).
         ItemKind::State { entity, state } => rec.log(
             *entity,
-            &rerun::StateChange::new().with_state_opt([state.clone()]),
+            &rerun::StateChange::new().with_state([state.clone().unwrap_or_default()]),
         ),
         ItemKind::Document { entity, markdown } => rec.log(
             *entity,
@@ -255,8 +257,7 @@ fn send_properties(rec: &RecordingStream, about: &RunDescription) -> rerun::Reco
 /// in tabs.
 pub fn send_blueprint(rec: &RecordingStream) -> Result<(), VizError> {
     use rerun::blueprint::{
-        components::PanelState, Blueprint, BlueprintActivation, BlueprintPanel, Horizontal, SelectionPanel,
-        Spatial2DView, StateTimelineView, Tabs, TextDocumentView, TextLogView, TimePanel, TimeSeriesView,
+        Horizontal, Spatial2DView, StateTimelineView, Tabs, TextDocumentView, TextLogView, TimeSeriesView,
         Vertical,
     };
     let series = |name: &str, origin: String| TimeSeriesView::new(name).with_origin(origin).into();
@@ -311,22 +312,68 @@ pub fn send_blueprint(rec: &RecordingStream) -> Result<(), VizError> {
     let right = Vertical::new(errors.chain(std::iter::once(more.into())));
     let layout =
         Horizontal::new([left.into(), angles.into(), right.into()]).with_column_shares([2.2, 1.0, 1.0]);
-    // The views get the whole window: the blueprint and selection panels start hidden, the
-    // time panel collapsed to its controls (each opens with a click).
-    let blueprint = Blueprint::new(layout)
+    send_views(rec, layout)
+}
+
+/// Sends `layout` as the blueprint. The views get the whole window: the blueprint and selection
+/// panels start hidden, the time panel collapsed to its controls (each opens with a click).
+fn send_views(rec: &RecordingStream, layout: rerun::blueprint::Horizontal) -> Result<(), VizError> {
+    use rerun::blueprint::{
+        components::PanelState, Blueprint, BlueprintActivation, BlueprintPanel, SelectionPanel, TimePanel,
+    };
+    Blueprint::new(layout)
         .with_blueprint_panel(BlueprintPanel::new().with_state(PanelState::Hidden))
         .with_selection_panel(SelectionPanel::new().with_state(PanelState::Hidden))
         .with_time_panel(
             TimePanel::new()
                 .with_timeline("capture_time")
                 .with_state(PanelState::Collapsed),
-        );
-    blueprint
+        )
         .send(rec, BlueprintActivation::default())
         .map_err(|e| VizError::Sink {
             sink: "blueprint",
             message: e.to_string(),
         })
+}
+
+/// The blueprint of `layout`.
+fn send_layout(rec: &RecordingStream, layout: crate::Layout) -> Result<(), VizError> {
+    match layout {
+        crate::Layout::Pipeline => send_blueprint(rec),
+        crate::Layout::Trial => send_trial_blueprint(rec),
+    }
+}
+
+/// The layout of a closed-loop trial: what the camera saw and what was decided on the left
+/// (the verdict of the touchdown in "decision now" at the end), the deck's roll and pitch with
+/// the truth and the capacity, and the vehicle's height over the deck beside the heave.
+pub fn send_trial_blueprint(rec: &RecordingStream) -> Result<(), VizError> {
+    use rerun::blueprint::{
+        Horizontal, Spatial2DView, StateTimelineView, TextDocumentView, TextLogView, TimeSeriesView, Vertical,
+    };
+    let series = |name: &str, origin: String| TimeSeriesView::new(name).with_origin(origin).into();
+    let left = Vertical::new([
+        Spatial2DView::new("frame").with_origin(entities::IMAGE).into(),
+        StateTimelineView::new("decision")
+            .with_origin(entities::DECISION)
+            .into(),
+        TextDocumentView::new("touchdown")
+            .with_origin(entities::DECISION_NOW)
+            .into(),
+        TextLogView::new("commits, go-arounds, decisions")
+            .with_origin(entities::DECISION_LOG)
+            .into(),
+    ])
+    .with_row_shares([2.0, 1.1, 2.1, 1.2]);
+    let right = Vertical::new([
+        series("roll (deg)", entities::attitude_axis_path("roll")),
+        series("pitch (deg)", entities::attitude_axis_path("pitch")),
+        series("vehicle over the deck, heave (m, m/s)", entities::HEAVE.into()),
+    ]);
+    send_views(
+        rec,
+        Horizontal::new([left.into(), right.into()]).with_column_shares([1.0, 1.3]),
+    )
 }
 
 /// Merges the per-process part files of a `save` run into one `.rrd` (one stream header), and

@@ -14,14 +14,13 @@ pub mod supervise;
 use deckwatch_common::messages::{monotonic_ns, StageLog};
 use deckwatch_runtime::bus::{quiet_logging, Bus};
 use deckwatch_runtime::config::PipelineConfig;
-use deckwatch_runtime::stage::active_stages;
 use deckwatch_viz::RerunSink;
 use process::{stage_binary, stop_all, StageProcess};
 pub use report::{print_report, RunReport};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 pub use supervise::LaunchOptions;
-use supervise::{supervise, Supervised};
+use supervise::{launched_stages, supervise, Supervised};
 
 fn say(msg: impl std::fmt::Display) {
     let line = format!("deckwatch: {msg}");
@@ -97,7 +96,7 @@ pub fn launch(config: &PipelineConfig, file: &str, options: &LaunchOptions) -> R
             alive.join(", ")
         ));
     }
-    let active = active_stages(config);
+    let active = launched_stages(config, options);
     let mut stages = active
         .iter()
         .map(|s| {

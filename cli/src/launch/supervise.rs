@@ -93,6 +93,23 @@ pub struct LaunchOptions {
     pub decisions_csv: Option<PathBuf>,
     /// Where the stage binaries are (default: beside this executable).
     pub stage_dir: Option<PathBuf>,
+    /// The frames come from this process, not from a capture process (a closed-loop trial's
+    /// simulated camera, `deckwatch trials --processes`): no capture is started, and the run
+    /// ends when `stop` is set.
+    pub external_frames: bool,
+    /// Set to end the run (as a signal would).
+    pub stop: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
+}
+
+/// The stages this run starts, in start order.
+pub fn launched_stages(
+    config: &PipelineConfig,
+    options: &LaunchOptions,
+) -> Vec<deckwatch_runtime::stage::StageInfo> {
+    active_stages(config)
+        .into_iter()
+        .filter(|s| !(options.external_frames && s.name == capture::NAME))
+        .collect()
 }
 
 /// A stage process with its restart state.
@@ -163,7 +180,7 @@ pub fn supervise(
     let mut observer = Observer::new(options.decisions_csv.as_deref())?;
     let start = Instant::now();
 
-    for (s, info) in stages.iter_mut().zip(active_stages(config)) {
+    for (s, info) in stages.iter_mut().zip(launched_stages(config, options)) {
         s.spawn(config_path, domain)?;
         let Some(service) = info.ready_service else {
             continue;
@@ -202,6 +219,13 @@ pub fn supervise(
         }
         if let Some(l) = log {
             l.forward();
+        }
+        if options
+            .stop
+            .as_ref()
+            .is_some_and(|s| s.load(std::sync::atomic::Ordering::Relaxed))
+        {
+            return Ok(Flow::Stop);
         }
         let now = Instant::now();
         while let Some(beat) = heartbeats.receive()? {

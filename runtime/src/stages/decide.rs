@@ -10,7 +10,7 @@
 use crate::config::{ConfigError, PipelineConfig};
 use crate::stage::Stage;
 use deckwatch_common::messages::{
-    monotonic_ns, AttitudeMessage, DecisionReason, GapCounter, LandingDecision,
+    monotonic_ns, AttitudeFailure, AttitudeMessage, DecisionReason, GapCounter, LandingDecision,
 };
 use deckwatch_common::vehicle::Compensation;
 use deckwatch_decide::{DecisionConfig, DeckObservation, LandingDecider};
@@ -85,6 +85,9 @@ impl DecideStage {
         let d = if a.valid.get() && a.vehicle.compensation == Compensation::Missing {
             // The deck relative to a tilted camera is not the deck.
             self.decider.refuse(t, DecisionReason::NoVehicleAttitude)
+        } else if a.failure == AttitudeFailure::FrozenImage {
+            // Not a missing attitude but a broken camera: nothing rides through it.
+            self.decider.refuse(t, DecisionReason::FrozenInput)
         } else {
             self.decider.update_at_capture(t, deck, age_s)
         };
@@ -229,8 +232,9 @@ mod tests {
         assert!(e.contains("decide.max_age_ms"), "{e}");
     }
 
-    /// A frame whose attitude could not be compensated for the vehicle's ends a clearance at
-    /// once (an abort when committed), with its reason.
+    /// A frame whose attitude could not be compensated for the vehicle's never clears; during a
+    /// committed touchdown it is a missing attitude, ridden through for `ride_through_ms` (the
+    /// touchdown goes on with the prediction), then an abort with its reason.
     #[test]
     fn an_uncompensated_frame_never_clears() {
         let mut s = DecideStage::new(DecisionConfig::default(), false).unwrap();
@@ -242,14 +246,27 @@ mod tests {
             },
             ..Default::default()
         };
-        let mut cleared_at = None;
-        for k in 0..600u64 {
+        let at = |a: &mut AttitudeMessage, k: u64| {
             let t = k as f64 * 0.1;
             a.rpy = Rpy::from_degrees(0.8 * (0.7 * t).sin(), 0.6 * (0.5 * t + 1.0).sin(), 0.0);
             a.deck_height_m = 0.3 * (0.6 * t).sin();
             a.stamp.seq = k;
             a.context.source_timestamp_ns = k * 100_000_000;
             a.stamp.times.captured_ns = 1_000_000_000 + k * 100_000_000;
+        };
+        // Never compensated: never clear.
+        let mut never = DecideStage::new(DecisionConfig::default(), false).unwrap();
+        let mut b = a;
+        b.vehicle.compensation = Compensation::Missing.into();
+        for k in 0..600u64 {
+            at(&mut b, k);
+            let d = never.process(&b, b.stamp.times.captured_ns + 5_000_000);
+            assert_eq!(d.reason, DecisionReason::NoVehicleAttitude);
+            assert_ne!(d.state, DecisionState::ClearToLand);
+        }
+        let mut cleared_at = None;
+        for k in 0..600u64 {
+            at(&mut a, k);
             if s.process(&a, a.stamp.times.captured_ns + 5_000_000).state == DecisionState::ClearToLand {
                 cleared_at = Some(k);
                 break;
@@ -257,12 +274,21 @@ mod tests {
         }
         let k = cleared_at.expect("a calm sea clears");
         a.vehicle.compensation = Compensation::Missing.into();
-        a.stamp.seq = k + 1;
-        a.context.source_timestamp_ns = (k + 1) * 100_000_000;
-        a.stamp.times.captured_ns += 100_000_000;
-        let d = s.process(&a, a.stamp.times.captured_ns + 5_000_000);
-        assert_eq!(d.reason, DecisionReason::NoVehicleAttitude);
-        assert_ne!(d.state, DecisionState::ClearToLand);
+        let reasons: Vec<(DecisionState, DecisionReason)> = (k + 1..k + 13)
+            .map(|j| {
+                at(&mut a, j);
+                let d = s.process(&a, a.stamp.times.captured_ns + 5_000_000);
+                (d.state.get(), d.reason.get())
+            })
+            .collect();
+        // 1 s of them (10 frames at 10 Hz, the 11th on the edge), not 1.1 s.
+        assert!(reasons[..10]
+            .iter()
+            .all(|r| *r == (DecisionState::ClearToLand, DecisionReason::RideThrough)));
+        assert_eq!(
+            reasons[11],
+            (DecisionState::Abort, DecisionReason::NoVehicleAttitude)
+        );
     }
 
     /// The decision depends on the frames' timeline, not on when they arrived.

@@ -7,7 +7,7 @@ use crate::stage::Stage;
 use deckwatch_common::markers::DetectionStatus;
 use deckwatch_common::messages::{
     monotonic_ns, AlternativeAttitude, AttitudeFailure, AttitudeMessage, EstimatorKind, GapCounter,
-    MarkerMessage, VehicleAttitude, VehicleSample,
+    MarkerMessage, VehicleAttitude, VehicleSample, FROZEN_IMAGE_REPEATS,
 };
 use deckwatch_common::rotation::rot_z;
 use deckwatch_common::vehicle::{
@@ -111,6 +111,28 @@ pub struct EstimateStage {
     viewer: Option<deckwatch_viz::RerunConfig>,
     /// The newest input's deck crop (the same as detect's: a function of the markers).
     crop: Option<deckwatch_viz::entities::DeckCrop>,
+    /// The newest marker set's bits, and how many times in a row it came again.
+    repeated_markers: Option<(u64, u32)>,
+    /// Frames refused as a frozen image.
+    pub frozen: u64,
+}
+
+/// A marker set's fingerprint: every found marker's centre, bit for bit.
+fn marker_bits(m: &MarkerMessage) -> u64 {
+    // FNV-1a over the bits: identical sets give identical fingerprints; a collision of two real
+    // (noisy) sets is as likely as any other 64-bit one.
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |v: u64| {
+        for b in v.to_le_bytes() {
+            h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+        }
+    };
+    for marker in m.markers.markers.iter().filter(|k| k.valid.get()) {
+        eat(marker.u.to_bits());
+        eat(marker.v.to_bits());
+    }
+    eat(m.markers.count as u64);
+    h
 }
 
 impl EstimateStage {
@@ -133,6 +155,8 @@ impl EstimateStage {
             estimated: 0,
             viewer: None,
             crop: None,
+            repeated_markers: None,
+            frozen: 0,
         }
     }
 
@@ -196,6 +220,19 @@ impl EstimateStage {
                 e.write(&mut out)
             }
             Err(f) => out.failure = f.into(),
+        }
+        // The same markers again and again: a frozen image, not a still deck.
+        let bits = marker_bits(m);
+        let repeats = match self.repeated_markers {
+            Some((b, n)) if b == bits && m.markers.markers.iter().any(|k| k.valid.get()) => {
+                n.saturating_add(1)
+            }
+            _ => 0,
+        };
+        self.repeated_markers = Some((bits, repeats));
+        if repeats >= FROZEN_IMAGE_REPEATS {
+            out.failure = AttitudeFailure::FrozenImage.into();
+            self.frozen += 1;
         }
         out.valid = (out.failure == AttitudeFailure::None).into();
         if let Some(kind) = self.secondary {
@@ -412,8 +449,8 @@ impl Stage for EstimateStage {
             String::new()
         };
         format!(
-            "{} marker sets, {} attitudes, {} dropped, {} not compensated for the vehicle{motion}",
-            self.processed, self.estimated, self.dropped, self.uncompensated
+            "{} marker sets, {} attitudes, {} dropped, {} not compensated for the vehicle, {} frozen images{motion}",
+            self.processed, self.estimated, self.dropped, self.uncompensated, self.frozen
         )
     }
 }
@@ -469,6 +506,38 @@ mod tests {
         let a = s.process(&m, 8);
         assert!(!a.valid.get() && a.failure == AttitudeFailure::NoDeck);
         assert!(a.alternative.present.get() && !a.alternative.valid.get());
+    }
+
+    /// The same markers a third time in a row are a frozen image, whatever the vehicle does; a
+    /// marker moving by the last bit of a pixel is not.
+    #[test]
+    fn a_frozen_image_is_refused_and_decide_says_so() {
+        let camera = CameraModel::preset("rpi-v2").unwrap();
+        let scene = SceneGeometry {
+            attitude: Rpy::from_degrees(1.0, -1.0, 0.0).to_matrix(),
+            viewpoint: Viewpoint::level(0.0, 0.0, 3.0),
+        };
+        let mut m = exact_markers(&scene, camera, DeckLayout::paper());
+        let mut s = EstimateStage::new(&EstimateConfig::default(), &VehicleConfig::default(), false);
+        let failures: Vec<_> = (0..4).map(|_| s.process(&m, 0).failure.get()).collect();
+        use AttitudeFailure::{FrozenImage, None as Fine};
+        assert_eq!(failures, [Fine, Fine, FrozenImage, FrozenImage]);
+        m.markers.markers[3].u = f64::from_bits(m.markers.markers[3].u.to_bits() + 1);
+        let a = s.process(&m, 0);
+        assert!(a.valid.get(), "{:?}", a.failure);
+        assert_eq!(s.frozen, 2);
+        // Decide refuses it as a frozen input (not a missing one: a committed touchdown aborts).
+        let mut d =
+            crate::stages::DecideStage::new(deckwatch_decide::DecisionConfig::default(), false).unwrap();
+        let mut frozen = a;
+        frozen.valid = false.into();
+        frozen.failure = FrozenImage.into();
+        frozen.stamp.times.captured_ns = 1_000_000_000;
+        let out = d.process(&frozen, 1_010_000_000);
+        assert_eq!(
+            out.reason,
+            deckwatch_common::messages::DecisionReason::FrozenInput
+        );
     }
 
     /// With the autopilot's stream: samples around the capture instant are interpolated and the

@@ -1,0 +1,859 @@
+//! `deckwatch trials`: closed-loop landings. A simulated vehicle arrives over the deck of a
+//! spectrum sea, hovers, and lands when the rule says so: the frames are rendered from the true
+//! deck and the vehicle's own path, the stage chain (the processes' stages, in one process, on
+//! a simulated clock) turns them into attitudes and decisions, and the simulated autopilot acts
+//! on the decision state as it would arrive over the link (commit on a fresh ClearToLand,
+//! go around on Abort). Each touchdown is judged at contact against the true deck. The same
+//! approaches are flown by the naive rule (current angles within the limits) and by an oracle
+//! that knows the future motion.
+
+use deckwatch_capture::landing::{ClosedLoopScene, FlightPath, SharedFlightPath};
+use deckwatch_capture::motion::{MotionProfile, SpectrumShipMotion, VehicleSway};
+use deckwatch_capture::rng::SplitMix64;
+use deckwatch_common::messages::{
+    AttitudeMessage, DecisionReason, FrameHeader, FrameSource, LandingDecision, VehicleSample,
+};
+use deckwatch_common::vehicle::{Compensation, VehicleAttitudeSource};
+use deckwatch_common::{Quaternion, RotationMatrix};
+use deckwatch_decide::DecisionConfig;
+use deckwatch_runtime::chain::{ChainOutput, SimulatedClock, StageChain};
+use deckwatch_runtime::config::PipelineConfig;
+use deckwatch_trials::{
+    oracle_approach, ApproachModel, ApproachOutcome, Command, DecisionFollower, RuleSummary,
+    SimulatedAutopilot, TouchdownVerdict,
+};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct TrialsArgs {
+    /// Sea states of the spectrum seas (3-6).
+    #[arg(long, value_delimiter = ',', default_value = "3,4,5,6")]
+    pub sea_states: Vec<u32>,
+    /// Seeds (the sea's waves, the vehicle's sway, the faults).
+    #[arg(long, value_delimiter = ',', default_value = "1,2")]
+    pub seeds: Vec<u64>,
+    /// Mean headings of the waves off the bow (deg; 0 head seas, 90 beam seas).
+    #[arg(long, value_delimiter = ',', default_value = "30,75")]
+    pub headings_deg: Vec<f64>,
+    /// Approaches per sea state, seed and heading (each starts at a different time of the sea).
+    #[arg(long, default_value_t = 10)]
+    pub approaches: u32,
+    /// Rules flown: `deckwatch` (the decision), `naive`, `oracle`.
+    #[arg(long, value_delimiter = ',', default_value = "deckwatch,naive,oracle")]
+    pub rules: Vec<String>,
+    /// Frame rate (Hz).
+    #[arg(long, default_value_t = 10.0)]
+    pub rate: f64,
+    /// Image size (the camera preset scaled to it).
+    #[arg(long, default_value_t = 640)]
+    pub width: u32,
+    #[arg(long, default_value_t = 480)]
+    pub height: u32,
+    /// The vehicle's sway in hover, as a share of a hovering quadrotor's in wind (1: roll up to
+    /// 9 deg).
+    #[arg(long, default_value_t = 0.3)]
+    pub sway: f64,
+    /// Where the vehicle waits: its camera's height over the deck's mean level (m).
+    #[arg(long, default_value_t = 3.0)]
+    pub hover_m: f64,
+    /// The longest approach (s).
+    #[arg(long, default_value_t = 240.0)]
+    pub max_approach_s: f64,
+    /// Each stage's time on the simulated clock (ms): capture -> decision is three of them.
+    #[arg(long, default_value_t = 2.0)]
+    pub stage_latency_ms: f64,
+    /// Faults: share of frames lost between capture and detect.
+    #[arg(long, default_value_t = 0.0)]
+    pub drop_share: f64,
+    /// Faults: specular glints per frame.
+    #[arg(long, default_value_t = 0)]
+    pub glints: u32,
+    /// Faults: a frozen camera (the same image again, new timestamps) this often per minute...
+    #[arg(long, default_value_t = 0.0)]
+    pub frozen_per_min: f64,
+    /// ... for this long each (s).
+    #[arg(long, default_value_t = 2.0)]
+    pub frozen_s: f64,
+    /// Faults: outages of the autopilot's attitude stream per minute...
+    #[arg(long, default_value_t = 0.0)]
+    pub vehicle_outages_per_min: f64,
+    /// ... each this long (s).
+    #[arg(long, default_value_t = 1.0)]
+    pub vehicle_outage_s: f64,
+    /// Pipeline configuration whose `[decide]`, `[detect]`, `[estimate]` and `[image]` to use.
+    #[arg(long)]
+    pub config: Option<std::path::PathBuf>,
+    /// Log the first approach of the decision's rule to this `.rrd` (the deck, the vehicle's
+    /// height, the decisions, the verdict).
+    #[arg(long)]
+    pub rrd: Option<std::path::PathBuf>,
+    /// One JSON object per sea state and rule, and the totals.
+    #[arg(long)]
+    pub json: bool,
+    /// Also fly the first this many approaches through the real processes at real time (the
+    /// launcher's detect, estimate, decide and link; this process is the camera and the
+    /// autopilot, over MAVLink on UDP), beside the same approaches in one process.
+    #[arg(long, default_value_t = 0)]
+    pub processes: usize,
+    /// Approaches flown at once (default: one per core).
+    #[arg(long, default_value_t = std::thread::available_parallelism().map_or(1, |n| n.get()))]
+    pub threads: usize,
+}
+
+/// The rules an approach can be flown by.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+enum Rule {
+    Deckwatch,
+    Naive,
+    Oracle,
+}
+
+impl Rule {
+    fn parse(s: &str) -> Result<Self, String> {
+        match s {
+            "deckwatch" => Ok(Self::Deckwatch),
+            "naive" => Ok(Self::Naive),
+            "oracle" => Ok(Self::Oracle),
+            other => Err(format!("--rules: unknown `{other}` (deckwatch, naive, oracle)")),
+        }
+    }
+
+    fn name(&self) -> &'static str {
+        match self {
+            Self::Deckwatch => "deckwatch",
+            Self::Naive => "naive",
+            Self::Oracle => "oracle",
+        }
+    }
+}
+
+mod processes;
+
+/// One approach's world: the sea, the vehicle's sway and where the approach starts in them.
+#[derive(Clone)]
+struct World {
+    sea: SpectrumShipMotion,
+    sway: VehicleSway,
+    sea_offset_s: f64,
+}
+
+impl World {
+    /// The world of `job`.
+    fn of(job: Job, a: &TrialsArgs) -> Result<Self, String> {
+        let sea = SpectrumShipMotion::sea_state_from(job.sea_state, job.seed, job.heading_deg).ok_or(
+            format!("--sea-states: {} has no spectrum sea (3, 4, 5, 6)", job.sea_state),
+        )?;
+        Ok(Self {
+            sea,
+            sway: VehicleSway::hover(job.seed.wrapping_mul(1000) + job.index as u64, a.sway),
+            // Approaches 7 min apart in the sea (its heading wanders over 10 min).
+            sea_offset_s: 60.0 + 421.0 * job.index as f64,
+        })
+    }
+
+    fn scene(&self, path: SharedFlightPath) -> ClosedLoopScene<SpectrumShipMotion> {
+        ClosedLoopScene {
+            sea: self.sea.clone(),
+            sway: self.sway.clone(),
+            path,
+            sea_offset_s: self.sea_offset_s,
+            // Hovering a little off the centre, as a position hold does.
+            offset_m: [0.08, -0.05],
+        }
+    }
+
+    /// The true deck: roll, pitch (deg) and heave (m) at the approach's t.
+    fn truth(&self, t: f64) -> [f64; 3] {
+        let s = self.sea.sample(t + self.sea_offset_s);
+        let [r, p, _] = s.attitude.to_degrees();
+        [r, p, s.deck_heave_m]
+    }
+
+    /// The deck's and the vehicle's attitudes (body to W) at t.
+    fn attitudes(&self, t: f64) -> (RotationMatrix, RotationMatrix) {
+        let deck = self.sea.sample(t + self.sea_offset_s).attitude.to_matrix();
+        (deck, self.sway.attitude(t + self.sea_offset_s).to_matrix())
+    }
+}
+
+/// Faults injected into one approach, from its own random stream.
+struct Faults {
+    rng: SplitMix64,
+    drop_share: f64,
+    frozen_p: f64,
+    frozen_s: f64,
+    frozen_until: f64,
+    frozen_pixels: Option<Vec<u8>>,
+    outage_p: f64,
+    outage_s: f64,
+    outage_until: f64,
+}
+
+impl Faults {
+    fn new(a: &TrialsArgs, seed: u64) -> Self {
+        let per_frame = |per_min: f64| per_min / 60.0 / a.rate;
+        Self {
+            rng: SplitMix64::new(seed ^ 0xFA17),
+            drop_share: a.drop_share,
+            frozen_p: per_frame(a.frozen_per_min),
+            frozen_s: a.frozen_s,
+            frozen_until: f64::NEG_INFINITY,
+            frozen_pixels: None,
+            outage_p: per_frame(a.vehicle_outages_per_min),
+            outage_s: a.vehicle_outage_s,
+            outage_until: f64::NEG_INFINITY,
+        }
+    }
+
+    /// Whether the autopilot's attitude stream is out at frame time t (drawn once per frame).
+    fn vehicle_out(&mut self, t: f64) -> bool {
+        if self.rng.next_f64() < self.outage_p {
+            self.outage_until = self.outage_until.max(t + self.outage_s);
+        }
+        t < self.outage_until
+    }
+
+    /// The frame at t on its way to detect: lost, frozen, or as it was.
+    fn inject(&mut self, t: f64, _header: &mut FrameHeader, pixels: &mut [u8]) -> bool {
+        self.freeze(t, pixels);
+        !self.lost()
+    }
+
+    /// Whether the next frame is lost on its way.
+    fn lost(&mut self) -> bool {
+        self.rng.next_f64() < self.drop_share
+    }
+
+    /// A frozen camera delivers its last image again and again, with new timestamps.
+    fn freeze(&mut self, t: f64, pixels: &mut [u8]) {
+        if self.rng.next_f64() < self.frozen_p {
+            self.frozen_until = self.frozen_until.max(t + self.frozen_s);
+        }
+        if t < self.frozen_until {
+            match &self.frozen_pixels {
+                Some(p) if p.len() == pixels.len() => pixels.copy_from_slice(p),
+                _ => self.frozen_pixels = Some(pixels.to_vec()),
+            }
+        } else {
+            self.frozen_pixels = None;
+        }
+    }
+}
+
+/// The command the naive rule gives on an attitude: land when the current angles are within
+/// the limits (and the attitude is compensated), never go around.
+fn naive_command(a: &AttitudeMessage, c: &DecisionConfig) -> Command {
+    let [r, p, _] = a.rpy.to_degrees();
+    if a.valid.get() && a.vehicle.compensation != Compensation::Missing && c.naive_within(r, p) {
+        Command::Land
+    } else {
+        Command::Wait
+    }
+}
+
+/// What the first approach logs to rerun: the frames (downscaled), the markers, the deck's true
+/// and measured angles, the decisions, the vehicle's height over the deck, the commits and
+/// go-arounds, and the touchdown's verdict.
+struct TrialLog {
+    logger: deckwatch_viz::Logger,
+    viewer: Option<deckwatch_viz::Viewer>,
+    view: deckwatch_viz::entities::DecisionView,
+    path: std::path::PathBuf,
+}
+
+impl TrialLog {
+    const VIEW_PART: &str = "trial-view";
+    const PART: &str = "trial";
+
+    fn start(path: &std::path::Path, c: &DecisionConfig, about: String) -> Result<Self, String> {
+        let config = deckwatch_viz::RerunConfig {
+            sink: deckwatch_viz::RerunSink::Save,
+            path: Some(path.to_path_buf()),
+            queue: 1 << 16,
+            recording_id: Some(format!("deckwatch-trial-{}", std::process::id())),
+            layout: deckwatch_viz::Layout::Trial,
+            ..Default::default()
+        };
+        let description = deckwatch_viz::RunDescription {
+            name: about,
+            ..Default::default()
+        };
+        let viewer = deckwatch_viz::open_viewer(&config, Self::VIEW_PART, &description)
+            .map_err(|e| format!("--rrd: {e}"))?;
+        let logger = deckwatch_viz::Logger::start(&config, Self::PART)
+            .map_err(|e| format!("--rrd: {e}"))?
+            .ok_or("--rrd: no rerun sink")?;
+        Ok(Self {
+            logger,
+            viewer,
+            view: deckwatch_viz::entities::DecisionView::new(c.max_abs_roll_deg, c.max_abs_pitch_deg),
+            path: path.to_path_buf(),
+        })
+    }
+
+    fn frame(&mut self, o: &ChainOutput, pixels: &[u8], over_deck_m: f64) {
+        let d = &o.decision;
+        let (seq, t) = (d.stamp.seq, d.stamp.times.captured_ns);
+        let (w, h) = (d.context.camera.width as usize, d.context.camera.height as usize);
+        self.logger.log(self.logger.image(seq, t, pixels, w, h, w));
+        for item in deckwatch_viz::entities::marker_items(&o.markers, None) {
+            self.logger.log(item);
+        }
+        for item in deckwatch_viz::entities::truth_items(seq, t, &d.context.truth) {
+            self.logger.log(item);
+        }
+        for item in deckwatch_viz::entities::attitude_items(&o.attitude, None) {
+            self.logger.log(item);
+        }
+        for item in self.view.items(d) {
+            self.logger.log(item);
+        }
+        self.logger.log(deckwatch_viz::Item {
+            frame: Some(seq),
+            time_ns: t,
+            kind: deckwatch_viz::ItemKind::Scalars(vec![(
+                deckwatch_viz::entities::VEHICLE_OVER_DECK.to_string(),
+                over_deck_m,
+            )]),
+        });
+    }
+
+    fn text(&self, time_ns: u64, text: String) {
+        self.logger.log(deckwatch_viz::Item {
+            frame: None,
+            time_ns,
+            kind: deckwatch_viz::ItemKind::Text(text),
+        });
+    }
+
+    fn finish(self, time_ns: u64, verdict: String) -> Result<(), String> {
+        self.logger.log(deckwatch_viz::Item {
+            frame: None,
+            time_ns,
+            kind: deckwatch_viz::ItemKind::Document {
+                entity: deckwatch_viz::entities::DECISION_NOW,
+                markdown: verdict,
+            },
+        });
+        self.logger.finish();
+        if let Some(v) = self.viewer {
+            v.close();
+        }
+        deckwatch_viz::merge_parts(&self.path, &[Self::VIEW_PART, Self::PART])
+            .map_err(|e| format!("--rrd: {e}"))?;
+        Ok(())
+    }
+}
+
+/// Flies one approach through the stage chain: `Deckwatch` acts on the decisions, `Naive` on
+/// the attitudes.
+fn fly(
+    rule: Rule,
+    world: &World,
+    pipeline: &PipelineConfig,
+    model: &ApproachModel,
+    a: &TrialsArgs,
+    seed: u64,
+    mut log: Option<&mut TrialLog>,
+) -> Result<ApproachOutcome, String> {
+    let path: SharedFlightPath = Arc::new(Mutex::new(FlightPath::hover(model.hover_m)));
+    let source = pipeline
+        .capture()
+        .open_sim_with(Box::new(world.scene(path.clone())))
+        .map_err(|e| e.to_string())?;
+    let mut chain = StageChain::with_source(pipeline, source).map_err(|e| e.to_string())?;
+    let latency_ns = (a.stage_latency_ms * 1e6) as u64;
+    let clock = SimulatedClock {
+        epoch_ns: 1_000_000_000,
+        stage_latency_ns: latency_ns,
+    };
+    let reaction_s = 3.0 * latency_ns as f64 / 1e9;
+    let mut autopilot = SimulatedAutopilot::new(*model, path.clone());
+    let mut follow = DecisionFollower::default();
+    let mut faults = Faults::new(a, seed);
+    let mut out = ApproachOutcome::default();
+    let capacity = &pipeline.decide;
+    let vehicle_period_s = 0.01; // the autopilot's attitude stream at 100 Hz
+    let mut next_vehicle_s = -0.05;
+    let mut vehicle_seq = 0;
+    let heave = |t: f64| world.truth(t)[2];
+    let time_ns = |t: f64| clock.at((t.max(0.0) * 1e9) as u64);
+    let judge = |t: f64| {
+        let (r_d, r_v) = world.attitudes(t);
+        TouchdownVerdict::judge(&|t| world.truth(t), &r_d, &r_v, t, capacity, model)
+    };
+    for k in 0u64.. {
+        let t = k as f64 / a.rate;
+        let t_decided = t + reaction_s;
+        if let Some(contact) = autopilot.contact_s().filter(|&c| c <= t_decided) {
+            out.touchdown = Some(judge(contact));
+            break;
+        }
+        if t > model.max_approach_s {
+            break;
+        }
+        // The autopilot's attitude stream up to when estimate sees the frame.
+        let out_now = faults.vehicle_out(t);
+        while next_vehicle_s <= t + 1.5 * latency_ns as f64 / 1e9 {
+            let tv = next_vehicle_s;
+            next_vehicle_s += vehicle_period_s;
+            if out_now {
+                continue;
+            }
+            let (_, r_v) = world.attitudes(tv);
+            let height_m = path
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .height_m(tv, heave(tv));
+            chain.estimate.observe_vehicle(&VehicleSample {
+                seq: vehicle_seq,
+                time_ns: time_ns(tv),
+                received_ns: time_ns(tv),
+                quaternion: Quaternion::from_matrix(&r_v),
+                altitude_m: f64::NAN,
+                height_m,
+                link_up: true.into(),
+                ..Default::default()
+            });
+            vehicle_seq += 1;
+        }
+        let step = chain.next_frame(Some(clock), |h, px| faults.inject(t, h, px));
+        out.frames += 1;
+        let command = match step {
+            None => break,
+            Some(Err(_)) => Command::Wait, // counted by the chain; nothing reaches the autopilot
+            Some(Ok(None)) => {
+                // Lost on the way: decide's watchdog speaks if the silence is long enough.
+                match chain.watchdog(time_ns(t_decided)) {
+                    Some(d) if rule == Rule::Deckwatch => {
+                        out.decisions += 1;
+                        count_decision(&mut out, &d);
+                        let c = follow.command(d.state.get());
+                        if c == Command::GoAround && autopilot.contact_s().is_some() {
+                            count_reason(&mut out, d.reason.get());
+                        }
+                        c
+                    }
+                    _ => Command::Wait,
+                }
+            }
+            Some(Ok(Some(o))) => {
+                out.decisions += 1;
+                if let Some(log) = log.as_deref_mut() {
+                    let over = path
+                        .lock()
+                        .unwrap_or_else(|e| e.into_inner())
+                        .over_deck_m(t, heave(t));
+                    log.frame(&o, chain.pixels(), over);
+                }
+                match rule {
+                    Rule::Deckwatch => {
+                        count_decision(&mut out, &o.decision);
+                        let c = follow.command(o.decision.state.get());
+                        if c == Command::GoAround && autopilot.contact_s().is_some() {
+                            count_reason(&mut out, o.decision.reason.get());
+                        }
+                        c
+                    }
+                    _ => naive_command(&o.attitude, capacity),
+                }
+            }
+        };
+        if autopilot.act(t_decided, heave(t_decided), command) {
+            if let Some(log) = log.as_deref() {
+                let what = if command == Command::Land {
+                    format!(
+                        "COMMIT at {t_decided:.2} s: descending, contact at {:.2} s",
+                        t_decided + model.touchdown_s
+                    )
+                } else {
+                    format!(
+                        "GO-AROUND at {t_decided:.2} s: climbing back to {} m",
+                        model.hover_m
+                    )
+                };
+                log.text(time_ns(t_decided), what);
+            }
+        }
+    }
+    out.commits = autopilot.commits;
+    out.go_arounds = autopilot.go_arounds;
+    if let (Some(log), Some(v)) = (log, &out.touchdown) {
+        let verdict = if v.safe() {
+            "SAFE".to_string()
+        } else {
+            format!("UNSAFE ({})", v.violations.join(", "))
+        };
+        log.text(time_ns(v.t_s), format!("TOUCHDOWN at {:.2} s: {verdict}", v.t_s));
+    }
+    Ok(out)
+}
+
+/// A go-around's reason, counted.
+fn count_reason(out: &mut ApproachOutcome, reason: DecisionReason) {
+    *out.abort_reasons.entry(reason.name().into()).or_default() += 1;
+}
+
+fn count_decision(out: &mut ApproachOutcome, d: &LandingDecision) {
+    let key = format!("{} {}", d.state.get().name(), d.reason.get().name());
+    *out.decisions_by_reason.entry(key).or_default() += 1;
+}
+
+/// The pipeline the trials run: the configuration's stages on the simulator at the trial's
+/// rate and image size, compensating with the autopilot's attitude stream.
+fn trial_pipeline(a: &TrialsArgs) -> Result<PipelineConfig, String> {
+    let (mut p, file) = crate::pipeline::load(a.config.as_deref())?;
+    p.source.kind = FrameSource::Simulator;
+    p.sim.rate = a.rate;
+    p.sim.frames = (a.max_approach_s * a.rate).ceil() as usize + 10;
+    p.image.width = Some(a.width);
+    p.image.height = Some(a.height);
+    if a.glints > 0 {
+        p.image.glints = Some(a.glints);
+    }
+    p.vehicle.attitude = VehicleAttitudeSource::Autopilot;
+    p.rerun.sink = deckwatch_viz::RerunSink::Off;
+    p.decide.validate().map_err(|e| format!("{file}: decide.{e}"))?;
+    Ok(p)
+}
+
+/// One approach to fly: its sea, seed, heading and number.
+#[derive(Debug, Clone, Copy)]
+struct Job {
+    sea_state: u32,
+    seed: u64,
+    heading_deg: f64,
+    index: u32,
+}
+
+impl Job {
+    /// The seed of the approach's own randomness (its faults).
+    fn approach_seed(&self) -> u64 {
+        self.seed.wrapping_mul(0x9E37_79B9) ^ ((self.sea_state as u64) << 32) ^ self.index as u64
+    }
+}
+
+/// Everything every approach shares.
+struct Setup {
+    rules: Vec<Rule>,
+    pipeline: PipelineConfig,
+    model: ApproachModel,
+}
+
+/// The first approach (the one logged).
+fn jobs_first(a: &TrialsArgs) -> Option<Job> {
+    Some(Job {
+        sea_state: *a.sea_states.first()?,
+        seed: *a.seeds.first()?,
+        heading_deg: *a.headings_deg.first()?,
+        index: 0,
+    })
+    .filter(|_| a.approaches > 0)
+}
+
+/// An approach flown by every rule.
+type JobResult = Result<Vec<(Rule, ApproachOutcome)>, String>;
+
+/// Flies one approach by every rule.
+fn fly_job(job: Job, setup: &Setup, a: &TrialsArgs, log: Option<&mut Option<TrialLog>>) -> JobResult {
+    let world = World::of(job, a)?;
+    let approach_seed = job.approach_seed();
+    let capacity = &setup.pipeline.decide;
+    let model = &setup.model;
+    let mut log = log;
+    let mut out = Vec::with_capacity(setup.rules.len());
+    for &rule in &setup.rules {
+        let o = match rule {
+            Rule::Oracle => oracle_approach(
+                &|t| world.truth(t),
+                &|t| world.attitudes(t),
+                capacity,
+                model,
+                1.0 / a.rate,
+                3.0 * a.stage_latency_ms / 1e3,
+            ),
+            _ => {
+                let logged = match (rule, log.as_deref_mut()) {
+                    (Rule::Deckwatch, Some(l)) => l.as_mut(),
+                    _ => None,
+                };
+                let o = fly(rule, &world, &setup.pipeline, model, a, approach_seed, logged)?;
+                if rule == Rule::Deckwatch {
+                    if let Some(l) = log.as_deref_mut().and_then(Option::take) {
+                        let at = o.touchdown.as_ref().map_or(model.max_approach_s, |v| v.t_s);
+                        l.finish(
+                            1_000_000_000 + (at * 1e9) as u64,
+                            verdict_markdown(&o, model, capacity),
+                        )?;
+                    }
+                }
+                o
+            }
+        };
+        out.push((rule, o));
+    }
+    Ok(out)
+}
+
+pub fn run(a: TrialsArgs) -> Result<(), String> {
+    let rules: Vec<Rule> = a.rules.iter().map(|r| Rule::parse(r)).collect::<Result<_, _>>()?;
+    let shares_ok = (0.0..=1.0).contains(&a.drop_share)
+        && a.frozen_per_min >= 0.0
+        && a.frozen_s > 0.0
+        && a.vehicle_outages_per_min >= 0.0
+        && a.vehicle_outage_s > 0.0
+        && a.sway >= 0.0
+        && a.rate > 0.0
+        && a.stage_latency_ms >= 0.0
+        && a.threads > 0;
+    if !shares_ok {
+        return Err("--drop-share is a share in [0, 1]; --frozen-*, --vehicle-outage*, --sway, --stage-latency-ms must not be negative, --rate and --threads positive".into());
+    }
+    for &ss in &a.sea_states {
+        if SpectrumShipMotion::sea_state(ss, 1).is_none() {
+            return Err(format!("--sea-states: {ss} has no spectrum sea (3, 4, 5, 6)"));
+        }
+    }
+    let pipeline = trial_pipeline(&a)?;
+    let capacity = pipeline.decide.clone();
+    let model = ApproachModel {
+        hover_m: a.hover_m,
+        max_approach_s: a.max_approach_s,
+        ..ApproachModel::quadrotor(capacity.touchdown_s)
+    };
+    model.validate()?;
+    let log = match (&a.rrd, jobs_first(&a)) {
+        (Some(p), Some(job)) => Some(TrialLog::start(
+            p,
+            &capacity,
+            format!(
+                "deckwatch trial: sea state {}, seed {}, waves {} deg off the bow, approach {}",
+                job.sea_state, job.seed, job.heading_deg, job.index
+            ),
+        )?),
+        _ => None,
+    };
+    if !a.json {
+        println!(
+            "closed-loop trials: {} approaches per sea state, seed and heading ({} x {} x {:?} deg); {}x{} at {} Hz, hover {} m, touchdown {} s, sway x{}, ride-through {} ms; faults: drops {}, glints {}, frozen {}/min of {} s, vehicle stream outages {}/min of {} s",
+            a.approaches, a.seeds.len(), a.headings_deg.len(), a.headings_deg, a.width, a.height, a.rate, model.hover_m,
+            model.touchdown_s, a.sway, capacity.ride_through_ms, a.drop_share, a.glints, a.frozen_per_min, a.frozen_s, a.vehicle_outages_per_min, a.vehicle_outage_s
+        );
+        println!(
+            "{:<4} {:<10} {:>10} {:>8} {:>10} {:>7} {:>7} {:>9} {:>9} {:>9}",
+            "sea",
+            "rule",
+            "approaches",
+            "commits",
+            "touchdowns",
+            "UNSAFE",
+            "aborts",
+            "abort/cmt",
+            "no land",
+            "median s"
+        );
+    }
+    let mut jobs = Vec::new();
+    for &sea_state in &a.sea_states {
+        for &seed in &a.seeds {
+            for &heading_deg in &a.headings_deg {
+                for index in 0..a.approaches {
+                    jobs.push(Job {
+                        sea_state,
+                        seed,
+                        heading_deg,
+                        index,
+                    });
+                }
+            }
+        }
+    }
+    let setup = Setup {
+        rules,
+        pipeline,
+        model,
+    };
+    let clock = Instant::now();
+    // Approaches are independent: as many at once as there are cores (each its own chain).
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let results: Mutex<Vec<Option<JobResult>>> = Mutex::new(vec![None; jobs.len()]);
+    let log = Mutex::new(log);
+    std::thread::scope(|scope| {
+        for _ in 0..a.threads.min(jobs.len().max(1)) {
+            scope.spawn(|| loop {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(&job) = jobs.get(i) else { break };
+                // The first approach is the one logged.
+                let r = if i == 0 {
+                    let mut guard = log.lock().unwrap_or_else(|e| e.into_inner());
+                    fly_job(job, &setup, &a, Some(&mut guard))
+                } else {
+                    fly_job(job, &setup, &a, None)
+                };
+                let failed = r.is_err();
+                results.lock().unwrap_or_else(|e| e.into_inner())[i] = Some(r);
+                if failed {
+                    next.store(jobs.len(), std::sync::atomic::Ordering::Relaxed);
+                }
+            });
+        }
+    });
+    let results = results.into_inner().unwrap_or_else(|e| e.into_inner());
+    let mut per_sea: std::collections::BTreeMap<u32, std::collections::BTreeMap<Rule, RuleSummary>> =
+        Default::default();
+    for (job, r) in jobs.iter().zip(results) {
+        let Some(r) = r else { continue };
+        for (rule, o) in r? {
+            per_sea
+                .entry(job.sea_state)
+                .or_default()
+                .entry(rule)
+                .or_default()
+                .add(&o);
+        }
+    }
+    let mut totals: std::collections::BTreeMap<Rule, RuleSummary> = Default::default();
+    let summary_json = |sea: serde_json::Value, rule: Rule, s: &RuleSummary| {
+        serde_json::json!({"sea_state": sea, "rule": rule.name(), "summary": s,
+            "aborts_per_commit": s.aborts_per_commit(), "median_arrival_to_touchdown_s": s.median_arrival_to_touchdown_s()})
+    };
+    for (ss, per_rule) in &per_sea {
+        for (rule, s) in per_rule {
+            if a.json {
+                println!("{}", summary_json((*ss).into(), *rule, s));
+            } else {
+                println!("{}", row(&ss.to_string(), *rule, s));
+            }
+            totals.entry(*rule).or_default().merge(s);
+        }
+    }
+    for (rule, s) in &totals {
+        if a.json {
+            println!("{}", summary_json("all".into(), *rule, s));
+        } else {
+            println!("{}", row("all", *rule, s));
+            if !s.abort_reasons.is_empty() || !s.violations.is_empty() {
+                println!(
+                    "     {:<10} go-arounds by reason: {:?}; unsafe by limit: {:?}",
+                    rule.name(),
+                    s.abort_reasons,
+                    s.violations
+                );
+            }
+            if !s.decisions_by_reason.is_empty() {
+                println!("     {:<10} decisions: {:?}", rule.name(), s.decisions_by_reason);
+            }
+        }
+    }
+    if a.processes > 0 {
+        agreement(&jobs[..a.processes.min(jobs.len())], &setup, &a)?;
+    }
+    if !a.json {
+        let frames: u64 = totals
+            .iter()
+            .filter(|(r, _)| **r != Rule::Oracle)
+            .map(|(_, s)| s.frames)
+            .sum();
+        println!(
+            "{} frames through the chain in {:.1} s on {} threads",
+            frames,
+            clock.elapsed().as_secs_f64(),
+            a.threads
+        );
+    }
+    Ok(())
+}
+
+/// The same approaches in one process (simulated clock) and through the processes (real time).
+fn agreement(jobs: &[Job], setup: &Setup, a: &TrialsArgs) -> Result<(), String> {
+    let brief = |o: &ApproachOutcome| match &o.touchdown {
+        Some(v) => format!(
+            "{} commits, {} go-arounds, touchdown at {:.1} s {}",
+            o.commits,
+            o.go_arounds,
+            v.t_s,
+            if v.safe() { "safe" } else { "UNSAFE" }
+        ),
+        None => format!("{} commits, {} go-arounds, no touchdown", o.commits, o.go_arounds),
+    };
+    if !a.json {
+        println!("the same approaches through the processes at real time (detect, estimate, decide, link; MAVLink on UDP):");
+    }
+    for &job in jobs {
+        let world = World::of(job, a)?;
+        let inproc = fly(
+            Rule::Deckwatch,
+            &world,
+            &setup.pipeline,
+            &setup.model,
+            a,
+            job.approach_seed(),
+            None,
+        )?;
+        let live = processes::fly(job, setup, a)?;
+        if a.json {
+            println!(
+                "{}",
+                serde_json::json!({"agreement": {"sea_state": job.sea_state, "seed": job.seed, "heading_deg": job.heading_deg,
+                    "approach": job.index, "in_process": inproc, "processes": live}})
+            );
+        } else {
+            println!(
+                "  sea {} seed {} heading {} #{}: in one process {}; processes {}",
+                job.sea_state,
+                job.seed,
+                job.heading_deg,
+                job.index,
+                brief(&inproc),
+                brief(&live)
+            );
+        }
+    }
+    Ok(())
+}
+
+fn row(sea: &str, rule: Rule, s: &RuleSummary) -> String {
+    format!(
+        "{:<4} {:<10} {:>10} {:>8} {:>10} {:>7} {:>7} {:>8.1}% {:>9} {:>9.1}",
+        sea,
+        rule.name(),
+        s.approaches,
+        s.commits,
+        s.touchdowns,
+        s.unsafe_touchdowns,
+        s.aborts,
+        100.0 * s.aborts_per_commit(),
+        s.timeouts,
+        s.median_arrival_to_touchdown_s()
+    )
+}
+
+/// The verdict shown in the viewer at the end of a logged approach.
+fn verdict_markdown(o: &ApproachOutcome, model: &ApproachModel, c: &DecisionConfig) -> String {
+    match &o.touchdown {
+        Some(v) => format!(
+            "# Touchdown at {:.1} s: {}\n\n| | at contact | limit |\n|---|---|---|\n| deck roll | {:.2} deg | {} deg |\n| deck pitch | {:.2} deg | {} deg |\n| roll rate | {:.2} deg/s | {} deg/s |\n| pitch rate | {:.2} deg/s | {} deg/s |\n| heave rate | {:.2} m/s | {} m/s |\n| vehicle against deck | {:.2} deg | {} deg |\n\n{} commits, {} go-arounds",
+            v.t_s,
+            if v.safe() { "SAFE".to_string() } else { format!("UNSAFE ({})", v.violations.join(", ")) },
+            v.deck.roll_deg,
+            c.max_abs_roll_deg,
+            v.deck.pitch_deg,
+            c.max_abs_pitch_deg,
+            v.deck.roll_rate_dps,
+            c.max_abs_roll_rate_dps,
+            v.deck.pitch_rate_dps,
+            c.max_abs_pitch_rate_dps,
+            v.deck.heave_rate_mps,
+            c.max_abs_heave_rate_mps,
+            v.relative_tilt_deg,
+            model.max_relative_tilt_deg,
+            o.commits,
+            o.go_arounds
+        ),
+        None => format!(
+            "# No touchdown in {} s\n\n{} commits, {} go-arounds",
+            model.max_approach_s, o.commits, o.go_arounds
+        ),
+    }
+}

@@ -1,0 +1,105 @@
+//! Closed-loop landings (`deckwatch trials`): a simulated vehicle lands on a spectrum sea through
+//! the stage chain, judged at contact against the true deck; the same approach through the real
+//! processes and the MAVLink link at real time lands alike; the first approach's rerun recording
+//! is one the rerun CLI verifies.
+
+use deckwatch_tests::workspace_binary;
+use std::process::Command;
+
+#[test]
+fn closed_loop_landings_touch_down_safely_in_one_process_and_through_the_processes() {
+    let dir = tempfile::tempdir().unwrap();
+    let rrd = dir.path().join("trial.rrd");
+    let out = Command::new(workspace_binary("deckwatch"))
+        .args([
+            "trials",
+            "--json",
+            "--sea-states",
+            "3",
+            "--seeds",
+            "1",
+            "--headings-deg",
+            "30",
+            "--approaches",
+            "2",
+            "--width",
+            "320",
+            "--height",
+            "240",
+            "--max-approach-s",
+            "120",
+            "--processes",
+            "1",
+        ])
+        .arg("--rrd")
+        .arg(&rrd)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let lines: Vec<serde_json::Value> = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let rule = |name: &str| {
+        lines
+            .iter()
+            .find(|l| l["sea_state"] == "all" && l["rule"] == name)
+            .unwrap_or_else(|| panic!("no {name} totals: {lines:?}"))["summary"]
+            .clone()
+    };
+    let deckwatch = rule("deckwatch");
+    assert_eq!(deckwatch["approaches"], 2);
+    assert_eq!(deckwatch["unsafe_touchdowns"], 0, "{deckwatch}");
+    assert!(deckwatch["touchdowns"].as_u64().unwrap() >= 1, "{deckwatch}");
+    // The blind last metre of each descent rides through instead of aborting.
+    assert!(
+        deckwatch["decisions_by_reason"]["CLEAR ride-through"]
+            .as_u64()
+            .unwrap()
+            > 0,
+        "{deckwatch}"
+    );
+    let oracle = rule("oracle");
+    assert_eq!(
+        oracle["touchdowns"], 2,
+        "the oracle always finds a safe contact: {oracle}"
+    );
+    assert_eq!(rule("naive")["approaches"], 2);
+    // The first approach through the processes: it lands as it did in one process, within a
+    // frame or two (the processes run at real time, the chain on a simulated clock).
+    let agreement = lines
+        .iter()
+        .find_map(|l| l.get("agreement"))
+        .unwrap_or_else(|| panic!("no agreement line: {lines:?}\n{stderr}"));
+    let contact = |side: &str| agreement[side]["touchdown"]["t_s"].as_f64();
+    let (inproc, live) = (contact("in_process"), contact("processes"));
+    assert!(inproc.is_some() && live.is_some(), "{agreement}");
+    assert!((inproc.unwrap() - live.unwrap()).abs() < 0.5, "{agreement}");
+    for side in ["in_process", "processes"] {
+        assert_eq!(
+            agreement[side]["touchdown"]["violations"],
+            serde_json::json!([]),
+            "{agreement}"
+        );
+    }
+    // The recording of the first approach: complete, and what the view shows is in it.
+    #[cfg(feature = "rerun")]
+    {
+        let rows = deckwatch_viz::rrd_entity_rows(&rrd).unwrap();
+        assert!(rows.get("/camera/image").copied().unwrap_or(0) > 200, "{rows:?}");
+        for entity in [
+            "/camera/image",
+            "/heave/vehicle_over_deck_m",
+            "/decision/state",
+            "/decision_now",
+            "/decision_log",
+            "/attitude/roll/truth",
+        ] {
+            assert!(rows.contains_key(entity), "{entity} missing: {rows:?}");
+        }
+        // rerun's own reader: the file verifies.
+        deckwatch_tests::assert_rrd_verifies(&rrd);
+    }
+}

@@ -1,0 +1,440 @@
+//! Closed-loop landing trials: what a simulated autopilot does with deckwatch's decisions, and
+//! how each touchdown is judged at contact against the true deck. Pure: `deckwatch trials`
+//! renders the frames from the true motion, drives the stage chain (or the processes and the
+//! MAVLink link) and feeds the decisions to [`SimulatedAutopilot`]; [`RuleSummary`] adds the
+//! approaches up.
+//!
+//! An approach starts when the vehicle arrives in hover over the deck (the deck comes into
+//! view: the decider's warm-up starts then) and ends at contact or after `max_approach_s`.
+
+use deckwatch_capture::landing::SharedFlightPath;
+use deckwatch_common::messages::DecisionState;
+use deckwatch_common::RotationMatrix;
+use deckwatch_decide::eval::{TrueDeck, TrueDeckState};
+use deckwatch_decide::DecisionConfig;
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// How the simulated vehicle flies an approach.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ApproachModel {
+    /// Where it waits: the camera's height in W over the deck's mean level (m).
+    pub hover_m: f64,
+    /// The camera's height over the deck at contact (gear on the deck, m).
+    pub contact_m: f64,
+    /// From commit to contact (s): the decision's `touchdown_s`. The descent follows the deck
+    /// (range finder), so contact comes exactly this long after the commit.
+    pub touchdown_s: f64,
+    /// Climb rate of a go-around back to the hover height (m/s).
+    pub climb_mps: f64,
+    /// The largest tilt of the vehicle against the deck its gear takes at contact (deg).
+    pub max_relative_tilt_deg: f64,
+    /// An approach that has not touched down after this long ends (s).
+    pub max_approach_s: f64,
+}
+
+impl ApproachModel {
+    /// A small quadrotor that waits 3 m over the deck and touches down with its camera 0.25 m
+    /// over it, from `touchdown_s` after the commit.
+    pub fn quadrotor(touchdown_s: f64) -> Self {
+        Self {
+            hover_m: 3.0,
+            contact_m: 0.25,
+            touchdown_s,
+            climb_mps: 1.5,
+            max_relative_tilt_deg: 8.0,
+            max_approach_s: 240.0,
+        }
+    }
+
+    pub fn validate(&self) -> Result<(), String> {
+        let ok = self.hover_m > self.contact_m
+            && self.contact_m > 0.0
+            && self.touchdown_s > 0.0
+            && self.climb_mps > 0.0
+            && self.max_relative_tilt_deg > 0.0
+            && self.max_approach_s > self.touchdown_s;
+        if ok {
+            Ok(())
+        } else {
+            Err(format!(
+                "approach: hover height over contact height over 0, positive touchdown time, climb rate and tilt limit, an approach longer than a touchdown; got {self:?}"
+            ))
+        }
+    }
+}
+
+/// What the autopilot is told to do.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Command {
+    Wait,
+    Land,
+    GoAround,
+}
+
+/// The autopilot's reading of deckwatch's decision state as it arrives (`dw_state` over
+/// MAVLink, or the decision message): it commits on a fresh clearance only (a change into
+/// ClearToLand: a clearance that began while it could not act covers a touchdown that started
+/// earlier than its own would), goes around on Abort, and waits on anything else.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct DecisionFollower {
+    previous: DecisionState,
+}
+
+impl DecisionFollower {
+    pub fn command(&mut self, state: DecisionState) -> Command {
+        let fresh = state == DecisionState::ClearToLand && self.previous != DecisionState::ClearToLand;
+        self.previous = state;
+        match state {
+            DecisionState::ClearToLand if fresh => Command::Land,
+            DecisionState::Abort => Command::GoAround,
+            _ => Command::Wait,
+        }
+    }
+}
+
+/// Where the vehicle is in its approach.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Phase {
+    Hover,
+    /// Committed at `commit_s`; contact at `contact_s`.
+    Descent {
+        commit_s: f64,
+        contact_s: f64,
+    },
+    /// Going around: back at the hover height at `ready_s`.
+    Climb {
+        ready_s: f64,
+    },
+}
+
+/// The simulated autopilot: flies the shared [`deckwatch_capture::landing::FlightPath`] as the
+/// commands come.
+pub struct SimulatedAutopilot {
+    pub model: ApproachModel,
+    pub phase: Phase,
+    path: SharedFlightPath,
+    pub commits: u32,
+    pub go_arounds: u32,
+}
+
+impl SimulatedAutopilot {
+    pub fn new(model: ApproachModel, path: SharedFlightPath) -> Self {
+        Self {
+            model,
+            phase: Phase::Hover,
+            path,
+            commits: 0,
+            go_arounds: 0,
+        }
+    }
+
+    /// Hovering at its height, able to commit at `t_s`.
+    pub fn ready(&self, t_s: f64) -> bool {
+        match self.phase {
+            Phase::Hover => true,
+            Phase::Climb { ready_s } => t_s >= ready_s,
+            Phase::Descent { .. } => false,
+        }
+    }
+
+    /// When it will touch the deck, while it descends.
+    pub fn contact_s(&self) -> Option<f64> {
+        match self.phase {
+            Phase::Descent { contact_s, .. } => Some(contact_s),
+            _ => None,
+        }
+    }
+
+    /// Acts on `command` at `t_s` (the deck being `heave_m` high then); true if it changed
+    /// what the vehicle does.
+    pub fn act(&mut self, t_s: f64, heave_m: f64, command: Command) -> bool {
+        let mut path = self.path.lock().unwrap_or_else(|e| e.into_inner());
+        match command {
+            Command::Land if self.ready(t_s) => {
+                let from = path.over_deck_m(t_s, heave_m);
+                let speed = (from - self.model.contact_m) / self.model.touchdown_s;
+                path.move_to(t_s, heave_m, self.model.contact_m, speed, true);
+                self.phase = Phase::Descent {
+                    commit_s: t_s,
+                    contact_s: t_s + self.model.touchdown_s,
+                };
+                self.commits += 1;
+                true
+            }
+            Command::GoAround if matches!(self.phase, Phase::Descent { .. }) => {
+                path.move_to(t_s, heave_m, self.model.hover_m, self.model.climb_mps, false);
+                self.phase = Phase::Climb {
+                    ready_s: path.arrival_s(),
+                };
+                self.go_arounds += 1;
+                true
+            }
+            _ => {
+                if let Phase::Climb { ready_s } = self.phase {
+                    if t_s >= ready_s {
+                        self.phase = Phase::Hover;
+                    }
+                }
+                false
+            }
+        }
+    }
+}
+
+/// A touchdown judged at contact against the true deck and the vehicle's true attitude.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TouchdownVerdict {
+    /// Contact, on the approach's clock (s).
+    pub t_s: f64,
+    pub deck: TrueDeckState,
+    /// The angle between the vehicle's and the deck's vertical axes (deg).
+    pub relative_tilt_deg: f64,
+    /// The limits broken (empty: a safe touchdown).
+    pub violations: Vec<&'static str>,
+}
+
+impl TouchdownVerdict {
+    /// Judges contact at `t_s`: the deck (`truth`: roll, pitch deg and heave m over time) against
+    /// `capacity`, the vehicle's attitude `r_v` against the deck's `r_d` (both body to W).
+    pub fn judge(
+        truth: TrueDeck,
+        r_d: &RotationMatrix,
+        r_v: &RotationMatrix,
+        t_s: f64,
+        capacity: &DecisionConfig,
+        model: &ApproachModel,
+    ) -> Self {
+        let deck = TrueDeckState::at(truth, t_s);
+        let up = nalgebra::Vector3::z();
+        let cos = (r_d * up).dot(&(r_v * up)).clamp(-1.0, 1.0);
+        let relative_tilt_deg = cos.acos().to_degrees();
+        let mut violations = deck.violations(capacity);
+        if !(relative_tilt_deg <= model.max_relative_tilt_deg) {
+            violations.push("relative-tilt");
+        }
+        Self {
+            t_s,
+            deck,
+            relative_tilt_deg,
+            violations,
+        }
+    }
+
+    pub fn safe(&self) -> bool {
+        self.violations.is_empty()
+    }
+}
+
+/// One approach of one rule.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct ApproachOutcome {
+    pub commits: u32,
+    pub go_arounds: u32,
+    /// Why each go-around was ordered (the decision's reason), by name.
+    pub abort_reasons: BTreeMap<String, u32>,
+    pub touchdown: Option<TouchdownVerdict>,
+    /// Frames rendered, and decisions the autopilot received.
+    pub frames: u64,
+    pub decisions: u64,
+    /// The decisions received, by state and reason (`HOLD warmup`, ...).
+    pub decisions_by_reason: BTreeMap<String, u64>,
+}
+
+/// A rule's approaches added up.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct RuleSummary {
+    pub approaches: u64,
+    pub commits: u64,
+    pub touchdowns: u64,
+    pub unsafe_touchdowns: u64,
+    /// Limits broken at the unsafe touchdowns, by name.
+    pub violations: BTreeMap<String, u64>,
+    pub aborts: u64,
+    pub abort_reasons: BTreeMap<String, u64>,
+    /// Approaches that ended without a touchdown.
+    pub timeouts: u64,
+    /// Arrival to touchdown of each touchdown (s).
+    pub arrival_to_touchdown_s: Vec<f64>,
+    pub frames: u64,
+    pub decisions_by_reason: BTreeMap<String, u64>,
+}
+
+impl RuleSummary {
+    pub fn add(&mut self, o: &ApproachOutcome) {
+        self.approaches += 1;
+        self.commits += o.commits as u64;
+        self.aborts += o.go_arounds as u64;
+        self.frames += o.frames;
+        for (k, v) in &o.abort_reasons {
+            *self.abort_reasons.entry(k.clone()).or_default() += *v as u64;
+        }
+        for (k, v) in &o.decisions_by_reason {
+            *self.decisions_by_reason.entry(k.clone()).or_default() += v;
+        }
+        match &o.touchdown {
+            Some(v) => {
+                self.touchdowns += 1;
+                self.arrival_to_touchdown_s.push(v.t_s);
+                if !v.safe() {
+                    self.unsafe_touchdowns += 1;
+                    for name in &v.violations {
+                        *self.violations.entry(name.to_string()).or_default() += 1;
+                    }
+                }
+            }
+            None => self.timeouts += 1,
+        }
+    }
+
+    pub fn merge(&mut self, other: &RuleSummary) {
+        self.approaches += other.approaches;
+        self.commits += other.commits;
+        self.touchdowns += other.touchdowns;
+        self.unsafe_touchdowns += other.unsafe_touchdowns;
+        self.aborts += other.aborts;
+        self.timeouts += other.timeouts;
+        self.frames += other.frames;
+        self.arrival_to_touchdown_s
+            .extend_from_slice(&other.arrival_to_touchdown_s);
+        for (k, v) in &other.violations {
+            *self.violations.entry(k.clone()).or_default() += v;
+        }
+        for (k, v) in &other.abort_reasons {
+            *self.abort_reasons.entry(k.clone()).or_default() += v;
+        }
+        for (k, v) in &other.decisions_by_reason {
+            *self.decisions_by_reason.entry(k.clone()).or_default() += v;
+        }
+    }
+
+    /// Go-arounds per commit (NaN without commits).
+    pub fn aborts_per_commit(&self) -> f64 {
+        if self.commits == 0 {
+            f64::NAN
+        } else {
+            self.aborts as f64 / self.commits as f64
+        }
+    }
+
+    /// The median time from arrival to touchdown (NaN without touchdowns).
+    pub fn median_arrival_to_touchdown_s(&self) -> f64 {
+        let mut t = self.arrival_to_touchdown_s.clone();
+        t.sort_by(f64::total_cmp);
+        match t.len() {
+            0 => f64::NAN,
+            n if n % 2 == 1 => t[n / 2],
+            n => 0.5 * (t[n / 2 - 1] + t[n / 2]),
+        }
+    }
+}
+
+/// The oracle: knows the whole future motion, and commits the first time a touchdown would be
+/// safe at contact (after the autopilot's `reaction_s`): the best any decision could do. It
+/// needs no frames; `truth` and the attitudes are the approach's, `step_s` its frame interval.
+pub fn oracle_approach(
+    truth: TrueDeck,
+    attitudes_at: &dyn Fn(f64) -> (RotationMatrix, RotationMatrix),
+    capacity: &DecisionConfig,
+    model: &ApproachModel,
+    step_s: f64,
+    reaction_s: f64,
+) -> ApproachOutcome {
+    let mut out = ApproachOutcome::default();
+    let mut k = 0u64;
+    loop {
+        let t = k as f64 * step_s;
+        if t + model.touchdown_s > model.max_approach_s {
+            return out;
+        }
+        out.frames += 1;
+        let contact = t + reaction_s + model.touchdown_s;
+        let (r_d, r_v) = attitudes_at(contact);
+        let v = TouchdownVerdict::judge(truth, &r_d, &r_v, contact, capacity, model);
+        if v.safe() {
+            out.commits = 1;
+            out.touchdown = Some(v);
+            return out;
+        }
+        k += 1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use deckwatch_capture::landing::FlightPath;
+    use deckwatch_common::Rpy;
+    use std::sync::{Arc, Mutex};
+
+    #[test]
+    fn the_autopilot_commits_on_a_fresh_clearance_and_goes_around_on_abort() {
+        let model = ApproachModel::quadrotor(2.0);
+        let path = Arc::new(Mutex::new(FlightPath::hover(model.hover_m)));
+        let mut ap = SimulatedAutopilot::new(model, path.clone());
+        let mut follow = DecisionFollower::default();
+        assert_eq!(follow.command(DecisionState::Hold), Command::Wait);
+        assert_eq!(follow.command(DecisionState::ClearToLand), Command::Land);
+        assert!(ap.act(10.0, 0.0, Command::Land));
+        assert_eq!(ap.contact_s(), Some(12.0));
+        // Still clear: no second commit.
+        assert_eq!(follow.command(DecisionState::ClearToLand), Command::Wait);
+        assert_eq!(follow.command(DecisionState::Abort), Command::GoAround);
+        assert!(ap.act(11.0, 0.2, Command::GoAround));
+        let over = path.lock().unwrap().over_deck_m(11.0, 0.2);
+        assert!((over - (0.25 + 1.375)).abs() < 1e-9, "{over}");
+        assert!(!ap.ready(11.5));
+        // A clearance while it climbs is not acted on; once back at 3 m it may commit again.
+        assert!(!ap.act(11.5, 0.0, Command::Land));
+        let Phase::Climb { ready_s } = ap.phase else {
+            panic!()
+        };
+        assert!(ap.ready(ready_s));
+        assert!(ap.act(ready_s + 0.1, 0.0, Command::Land));
+        assert_eq!((ap.commits, ap.go_arounds), (2, 1));
+    }
+
+    #[test]
+    fn a_touchdown_is_judged_on_the_deck_and_the_tilt_between_them() {
+        let c = DecisionConfig::default();
+        let model = ApproachModel::quadrotor(c.touchdown_s);
+        let level = RotationMatrix::identity();
+        let calm = |t: f64| [1.0 * (0.5 * t).sin(), 0.5, 0.1 * t];
+        let v = TouchdownVerdict::judge(&calm, &level, &level, 3.0, &c, &model);
+        assert!(v.safe(), "{v:?}");
+        // Heaving at 0.8 m/s: over the 0.6 m/s limit.
+        let heaving = |t: f64| [0.0, 0.0, 0.8 * t];
+        assert_eq!(
+            TouchdownVerdict::judge(&heaving, &level, &level, 3.0, &c, &model).violations,
+            vec!["heave-rate"]
+        );
+        // The vehicle 9 deg off a level deck.
+        let tilted = Rpy::from_degrees(9.0, 0.0, 0.0).to_matrix();
+        let v = TouchdownVerdict::judge(&calm, &level, &tilted, 3.0, &c, &model);
+        assert_eq!(v.violations, vec!["relative-tilt"]);
+        assert!((v.relative_tilt_deg - 9.0).abs() < 1e-9);
+        let mut s = RuleSummary::default();
+        for t in [30.0, 10.0, 20.0] {
+            s.add(&ApproachOutcome {
+                commits: 2,
+                go_arounds: 1,
+                touchdown: Some(TouchdownVerdict { t_s: t, ..v.clone() }),
+                ..Default::default()
+            });
+        }
+        assert_eq!(s.median_arrival_to_touchdown_s(), 20.0);
+        assert_eq!((s.unsafe_touchdowns, s.aborts_per_commit()), (3, 0.5));
+    }
+
+    #[test]
+    fn the_oracle_waits_for_the_first_safe_contact() {
+        let c = DecisionConfig::default();
+        let model = ApproachModel::quadrotor(c.touchdown_s);
+        // Roll over the limit until t = 20 s, calm after.
+        let sea = |t: f64| [if t < 20.0 { 8.0 } else { 1.0 }, 0.0, 0.0];
+        let level = |_t: f64| (RotationMatrix::identity(), RotationMatrix::identity());
+        let o = oracle_approach(&sea, &level, &c, &model, 0.1, 0.0);
+        let t = o.touchdown.unwrap().t_s;
+        assert!((20.0..20.2).contains(&t), "{t}");
+    }
+}

@@ -6,7 +6,7 @@
 # find by themselves. Idempotent; needs python3 (and, on Debian, python3-venv: installed if missing).
 set -euo pipefail
 VENV="${DECKWATCH_VENV:-$HOME/.cache/deckwatch-venv}"
-PEERS="pymavlink==2.4.50 mcap==1.6.0 rerun-sdk==0.36.3 opencv-python-headless==5.0.0"
+PEERS="pymavlink==2.4.50 mcap==1.6.0 rerun-sdk==0.36.3 opencv-python-headless==5.0.0.93"
 if ! "$VENV/bin/python3" -c "import pymavlink, mcap, rerun, cv2" 2>/dev/null; then
   if ! python3 -m venv --help >/dev/null 2>&1 || ! python3 -c "import ensurepip" 2>/dev/null; then
     SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"

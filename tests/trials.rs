@@ -22,12 +22,10 @@ fn closed_loop_landings_touch_down_safely_in_one_process_and_through_the_process
             "30",
             "--approaches",
             "2",
-            "--width",
-            "320",
-            "--height",
-            "240",
+            // The Pi camera's 640x480: at 320x240 the attitudes are noisy enough that this
+            // approach's motion model is unreliable and it never lands (in either way).
             "--max-approach-s",
-            "120",
+            "60",
             "--processes",
             "1",
         ])
@@ -52,7 +50,7 @@ fn closed_loop_landings_touch_down_safely_in_one_process_and_through_the_process
     let deckwatch = rule("deckwatch");
     assert_eq!(deckwatch["approaches"], 2);
     assert_eq!(deckwatch["unsafe_touchdowns"], 0, "{deckwatch}");
-    assert!(deckwatch["touchdowns"].as_u64().unwrap() >= 1, "{deckwatch}");
+    assert_eq!(deckwatch["touchdowns"], 2, "{deckwatch}");
     // The blind last metre of each descent rides through instead of aborting.
     assert!(
         deckwatch["decisions_by_reason"]["CLEAR ride-through"]
@@ -74,18 +72,22 @@ fn closed_loop_landings_touch_down_safely_in_one_process_and_through_the_process
         .find_map(|l| l.get("agreement"))
         .unwrap_or_else(|| panic!("no agreement line: {lines:?}\n{stderr}"));
     let contact = |side: &str| agreement[side]["touchdown"]["t_s"].as_f64();
-    assert!(contact("in_process").is_some(), "{agreement}");
-    // Through the processes (real time, this debug build): never an unsafe touchdown. Whether
-    // it lands as the chain did is measured on release builds (BENCHMARKS.md, "Closed-loop
-    // trials"); here a debug pipeline at real time may hold longer.
+    let (in_process, processes) = (contact("in_process"), contact("processes"));
+    assert!(in_process.is_some(), "{agreement}");
+    assert!(
+        processes.is_some(),
+        "through the processes: {agreement}\n{stderr}"
+    );
+    assert!(
+        (in_process.unwrap() - processes.unwrap()).abs() <= 0.5,
+        "the processes land within half a second of the chain: {agreement}"
+    );
     for side in ["in_process", "processes"] {
-        if !agreement[side]["touchdown"].is_null() {
-            assert_eq!(
-                agreement[side]["touchdown"]["violations"],
-                serde_json::json!([]),
-                "{agreement}"
-            );
-        }
+        assert_eq!(
+            agreement[side]["touchdown"]["violations"],
+            serde_json::json!([]),
+            "{agreement}"
+        );
     }
     // The recording of the first approach: complete, and what the view shows is in it.
     #[cfg(feature = "rerun")]

@@ -81,7 +81,7 @@ fn a_full_disk_for_the_decisions_csv_does_not_stop_the_pipeline() {
     let out = Command::new(workspace_binary("deckwatch"))
         .args([
             // 10 Hz: a debug build renders the simulator's 3280x2464 frame in about 60 ms.
-            "run", "--quiet", "--frames", "30", "--rate", "10", "--rerun", "off",
+            "run", "--quiet", "--json", "--frames", "30", "--rate", "10", "--rerun", "off",
         ])
         .args(["--domain", &format!("t{}-full", std::process::id())])
         .args(["--decisions", "/dev/full"])
@@ -96,18 +96,9 @@ fn a_full_disk_for_the_decisions_csv_does_not_stop_the_pipeline() {
     );
     // The pipeline went on after the first failed row: every frame capture published was
     // decided (capture itself drops the frames it renders too late on a slow machine).
-    let decided: u64 = stdout
-        .split(" decisions in")
-        .next()
-        .and_then(|n| n.trim().parse().ok())
-        .unwrap_or(0);
-    let capture_drops: u64 = stdout
-        .split("drops: ")
-        .nth(1)
-        .and_then(|s| s.split(" (capture ").nth(1))
-        .and_then(|s| s.split(',').next())
-        .and_then(|n| n.trim().parse().ok())
-        .unwrap_or(u64::MAX);
+    let report: serde_json::Value = serde_json::from_str(&stdout).unwrap_or_default();
+    let decided = report["decisions"].as_u64().unwrap_or(0);
+    let capture_drops = report["drops"]["capture"].as_u64().unwrap_or(u64::MAX);
     assert!(
         decided >= 10 && decided.saturating_add(capture_drops) >= 28,
         "still deciding:\n{stdout}\n{stderr}"

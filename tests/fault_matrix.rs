@@ -6,13 +6,20 @@
 //! CLEAR while the fault lasts, and that fresh decisions come back without anyone's help; the
 //! recovery times it prints are in BENCHMARKS.md. (A frozen camera and a full disk are in
 //! `tests/faults.rs`, a killed launcher there too.)
+//!
+//! The flight recorder runs (headers and messages, no pixels): the launcher then reads every
+//! stage's stderr through a pipe, the path a stopped launcher could stall. Every assertion
+//! judges the pipeline against what it was given in the same run (frames captured, decisions
+//! per frame before the fault), never against this machine's speed.
 
-use deckwatch_common::messages::{monotonic_ns, AttitudeMessage, DecisionState, LandingDecision};
+use deckwatch_common::messages::{
+    monotonic_ns, AttitudeMessage, DecisionState, LandingDecision, MarkerMessage,
+};
 use deckwatch_common::wire::{WireBool, WireCode};
 use deckwatch_runtime::bus::{Bus, BusConfig, MessagePublisher, MessageSubscriber};
-use deckwatch_tests::workspace_binary;
+use deckwatch_tests::{workspace_binary, PipelineGuard};
 use std::io::Read;
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 const RATE_HZ: f64 = 20.0;
@@ -32,6 +39,11 @@ struct Seen {
 
 struct Follower {
     decisions: MessageSubscriber<LandingDecision>,
+    /// Detect's and estimate's outputs as received (time, frame seq): per-stage counts.
+    markers_in: MessageSubscriber<MarkerMessage>,
+    attitudes_in: MessageSubscriber<AttitudeMessage>,
+    markers_seen: Vec<(u64, u64)>,
+    attitudes_seen: Vec<(u64, u64)>,
     attitudes: MessagePublisher<AttitudeMessage>,
     corrupt_decisions: MessagePublisher<LandingDecision>,
     seen: Vec<Seen>,
@@ -40,6 +52,12 @@ struct Follower {
 
 impl Follower {
     fn pump(&mut self) {
+        while let Some(m) = self.markers_in.receive().unwrap() {
+            self.markers_seen.push((monotonic_ns(), m.stamp.seq));
+        }
+        while let Some(a) = self.attitudes_in.receive().unwrap() {
+            self.attitudes_seen.push((monotonic_ns(), a.stamp.seq));
+        }
         while let Some(d) = self.decisions.receive().unwrap() {
             self.seen.push(Seen {
                 received_ns: monotonic_ns(),
@@ -107,6 +125,74 @@ fn signal(pid: i32, sig: i32) {
     assert_eq!(unsafe { libc::kill(pid, sig) }, 0, "kill({pid}, {sig})");
 }
 
+/// What each stage produced in a time window: frames captured (the advance of capture's frame
+/// counter, as the detections carry it), and the detections, attitudes and (fresh) decisions
+/// received.
+struct StageCounts {
+    frames: u64,
+    markers: u64,
+    attitudes: u64,
+    decisions: u64,
+}
+
+impl StageCounts {
+    fn between(f: &Follower, from_ns: u64, to_ns: u64) -> Self {
+        let newest_seq = |until: u64| {
+            f.markers_seen
+                .iter()
+                .filter(|(t, _)| *t <= until)
+                .map(|&(_, seq)| seq)
+                .max()
+                .unwrap_or(0)
+        };
+        let within = |t: u64| t > from_ns && t <= to_ns;
+        Self {
+            frames: newest_seq(to_ns).saturating_sub(newest_seq(from_ns)),
+            markers: f.markers_seen.iter().filter(|(t, _)| within(*t)).count() as u64,
+            attitudes: f.attitudes_seen.iter().filter(|(t, _)| within(*t)).count() as u64,
+            decisions: f
+                .seen
+                .iter()
+                .filter(|d| within(d.received_ns) && !d.watchdog)
+                .count() as u64,
+        }
+    }
+}
+
+impl std::fmt::Display for StageCounts {
+    fn fmt(&self, out: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            out,
+            "{} frames captured, {} detections, {} attitudes, {} decisions",
+            self.frames, self.markers, self.attitudes, self.decisions
+        )
+    }
+}
+
+/// Each stage process's threads as "stage: state wchan" (`/proc/PID/task/*/`): what a stopped
+/// launcher could leave them waiting on (a full stderr pipe shows as `pipe_write`).
+fn stage_states(domain: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    for (stage, pid) in deckwatch_runtime::stage::stage_processes(domain) {
+        let mut threads = std::collections::BTreeMap::<String, usize>::new();
+        for task in std::fs::read_dir(format!("/proc/{pid}/task"))
+            .into_iter()
+            .flatten()
+            .flatten()
+        {
+            let state = std::fs::read_to_string(task.path().join("stat"))
+                .ok()
+                .and_then(|s| Some(s.rsplit_once(')')?.1.split_whitespace().next()?.to_string()))
+                .unwrap_or_default();
+            let wchan = std::fs::read_to_string(task.path().join("wchan")).unwrap_or_default();
+            *threads.entry(format!("{state} {}", wchan.trim())).or_default() += 1;
+        }
+        out.push(format!("{stage} ({pid}): threads {threads:?}"));
+    }
+    out.sort();
+    out
+}
+
 /// One fault's outcome.
 struct Row {
     fault: String,
@@ -138,22 +224,26 @@ fn every_fault_is_survived_and_never_cleared_on() {
              [sim]\nscenario = \"ship\"\nframes = 100000\nrate = {RATE_HZ}\nsea_scale = 0.2\n\
              [decide]\nmin_history_s = 10.0\nerror_memory_s = 6.0\nmax_age_ms = {}\n\
              [link]\nenabled = true\naddress = \"udpout:127.0.0.1:{port}\"\n\
+             [record]\npath = \"{}\"\nframes = \"none\"\n\
              [rerun]\nsink = \"off\"\n",
-            MAX_AGE_NS / 1_000_000
+            MAX_AGE_NS / 1_000_000,
+            dir.path().join("flight.mcap").display()
         ),
     )
     .unwrap();
     // The launcher's and the stages' messages, to a file (read on failure, and at the end).
     let log = dir.path().join("launcher.err");
-    let mut launcher: Child = Command::new(workspace_binary("deckwatch"))
-        .args(["run", "--quiet", "--json", "--config"])
-        .arg(&config)
-        .stdout(Stdio::piped())
-        .stderr(std::fs::File::create(&log).unwrap())
-        .spawn()
-        .unwrap();
+    // Whatever happens to the test, the guard leaves no process, shared memory or run folder.
+    let mut launcher = PipelineGuard::spawn(
+        Command::new(workspace_binary("deckwatch"))
+            .args(["run", "--quiet", "--json", "--config"])
+            .arg(&config)
+            .stdout(Stdio::piped())
+            .stderr(std::fs::File::create(&log).unwrap()),
+        &domain,
+    );
     // Read the report as it comes (a full pipe would stop the launcher).
-    let mut stdout = launcher.stdout.take().unwrap();
+    let mut stdout = launcher.child().stdout.take().unwrap();
     let out_reader = std::thread::spawn(move || {
         let mut s = String::new();
         let _ = stdout.read_to_string(&mut s);
@@ -163,7 +253,7 @@ fn every_fault_is_survived_and_never_cleared_on() {
     // Join the domain once the launcher has it (it refuses a domain with live nodes).
     let started = Instant::now();
     while stage_pid("capture", &domain).is_none() {
-        if let Some(status) = launcher.try_wait().unwrap() {
+        if let Some(status) = launcher.child().try_wait().unwrap() {
             panic!(
                 "the launcher stopped ({status}): {}",
                 std::fs::read_to_string(&log).unwrap_or_default()
@@ -186,6 +276,10 @@ fn every_fault_is_survived_and_never_cleared_on() {
     .unwrap();
     let mut f = Follower {
         decisions: bus.subscriber().unwrap(),
+        markers_in: bus.subscriber().unwrap(),
+        attitudes_in: bus.subscriber().unwrap(),
+        markers_seen: Vec::new(),
+        attitudes_seen: Vec::new(),
         attitudes: bus.publisher().unwrap(),
         corrupt_decisions: bus.publisher().unwrap(),
         seen: Vec::new(),
@@ -296,18 +390,50 @@ fn every_fault_is_survived_and_never_cleared_on() {
         a.context.source_timestamp_ns += 1_000_000;
         f.attitudes.send(&a).unwrap();
     });
-    // The launcher stopped for 3 s: the stages go on deciding (it only watches).
+    // The launcher stopped for 3 s: the stages go on as before (it only watches; their stderr
+    // lines go into a non-blocking pipe). Judged against the same pipeline in the 3 s before
+    // the stop: the frames capture produced, and each stage's outputs per frame.
     let launcher_pid = launcher.id() as i32;
+    let stop_domain = domain.clone();
     run_fault(&mut f, "launcher SIGSTOP for 3 s", true, &mut |f| {
-        signal(launcher_pid, libc::SIGSTOP);
-        let t = monotonic_ns();
+        let before = monotonic_ns();
         f.wait(Duration::from_secs(3), |_| false);
-        let during = f.seen.iter().filter(|d| d.received_ns > t && !d.watchdog).count();
-        assert!(
-            during >= 30,
-            "only {during} decisions while the launcher was stopped"
-        );
+        let stopped = monotonic_ns();
+        signal(launcher_pid, libc::SIGSTOP);
+        f.wait(Duration::from_millis(1500), |_| false);
+        // What each stage is doing half-way through the stop.
+        let states = stage_states(&stop_domain);
+        f.wait(Duration::from_millis(1500), |_| false);
+        let resumed = monotonic_ns();
         signal(launcher_pid, libc::SIGCONT);
+        f.pump();
+        let b = StageCounts::between(f, before, stopped);
+        let d = StageCounts::between(f, stopped, resumed);
+        println!("  3 s before the stop: {b}\n  3 s of the stop:     {d}");
+        for s in &states {
+            println!("  during the stop: {s}");
+        }
+        let on_pipe: Vec<&String> = states.iter().filter(|s| s.contains("pipe_w")).collect();
+        assert!(on_pipe.is_empty(), "stages blocked on a pipe: {on_pipe:?}");
+        assert!(
+            d.frames > 0 && d.decisions > 0,
+            "the pipeline stalled while the launcher was stopped: {d} (before: {b})\n{states:?}"
+        );
+        assert!(
+            2 * d.frames >= b.frames,
+            "capture slowed while the launcher was stopped: {d} (before: {b})\n{states:?}"
+        );
+        // Outputs per captured frame: at least half of what each stage kept up with before.
+        for (stage, before_n, during_n) in [
+            ("detect", b.markers, d.markers),
+            ("estimate", b.attitudes, d.attitudes),
+            ("decide", b.decisions, d.decisions),
+        ] {
+            assert!(
+                2 * during_n * b.frames >= before_n * d.frames,
+                "{stage} fell behind while the launcher was stopped: {d} (before: {b})\n{states:?}"
+            );
+        }
     });
     for (sig, name) in [
         (libc::SIGKILL, "link SIGKILL"),
@@ -355,7 +481,7 @@ fn every_fault_is_survived_and_never_cleared_on() {
     let seen = std::mem::take(&mut f.seen);
     drop(f);
     signal(launcher_pid, libc::SIGINT);
-    let status = launcher.wait().unwrap();
+    let status = launcher.wait();
     let err = std::fs::read_to_string(&log).unwrap();
     let out = out_reader.join().unwrap();
     assert!(status.success(), "{err}");

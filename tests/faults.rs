@@ -1,7 +1,8 @@
 //! Faults that must never clear a landing (issue 16), as a user meets them: the whole pipeline
 //! as processes (`deckwatch run`), the decisions CSV read back.
 
-use deckwatch_tests::workspace_binary;
+use deckwatch_tests::guard::{children, running, walk};
+use deckwatch_tests::{pipeline_output, workspace_binary, PipelineGuard};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::process::Command;
@@ -50,13 +51,14 @@ fn a_frozen_camera_never_clears() {
     )
     .unwrap();
     let csv = dir.path().join("decisions.csv");
-    let out = Command::new(workspace_binary("deckwatch"))
-        .args(["run", "--quiet", "--config"])
-        .arg(&config)
-        .arg("--decisions")
-        .arg(&csv)
-        .output()
-        .unwrap();
+    let out = pipeline_output(
+        Command::new(workspace_binary("deckwatch"))
+            .args(["run", "--quiet", "--config"])
+            .arg(&config)
+            .arg("--decisions")
+            .arg(&csv),
+        &format!("t{}-frozen", std::process::id()),
+    );
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let seen = decisions(&csv);
     let total: usize = seen.values().sum();
@@ -78,15 +80,17 @@ fn a_frozen_camera_never_clears() {
 /// takes the file for the whole run.
 #[test]
 fn a_full_disk_for_the_decisions_csv_does_not_stop_the_pipeline() {
-    let out = Command::new(workspace_binary("deckwatch"))
-        .args([
-            // 10 Hz: a debug build renders the simulator's 3280x2464 frame in about 60 ms.
-            "run", "--quiet", "--json", "--frames", "30", "--rate", "10", "--rerun", "off",
-        ])
-        .args(["--domain", &format!("t{}-full", std::process::id())])
-        .args(["--decisions", "/dev/full"])
-        .output()
-        .unwrap();
+    let domain = format!("t{}-full", std::process::id());
+    let out = pipeline_output(
+        Command::new(workspace_binary("deckwatch"))
+            .args([
+                // 10 Hz: a debug build renders the simulator's 3280x2464 frame in about 60 ms.
+                "run", "--quiet", "--json", "--frames", "30", "--rate", "10", "--rerun", "off",
+            ])
+            .args(["--domain", &domain])
+            .args(["--decisions", "/dev/full"]),
+        &domain,
+    );
     let stderr = String::from_utf8_lossy(&out.stderr);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(!out.status.success(), "an incomplete CSV must fail the command");
@@ -105,39 +109,6 @@ fn a_full_disk_for_the_decisions_csv_does_not_stop_the_pipeline() {
     );
 }
 
-/// Pids of the live (not zombie) children of `parent`, from /proc.
-fn children(parent: u32) -> Vec<u32> {
-    let mut out = Vec::new();
-    for e in std::fs::read_dir("/proc").unwrap().flatten() {
-        let Ok(pid) = e.file_name().to_string_lossy().parse::<u32>() else {
-            continue;
-        };
-        let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) else {
-            continue;
-        };
-        // pid (comm) state ppid ...: comm may hold spaces, so split after its ')'.
-        let Some(rest) = stat.rsplit_once(')').map(|(_, r)| r.to_string()) else {
-            continue;
-        };
-        let f: Vec<&str> = rest.split_whitespace().collect();
-        if f.len() > 1 && f[1] == parent.to_string() && f[0] != "Z" {
-            out.push(pid);
-        }
-    }
-    out
-}
-
-/// Whether `pid` still runs (a zombie has exited).
-fn running(pid: u32) -> bool {
-    std::fs::read_to_string(format!("/proc/{pid}/stat"))
-        .ok()
-        .and_then(|s| {
-            s.rsplit_once(')')
-                .map(|(_, r)| r.split_whitespace().next() != Some("Z"))
-        })
-        .unwrap_or(false)
-}
-
 /// The launcher SIGKILLed mid-run: its stages exit on their own (PR_SET_PDEATHSIG), and
 /// `deckwatch clean` removes what it left: the domain's shared memory and its run folder.
 #[test]
@@ -145,17 +116,18 @@ fn a_killed_launcher_leaves_nothing_after_clean() {
     let dir = tempfile::tempdir().unwrap();
     let domain = format!("t{}-kill", std::process::id());
     let csv = dir.path().join("d.csv");
-    let mut launcher = Command::new(workspace_binary("deckwatch"))
-        .args([
-            "run", "--quiet", "--frames", "100000", "--rate", "10", "--rerun", "off",
-        ])
-        .args(["--domain", &domain])
-        .arg("--decisions")
-        .arg(&csv)
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .unwrap();
+    let mut launcher = PipelineGuard::spawn(
+        Command::new(workspace_binary("deckwatch"))
+            .args([
+                "run", "--quiet", "--frames", "100000", "--rate", "10", "--rerun", "off",
+            ])
+            .args(["--domain", &domain])
+            .arg("--decisions")
+            .arg(&csv)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null()),
+        &domain,
+    );
     let start = std::time::Instant::now();
     // Until decisions flow through every stage.
     while std::fs::read_to_string(&csv).map_or(0, |t| t.lines().count()) < 5 {
@@ -166,8 +138,8 @@ fn a_killed_launcher_leaves_nothing_after_clean() {
     assert_eq!(stages.len(), 4, "capture, detect, estimate, decide: {stages:?}");
     let run_dir = std::env::temp_dir().join(format!("deckwatch-{domain}-{}", launcher.id()));
     assert!(run_dir.exists());
-    launcher.kill().unwrap();
-    launcher.wait().unwrap();
+    launcher.child().kill().unwrap();
+    launcher.wait();
     let killed = std::time::Instant::now();
     while stages.iter().any(|&p| running(p)) {
         assert!(killed.elapsed().as_secs() < 10, "stages outlived the launcher");
@@ -193,19 +165,4 @@ fn a_killed_launcher_leaves_nothing_after_clean() {
         .filter(|name| name.contains(&prefix))
         .collect();
     assert!(left.is_empty(), "left behind: {left:?}");
-}
-
-/// Every path under `dir`.
-fn walk(dir: &Path) -> Vec<String> {
-    let mut out = Vec::new();
-    let mut todo = vec![dir.to_path_buf()];
-    while let Some(d) = todo.pop() {
-        for e in std::fs::read_dir(&d).into_iter().flatten().flatten() {
-            if e.path().is_dir() {
-                todo.push(e.path());
-            }
-            out.push(e.path().display().to_string());
-        }
-    }
-    out
 }

@@ -8,7 +8,7 @@
 //!
 //! Needs the test peers of `ci/peers.sh` (mcap, rerun-sdk in ~/.cache/deckwatch-venv).
 
-use deckwatch_tests::{peer_python, peer_rerun, workspace_binary};
+use deckwatch_tests::{peer_python, peer_rerun, pipeline_output, workspace_binary, PipelineGuard};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -65,22 +65,17 @@ fn a_recorded_flight_opens_in_other_readers_and_resimulates_bit_for_bit() {
     let dir = tempfile::tempdir().unwrap();
     let a = dir.path().join("a.mcap");
     let cfg = config(dir.path(), 40, &a);
-    let out = Command::new(deckwatch())
-        .args(["run", "--quiet", "--json", "--domain", &domain("rec")])
-        .arg("--config")
-        .arg(&cfg)
-        .output()
-        .unwrap();
-    let report: Value = serde_json::from_str(&ok(out, "deckwatch run --record")).unwrap();
-    // The recorder and the launcher's log node left nothing in shared memory.
-    let prefix = deckwatch_runtime::bus::domain_prefix(&domain("rec"));
-    let left: Vec<String> = std::fs::read_dir("/dev/shm")
-        .unwrap()
-        .flatten()
-        .map(|e| e.file_name().to_string_lossy().to_string())
-        .filter(|n| n.starts_with(&prefix))
-        .collect();
-    assert!(left.is_empty(), "{left:?}");
+    let out = pipeline_output(
+        Command::new(deckwatch())
+            .args(["run", "--quiet", "--json", "--domain", &domain("rec")])
+            .arg("--config")
+            .arg(&cfg),
+        &domain("rec"),
+    );
+    // The recorder and the launcher's log node left nothing in shared memory (seen when the
+    // run ended, before the test's guard cleaned up).
+    assert!(out.left_at_exit.is_empty(), "{:?}", out.left_at_exit);
+    let report: Value = serde_json::from_str(&ok(out.into(), "deckwatch run --record")).unwrap();
     let decisions = report["decisions"].as_u64().unwrap();
     let recorded_rmse = report["rmse_deg"].clone();
     assert!(decisions >= 40, "{report}");
@@ -255,13 +250,15 @@ fn a_recorded_flight_opens_in_other_readers_and_resimulates_bit_for_bit() {
     );
 
     // The recorded flight through the processes again, at its recorded rate.
-    let out = Command::new(deckwatch())
-        .args(["run", "--quiet", "--json", "--domain", &domain("replay")])
-        .arg("--source")
-        .arg("replay")
-        .arg(&a)
-        .output()
-        .unwrap();
+    let out = pipeline_output(
+        Command::new(deckwatch())
+            .args(["run", "--quiet", "--json", "--domain", &domain("replay")])
+            .arg("--source")
+            .arg("replay")
+            .arg(&a),
+        &domain("replay"),
+    )
+    .into();
     let report: Value = serde_json::from_str(&ok(out, "deckwatch run --source replay a.mcap")).unwrap();
     // Latest-frame semantics: a frame detect passes over on a busy machine is a counted drop.
     let valid = report["valid_attitudes"].as_u64().unwrap();
@@ -290,14 +287,15 @@ fn a_killed_recorder_leaves_a_readable_file_and_is_restarted() {
     )
     .unwrap();
     let d = domain("kill");
-    let run = Command::new(deckwatch())
-        .args(["run", "--quiet", "--json", "--domain", &d])
-        .arg("--config")
-        .arg(&cfg)
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut run = PipelineGuard::spawn(
+        Command::new(deckwatch())
+            .args(["run", "--quiet", "--json", "--domain", &d])
+            .arg("--config")
+            .arg(&cfg)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped()),
+        &d,
+    );
     // Kill the recorder 3 s into the run (8 s long).
     let started = Instant::now();
     let recorder = loop {
@@ -312,7 +310,7 @@ fn a_killed_recorder_leaves_a_readable_file_and_is_restarted() {
     };
     // SAFETY: kill(2) on the recorder process of this test's own pipeline.
     unsafe { libc::kill(recorder as i32, libc::SIGKILL) };
-    let out = run.wait_with_output().unwrap();
+    let out = run.wait_with_output();
     let report: Value = serde_json::from_str(&ok(out, "deckwatch run")).unwrap();
     let restarts = report["restarts"].as_array().unwrap();
     assert!(restarts.iter().any(|r| r[0] == "record" && r[1] == 1), "{report}");

@@ -2,7 +2,7 @@
 //! on the same recording they give bit-identical attitudes and decisions (the decision runs on
 //! the frames' own timeline, so the hops' timing does not enter it).
 
-use deckwatch_tests::workspace_binary;
+use deckwatch_tests::{pipeline_output, workspace_binary};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::process::Command;
@@ -118,19 +118,23 @@ fn inproc_and_processes_agree_bit_for_bit() {
     for rate in ["25", "10"] {
         let csv = dir.path().join(format!("processes-{rate}.csv"));
         let domain = format!("t{}-same-{rate}", std::process::id());
-        deckwatch(&[
-            "latency",
-            rec_s,
-            "--rate",
-            rate,
-            "--config",
-            config_s,
-            "--domain",
+        let out = pipeline_output(
+            Command::new(workspace_binary("deckwatch")).args([
+                "latency",
+                rec_s,
+                "--rate",
+                rate,
+                "--config",
+                config_s,
+                "--domain",
+                &domain,
+                "--json",
+                "--decisions",
+                csv.to_str().unwrap(),
+            ]),
             &domain,
-            "--json",
-            "--decisions",
-            csv.to_str().unwrap(),
-        ]);
+        );
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         let (processes, drops) = outcomes(&csv);
         if drops > 0 || processes.len() != inproc.len() {
             eprintln!("{rate} Hz: {drops} frames dropped; trying slower");

@@ -12,7 +12,7 @@
 
 use deckwatch_common::Rpy;
 use deckwatch_runtime::bus::domain_prefix;
-use deckwatch_tests::workspace_binary;
+use deckwatch_tests::{pipeline_output, workspace_binary};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -88,13 +88,14 @@ fn pymavlink_autopilot_and_ground_station() {
         .spawn()
         .expect("start the pymavlink autopilot");
     let decisions = dir.path().join("decisions.csv");
-    let run = Command::new(&deckwatch)
-        .args(["run", "--quiet", "--config"])
-        .arg(&config)
-        .arg("--decisions")
-        .arg(&decisions)
-        .output()
-        .unwrap();
+    let run = pipeline_output(
+        Command::new(&deckwatch)
+            .args(["run", "--quiet", "--config"])
+            .arg(&config)
+            .arg("--decisions")
+            .arg(&decisions),
+        &domain,
+    );
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(run.status.success(), "deckwatch run failed:\n{stderr}");
     let peer = peer.wait_with_output().unwrap();

@@ -3,8 +3,8 @@
 //! and skipped; a stage killed with SIGKILL is restarted and frames flow again; a clean stop
 //! leaves nothing in shared memory. Each test runs in its own iceoryx2 domain.
 
-use deckwatch_runtime::bus::domain_prefix;
-use deckwatch_tests::workspace_binary;
+use deckwatch_tests::guard::leftovers;
+use deckwatch_tests::{pipeline_output, workspace_binary, PipelineGuard};
 use std::collections::HashMap;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -20,28 +20,6 @@ fn data(name: &str) -> PathBuf {
 
 fn domain(test: &str) -> String {
     format!("t{}-{test}", std::process::id())
-}
-
-/// Files of a domain left in /dev/shm or under /tmp/iceoryx2.
-fn leftovers(domain: &str) -> Vec<String> {
-    let prefix = domain_prefix(domain);
-    let mut found = Vec::new();
-    let mut walk = vec![PathBuf::from("/dev/shm"), PathBuf::from("/tmp/iceoryx2")];
-    while let Some(dir) = walk.pop() {
-        let Ok(entries) = std::fs::read_dir(&dir) else {
-            continue;
-        };
-        for e in entries.flatten() {
-            let p = e.path();
-            if p.is_dir() {
-                walk.push(p.clone());
-            }
-            if e.file_name().to_string_lossy().starts_with(&prefix) {
-                found.push(p.display().to_string());
-            }
-        }
-    }
-    found
 }
 
 struct Row(HashMap<String, String>);
@@ -80,16 +58,19 @@ fn read_decisions(path: &Path) -> Vec<Row> {
 }
 
 fn latency(recording: &Path, domain: &str, extra: &[&str], csv: &Path) -> serde_json::Value {
-    let out = Command::new(workspace_binary("deckwatch"))
-        .arg("latency")
-        .arg(recording)
-        .args(["--domain", domain, "--json", "--decisions"])
-        .arg(csv)
-        .args(extra)
-        .output()
-        .unwrap();
+    let out = pipeline_output(
+        Command::new(workspace_binary("deckwatch"))
+            .arg("latency")
+            .arg(recording)
+            .args(["--domain", domain, "--json", "--decisions"])
+            .arg(csv)
+            .args(extra),
+        domain,
+    );
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
+    // A clean stop leaves nothing of the domain (checked before the test's guard cleans up).
+    assert!(out.left_at_exit.is_empty(), "{:?}", out.left_at_exit);
     serde_json::from_slice(&out.stdout)
         .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&out.stdout)))
 }
@@ -145,7 +126,6 @@ fn every_frame_reaches_decide_in_order_with_its_attitude() {
         .find(|l| l["interval"] == "end-to-end")
         .unwrap();
     assert_eq!(e2e["count"], 16);
-    assert!(leftovers(&d).is_empty(), "{:?}", leftovers(&d));
 }
 
 #[test]
@@ -275,18 +255,6 @@ fn wait_rows(csv: &Path, at_least: usize) -> Vec<Row> {
 }
 
 /// The launcher, stopped (SIGTERM, which stops its stages) when a failing test unwinds.
-struct Launcher(std::process::Child);
-
-impl Drop for Launcher {
-    fn drop(&mut self) {
-        if let Ok(None) = self.0.try_wait() {
-            // SAFETY: kill(2) on our child's pid.
-            unsafe { libc::kill(self.0.id() as i32, libc::SIGTERM) };
-            let _ = self.0.wait();
-        }
-    }
-}
-
 #[test]
 fn a_killed_stage_is_restarted_and_frames_flow_again() {
     let dir = tempfile::tempdir().unwrap();
@@ -299,19 +267,18 @@ fn a_killed_stage_is_restarted_and_frames_flow_again() {
     .unwrap();
     let csv = dir.path().join("decisions.csv");
     let d = domain("kill");
-    let mut launcher = Launcher(
+    let mut launcher = PipelineGuard::spawn(
         Command::new(workspace_binary("deckwatch"))
             .args(["run", "--quiet", "--domain", &d, "--config"])
             .arg(&cfg)
             .arg("--decisions")
             .arg(&csv)
             .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap(),
+            .stderr(Stdio::piped()),
+        &d,
     );
     let (tx, lines) = mpsc::channel();
-    let stderr = launcher.0.stderr.take().unwrap();
+    let stderr = launcher.child().stderr.take().unwrap();
     std::thread::spawn(move || {
         for l in BufReader::new(stderr).lines().map_while(Result::ok) {
             let _ = tx.send(l);
@@ -339,10 +306,10 @@ fn a_killed_stage_is_restarted_and_frames_flow_again() {
     assert_eq!(last.0["valid"], "1");
     // SIGTERM: a clean stop of everything.
     // SAFETY: kill(2) on the launcher's pid.
-    assert_eq!(unsafe { libc::kill(launcher.0.id() as i32, libc::SIGTERM) }, 0);
-    let status = launcher.0.wait().unwrap();
+    assert_eq!(unsafe { libc::kill(launcher.id() as i32, libc::SIGTERM) }, 0);
+    let status = launcher.wait();
     let mut stdout = String::new();
-    std::io::Read::read_to_string(&mut launcher.0.stdout.take().unwrap(), &mut stdout).unwrap();
+    std::io::Read::read_to_string(&mut launcher.child().stdout.take().unwrap(), &mut stdout).unwrap();
     assert!(status.success(), "{status:?}\n{stdout}");
     assert!(
         stdout.contains("restarts: decide 0, estimate 0, detect 1, capture 0"),
@@ -356,23 +323,28 @@ fn a_killed_stage_is_restarted_and_frames_flow_again() {
 #[test]
 fn budget_reports_every_process_per_frame() {
     let domain = format!("budget-{}", std::process::id());
-    let out = deckwatch_tests::run_deckwatch(&[
-        "budget",
-        "--rates",
-        "10",
-        "--seconds",
-        "3",
-        "--settle-s",
-        "2",
-        "--recording",
-        "tests/data/ship-640x480",
-        "--pi5-cpu-factor",
-        "2",
-        "--pi5-memory-factor",
-        "3",
-        "--domain",
+    let run = pipeline_output(
+        Command::new(workspace_binary("deckwatch")).args([
+            "budget",
+            "--rates",
+            "10",
+            "--seconds",
+            "3",
+            "--settle-s",
+            "2",
+            "--recording",
+            "tests/data/ship-640x480",
+            "--pi5-cpu-factor",
+            "2",
+            "--pi5-memory-factor",
+            "3",
+            "--domain",
+            &domain,
+        ]),
         &domain,
-    ]);
+    );
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let out = String::from_utf8(run.stdout).unwrap();
     assert!(out.contains("10 fps:") && out.contains("x 3.00"), "{out}");
     for process in ["capture", "detect", "estimate", "decide", "launcher", "all"] {
         let row: Vec<&str> = out

@@ -3,7 +3,7 @@
 //! rows: an image, the markers, the ellipse, the reprojected deck, the angles (both estimators
 //! and the truth) and the decision for every frame.
 
-use deckwatch_tests::{assert_rrd_verifies, peer_rerun, workspace_binary};
+use deckwatch_tests::{assert_rrd_verifies, peer_rerun, pipeline_output, workspace_binary};
 use std::process::Command;
 
 #[test]
@@ -11,15 +11,17 @@ fn saved_recording_holds_every_stage() {
     let dir = tempfile::tempdir().unwrap();
     let rrd = dir.path().join("run.rrd");
     let data = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/ship-640x480");
-    let out = Command::new(workspace_binary("deckwatch"))
-        .args([
-            "latency", data, "--rate", "20", "--frames", "16", "--json", "--domain",
-        ])
-        .arg(format!("t{}-rerun", std::process::id()))
-        .args(["--rerun", "save"])
-        .arg(&rrd)
-        .output()
-        .unwrap();
+    let domain = format!("t{}-rerun", std::process::id());
+    let out = pipeline_output(
+        Command::new(workspace_binary("deckwatch"))
+            .args([
+                "latency", data, "--rate", "20", "--frames", "16", "--json", "--domain",
+            ])
+            .arg(&domain)
+            .args(["--rerun", "save"])
+            .arg(&rrd),
+        &domain,
+    );
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     assert!(stderr.contains("rerun recording:"), "{stderr}");

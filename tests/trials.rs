@@ -3,36 +3,43 @@
 //! processes and the MAVLink link at real time lands alike; the first approach's rerun recording
 //! is one the rerun CLI verifies.
 
-use deckwatch_tests::workspace_binary;
-use std::process::Command;
+use deckwatch_tests::{workspace_binary, PipelineGuard};
+use std::process::{Command, Stdio};
 
 #[test]
 fn closed_loop_landings_touch_down_safely_in_one_process_and_through_the_processes() {
     let dir = tempfile::tempdir().unwrap();
     let rrd = dir.path().join("trial.rrd");
-    let out = Command::new(workspace_binary("deckwatch"))
-        .args([
-            "trials",
-            "--json",
-            "--sea-states",
-            "3",
-            "--seeds",
-            "1",
-            "--headings-deg",
-            "30",
-            "--approaches",
-            "2",
-            // The Pi camera's 640x480: at 320x240 the attitudes are noisy enough that this
-            // approach's motion model is unreliable and it never lands (in either way).
-            "--max-approach-s",
-            "60",
-            "--processes",
-            "1",
-        ])
-        .arg("--rrd")
-        .arg(&rrd)
-        .output()
-        .unwrap();
+    let mut cmd = Command::new(workspace_binary("deckwatch"));
+    cmd.args([
+        "trials",
+        "--json",
+        "--sea-states",
+        "3",
+        "--seeds",
+        "1",
+        "--headings-deg",
+        "30",
+        "--approaches",
+        "2",
+        // The Pi camera's 640x480: at 320x240 the attitudes are noisy enough that this
+        // approach's motion model is unreliable and it never lands (in either way).
+        "--max-approach-s",
+        "60",
+        "--processes",
+        "1",
+    ])
+    .arg("--rrd")
+    .arg(&rrd)
+    .stdout(Stdio::piped())
+    .stderr(Stdio::piped());
+    // `--processes` runs each approach's stages on a domain named after the trials process.
+    let mut trials = PipelineGuard::spawn(&mut cmd, "dwtrial-none");
+    let pid = trials.id();
+    for job in 0..2 {
+        trials.also_domain(format!("dwtrial{pid}x{job}"));
+    }
+    let out = trials.wait_with_output();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     let lines: Vec<serde_json::Value> = String::from_utf8(out.stdout)

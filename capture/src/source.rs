@@ -260,7 +260,7 @@ impl CaptureConfig {
             } = deckwatch_flight::convert::recording_of(dir, r.preload_limit_mib.saturating_mul(1 << 20))
                 .map_err(|e| config_error("replay.recording", e.to_string()))?;
             if let Some(why) = ended_early {
-                eprintln!(
+                deckwatch_common::say!(
                     "{}: the recording ends early ({why}); replaying its {} frames",
                     dir.display(),
                     rec.frames.len()

@@ -7,6 +7,7 @@
 
 pub mod camera;
 pub mod deck;
+pub mod diag;
 pub mod ellipse;
 pub mod error;
 pub mod homography;

@@ -344,11 +344,17 @@ pub fn main<S: Stage>() -> ExitCode {
 pub fn exit_code(name: &str, result: Result<String, RunError>) -> ExitCode {
     match result {
         Ok(summary) => {
-            eprintln!("deckwatch-{name}: {summary}");
+            // Lines lost to a full stderr (a stopped launcher: `deckwatch_common::diag`).
+            let dropped = deckwatch_common::diag::dropped_lines();
+            if dropped > 0 {
+                deckwatch_common::say!("deckwatch-{name}: {summary}; {dropped} stderr lines dropped");
+            } else {
+                deckwatch_common::say!("deckwatch-{name}: {summary}");
+            }
             ExitCode::SUCCESS
         }
         Err(e) => {
-            eprintln!("deckwatch-{name}: {e}");
+            deckwatch_common::say!("deckwatch-{name}: {e}");
             ExitCode::FAILURE
         }
     }
@@ -468,7 +474,7 @@ pub fn run<S: Stage>(args: &StageArgs) -> Result<String, RunError> {
             },
             |(o, warning, items)| {
                 if let Some(w) = warning {
-                    eprintln!("deckwatch-{}: {w}", S::NAME);
+                    deckwatch_common::say!("deckwatch-{}: {w}", S::NAME);
                 }
                 output.send(&o)?;
                 log(items);
@@ -479,7 +485,7 @@ pub fn run<S: Stage>(args: &StageArgs) -> Result<String, RunError> {
         let rejections = std::iter::once(input.rejections()).chain(vehicle.as_ref().map(|v| v.rejections()));
         for r in rejections {
             if let Some(line) = r.report(monotonic_ns()) {
-                eprintln!("deckwatch-{}: {line}", S::NAME);
+                deckwatch_common::say!("deckwatch-{}: {line}", S::NAME);
             }
         }
         Ok::<Flow, BusError>(Flow::Continue)

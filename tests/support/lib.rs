@@ -1,5 +1,9 @@
 //! Helpers shared by the integration tests in `tests/`.
 
+pub mod guard;
+
+pub use guard::{pipeline_output, PipelineGuard};
+
 use deckwatch_capture::MotionSample;
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::{Attitude, CameraModel, DeckLayout, Rpy, SceneGeometry};
@@ -22,7 +26,11 @@ pub fn rpy_errors_deg(estimate: &Attitude, truth: &Rpy) -> [f64; 3] {
 
 /// Path of a workspace binary. The first call builds all of the workspace's binaries with the
 /// same cargo, profile and target directory as the running test (integration tests of one package
-/// cannot name another package's binaries directly).
+/// cannot name another package's binaries directly). `--tests` makes that build resolve the
+/// dependencies' features as `cargo test --workspace` did (dev-dependencies included), so it
+/// reuses every library the test build made and only compiles and links the binaries: without
+/// it, cargo resolved other features and rebuilt a large part of the workspace inside the
+/// first test (BENCHMARKS "The newcomer's path").
 ///
 /// `DECKWATCH_TEST_BIN_DIR` names a folder of binaries built beforehand instead (a build with
 /// other features, as ci/libcamera.sh makes: a plain `cargo build` here would rebuild them).
@@ -44,11 +52,31 @@ pub fn workspace_binary(name: &str) -> std::path::PathBuf {
         let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
         let manifest = concat!(env!("CARGO_MANIFEST_DIR"), "/Cargo.toml");
         let mut cmd = std::process::Command::new(cargo);
+        // The variables cargo sets for a running test (CARGO_PKG_NAME, CARGO_MANIFEST_DIR, ...)
+        // are not this build's: build scripts that watch them (ring's) would see them change
+        // and rebuild everything above them, here and again in the next `cargo test`.
+        for (key, _) in std::env::vars_os() {
+            let key = key.to_string_lossy();
+            let set_for_tests = ["CARGO_PKG_", "CARGO_CRATE_", "CARGO_MANIFEST_", "CARGO_BIN_"]
+                .iter()
+                .any(|p| key.starts_with(p))
+                || [
+                    "CARGO_PRIMARY_PACKAGE",
+                    "CARGO_TARGET_TMPDIR",
+                    "CARGO_RUSTC_CURRENT_DIR",
+                    "OUT_DIR",
+                ]
+                .contains(&key.as_ref());
+            if set_for_tests {
+                cmd.env_remove(key.as_ref());
+            }
+        }
         cmd.args([
             "build",
             "--quiet",
             "--workspace",
             "--bins",
+            "--tests",
             "--manifest-path",
             manifest,
         ]);

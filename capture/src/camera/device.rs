@@ -494,7 +494,9 @@ fn run_camera(
                     MemoryMappedFrameBuffer::new(fb).map_err(|e| format!("mapping a memfd buffer: {e:?}"))
                 })
                 .collect::<Result<Vec<_>, String>>()?;
-            eprintln!("deckwatch-capture: camera `{id}`: no dma-buf buffers ({e}); using memfd buffers");
+            deckwatch_common::say!(
+                "deckwatch-capture: camera `{id}`: no dma-buf buffers ({e}); using memfd buffers"
+            );
             (make_requests(&mut cam, &stream, mapped)?, "memfd")
         }
     };
@@ -586,7 +588,7 @@ fn run_camera(
     let mut idle: VecDeque<Request> = requests.into();
     let queue = |cam: &ActiveCamera<'_>, r: Request| {
         if let Err((_, e)) = cam.queue_request(r) {
-            eprintln!("deckwatch-capture: camera `{id}`: queueing a request failed: {e}");
+            deckwatch_common::say!("deckwatch-capture: camera `{id}`: queueing a request failed: {e}");
         }
     };
     let mut pacing = pacing;
@@ -633,7 +635,7 @@ fn run_camera(
                 } else if back == CHECKED_FRAMES + 1 {
                     let took = first_back.elapsed();
                     if took < period * CHECKED_FRAMES / 2 {
-                        eprintln!(
+                        deckwatch_common::say!(
                             "deckwatch-capture: camera `{id}` ignores FrameDurationLimits ({CHECKED_FRAMES} frames in \
                              {:.1} ms): pacing it by queueing one request per period",
                             took.as_secs_f64() * 1e3

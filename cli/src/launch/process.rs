@@ -69,14 +69,22 @@ impl StageProcess {
                 Ok(())
             });
         }
+        // The stage writes into a non-blocking pipe (`deckwatch_common::diag`): a stopped
+        // launcher costs it lines, never time.
+        let mut stderr = None;
         if self.log.is_some() {
-            cmd.stderr(Stdio::piped());
+            let (read, write) = deckwatch_common::diag::stderr_pipe()
+                .map_err(|e| format!("a pipe for {}'s stderr: {e}", self.name))?;
+            cmd.stderr(Stdio::from(write));
+            stderr = Some(std::fs::File::from(read));
         }
-        let mut child = cmd
+        let child = cmd
             .spawn()
             .map_err(|e| format!("cannot start {}: {e}", self.binary.display()))?;
+        // The child's copy is all that keeps the pipe open for writing: end of file when it exits.
+        drop(cmd);
         let pid = child.id();
-        if let (Some(tx), Some(stderr)) = (self.log.clone(), child.stderr.take()) {
+        if let (Some(tx), Some(stderr)) = (self.log.clone(), stderr) {
             let name = format!("deckwatch-{}", self.name);
             // Passes every line on to the launcher's stderr, and to the recorder. Ends when the
             // process closes its stderr (it exited).

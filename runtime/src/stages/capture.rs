@@ -71,7 +71,7 @@ pub fn main() -> ExitCode {
 pub fn run(args: &StageArgs) -> Result<String, RunError> {
     let config = checked_config(args)?;
     let mut source = config.capture().open()?;
-    eprintln!("deckwatch-capture: {}", source.describe());
+    deckwatch_common::say!("deckwatch-capture: {}", source.describe());
     let (logger, bus) = setup(NAME, &config, source.frame_bytes())?;
     let publisher = bus.frame_publisher()?;
     let (width, height) = (source.camera().width as usize, source.camera().height as usize);
@@ -159,11 +159,11 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
             }
             Err(PublishError::NoSample(e)) => {
                 drops.capture += 1;
-                eprintln!("deckwatch-capture: frame {frame} dropped: {e}");
+                deckwatch_common::say!("deckwatch-capture: frame {frame} dropped: {e}");
             }
             Err(PublishError::Fill(e)) => {
                 drops.bad_frames += 1;
-                eprintln!("deckwatch-capture: frame {frame} skipped: {e}");
+                deckwatch_common::say!("deckwatch-capture: frame {frame} skipped: {e}");
             }
             Err(e) => return Err(RunError::Publish(e.to_string())),
         }

@@ -149,7 +149,7 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
                 let result = Bus::join(&settings, "link-rx")
                     .and_then(|b| receive(conn, id, incoming, b, failed, system, recording));
                 if let Err(e) = result {
-                    eprintln!("deckwatch-{NAME}: receiving stopped: {e}");
+                    deckwatch_common::say!("deckwatch-{NAME}: receiving stopped: {e}");
                 }
             })
             .map_err(|e| RunError::Link(format!("starting the receiving thread: {e}")))?;
@@ -187,7 +187,7 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
             (i.state(now), i.clock.estimate(), i.autopilot, i.newest_sample())
         };
         if state != last_state {
-            eprintln!(
+            deckwatch_common::say!(
                 "deckwatch-{NAME}: autopilot link {} (was {})",
                 state.name(),
                 last_state.name()
@@ -247,7 +247,7 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
             }
         }
         if let Some(line) = decisions.rejections().report(monotonic_ns()) {
-            eprintln!("deckwatch-{NAME}: {line}");
+            deckwatch_common::say!("deckwatch-{NAME}: {line}");
         }
         Ok::<Flow, BusError>(Flow::Continue)
     })?;

@@ -122,7 +122,7 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
             .spawn(move || write_items(writer, rx, spare_tx, counts, &rc, metadata, toml))
             .map_err(|e| RunError::Record(format!("starting the writer thread: {e}")))?
     };
-    eprintln!("deckwatch-{NAME}: recording to {}", path.display());
+    deckwatch_common::say!("deckwatch-{NAME}: recording to {}", path.display());
 
     let mut stats = RecorderStats::default();
     let mut frame_gaps = GapCounter::default();

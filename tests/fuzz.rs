@@ -327,6 +327,12 @@ fn decider_holds(n: u32) {
             for f in faults {
                 t += 0.1;
                 let good = sea(t);
+                // A repeat of an invalid input (NaN, infinite, no height) is a missing attitude,
+                // refused as invalid before any frozen-input check: it may ride through like one.
+                let repeats_invalid = f.kind == 9
+                    && !(last.roll_deg.is_finite()
+                        && last.pitch_deg.is_finite()
+                        && last.height_m.is_finite());
                 let (time, deck, age) = match f.kind {
                     0 => (t, Some(good), 0.005),
                     1 => (
@@ -365,17 +371,17 @@ fn decider_holds(n: u32) {
                     cleared.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 }
                 run = if f.kind == 9 { run + 1 } else { 1 };
-                if f.kind == 9 {
+                if f.kind == 9 && !repeats_invalid {
                     // A repeat is refused once it is the third in a row (`frozen_input_count`);
                     // before that it is a plausible, if odd, input.
                     prop_assert!(
                         run < 3 || r.state != DecisionState::ClearToLand,
                         "cleared a frozen input"
                     );
-                } else if !valid_kind(f.kind) {
+                } else if !valid_kind(f.kind) || repeats_invalid {
                     // A missing attitude (NaN, infinite, no height, none) may only keep a
                     // committed touchdown going (`ride-through`); nothing else ever clears.
-                    let rides = matches!(f.kind, 1..=4)
+                    let rides = (matches!(f.kind, 1..=4) || repeats_invalid)
                         && r.reason == deckwatch_common::messages::DecisionReason::RideThrough
                         && !r.new_commit;
                     prop_assert!(

@@ -81,6 +81,8 @@ fn panics_mid_fault() {
         );
         std::thread::sleep(Duration::from_millis(50));
     };
+    // Mid-run, not mid-start: every stage has set up its node and is deciding.
+    std::thread::sleep(Duration::from_secs(2));
     let launcher_pid = launcher.id();
     let mut pids = vec![launcher_pid];
     pids.extend(stages.iter().map(|(_, pid)| *pid));

@@ -133,11 +133,19 @@ pub fn launch(config: &PipelineConfig, file: &str, options: &LaunchOptions) -> R
     for name in stop_all(&mut processes, stop_timeout) {
         say(format_args!("{name} did not stop in time; killed it"));
     }
-    // The recorder last, once every other stage has said its last (their closing lines are
-    // read by the threads that follow their stderr: give them a moment): it writes out its
-    // queue and the file's summary. Killed, it leaves a file that `deckwatch recover` completes.
+    // The recorder last, once every other stage's closing line has been read from its stderr
+    // and passed on (a fixed 100 ms wait lost a closing line on a loaded machine): it writes out
+    // its queue and the file's summary. Killed, it leaves a file that `deckwatch recover`
+    // completes.
     if let Some(l) = &log {
-        std::thread::sleep(Duration::from_millis(100));
+        for p in processes.iter_mut() {
+            if !p.stderr_read(STDERR_READ_TIMEOUT) {
+                say(format_args!(
+                    "{}'s last stderr lines were not read in time",
+                    p.name
+                ));
+            }
+        }
         l.forward();
     }
     if !stop_all(&mut recorder, RECORDER_STOP_TIMEOUT).is_empty() {
@@ -178,6 +186,9 @@ pub fn launch(config: &PipelineConfig, file: &str, options: &LaunchOptions) -> R
 
 /// How long the recorder may take to write out its queue and finish its file.
 const RECORDER_STOP_TIMEOUT: Duration = Duration::from_secs(30);
+
+/// How long the launcher waits, after the stages stopped, for their last stderr lines.
+const STDERR_READ_TIMEOUT: Duration = Duration::from_secs(2);
 
 /// The launcher's name as a rerun part and iceoryx2 node.
 const LAUNCHER: &str = "launcher";

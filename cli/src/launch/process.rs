@@ -18,6 +18,8 @@ pub struct StageProcess {
     /// Where its stderr lines go besides the launcher's stderr (to be published for the
     /// recorder); None: the stage writes to the launcher's stderr directly.
     pub log: Option<std::sync::mpsc::Sender<StageLog>>,
+    /// The threads that follow its processes' stderr (each ends when its process has exited).
+    stderr_readers: Vec<std::thread::JoinHandle<()>>,
 }
 
 /// What a status poll found.
@@ -39,6 +41,7 @@ impl StageProcess {
             started: Instant::now(),
             restarts: 0,
             log: None,
+            stderr_readers: Vec::new(),
         }
     }
 
@@ -88,7 +91,7 @@ impl StageProcess {
             let name = format!("deckwatch-{}", self.name);
             // Passes every line on to the launcher's stderr, and to the recorder. Ends when the
             // process closes its stderr (it exited).
-            let _ = std::thread::Builder::new()
+            let reader = std::thread::Builder::new()
                 .name(format!("{}-stderr", self.name))
                 .spawn(move || {
                     use std::io::BufRead;
@@ -98,10 +101,29 @@ impl StageProcess {
                         let _ = tx.send(StageLog::new(monotonic_ns(), pid, &name, &line));
                     }
                 });
+            // Finished readers of earlier (restarted) processes are done with.
+            self.stderr_readers.retain(|r| !r.is_finished());
+            self.stderr_readers.extend(reader.ok());
         }
         self.child = Some(child);
         self.started = Instant::now();
         Ok(pid)
+    }
+
+    /// Waits, up to `timeout`, until every line its processes wrote to stderr has been passed on
+    /// (their readers end at the end of the pipe, once the process has exited). False if a
+    /// reader is still going (a process that has not exited, or a child of it that keeps the
+    /// pipe open).
+    pub fn stderr_read(&mut self, timeout: Duration) -> bool {
+        let deadline = Instant::now() + timeout;
+        while self.stderr_readers.iter().any(|r| !r.is_finished()) {
+            if Instant::now() >= deadline {
+                return false;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        self.stderr_readers.clear();
+        true
     }
 
     /// Whether the process is still running; an exit is reported once.

@@ -159,3 +159,83 @@ fn lulls_scenario_shows_the_whole_cycle() {
         );
     }
 }
+
+/// A ship's own recorded motion (a CSV file, non-uniform 10 Hz): `decide-eval` decides over the
+/// file's whole length, never unsafely; asks for more than the file holds or a broken file get
+/// an error naming the file, line and column; `predict-eval` judges the forecasts on it.
+#[test]
+fn ship_motion_from_a_file() {
+    let dir = std::env::temp_dir().join(format!("deckwatch-motion-csv-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("ship.csv");
+    let mut text = String::from("# a ship's motion sensor\ntime_s,roll_deg,pitch_deg,heave_m,yaw_deg\n");
+    for k in 0..6001u64 {
+        // 10 Hz with up to 8 ms of jitter; a moderate sea of five swells.
+        let t = 1000.0 + k as f64 * 0.1 + (k % 5) as f64 * 0.002;
+        let w = |p: f64| std::f64::consts::TAU / p * t;
+        let roll = 3.0 * w(11.0).sin() + 1.2 * (w(8.3) + 1.0).sin();
+        let pitch = 1.0 * (w(6.4) + 0.5).sin() + 0.5 * w(8.9).sin();
+        let heave = 0.4 * (w(9.5) + 0.3).sin();
+        text += &format!(
+            "{t:.3},{roll:.4},{pitch:.4},{heave:.4},{:.3}\n",
+            0.2 * w(30.0).sin()
+        );
+    }
+    std::fs::write(&file, text).unwrap();
+    let run = |args: &[&str]| {
+        Command::new(workspace_binary("deckwatch"))
+            .args(args)
+            .arg("--motion-csv")
+            .arg(&file)
+            .output()
+            .unwrap()
+    };
+    let out = run(&["decide-eval", "--json", "--seeds", "1"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let series: Vec<serde_json::Value> = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(series.len(), 1);
+    let s = &series[0];
+    assert_eq!(s["frames"], 6001, "the whole 10 min of the file: {s}");
+    assert_eq!(s["state_machine"]["unsafe_commits"], 0, "{s}");
+    assert!(s["state_machine"]["commits"].as_u64().unwrap() > 0, "{s}");
+    let out = run(&["decide-eval", "--minutes", "20"]);
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && e.contains("min of motion, --minutes asks for 20"),
+        "{e}"
+    );
+    let out = run(&[
+        "predict-eval",
+        "--seeds",
+        "1",
+        "--horizons",
+        "1,2",
+        "--minutes",
+        "5",
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for predictor in ["persistence", "sinusoids", "ar"] {
+        assert!(
+            text.lines()
+                .any(|l| l.starts_with("all") && l.contains(predictor) && l.contains("roll_deg")),
+            "{text}"
+        );
+    }
+    std::fs::write(
+        &file,
+        "time_s,roll_deg,pitch_deg,heave_m\n0,1,2,0.1\n0.1,x,2,0.1\n",
+    )
+    .unwrap();
+    let out = run(&["decide-eval"]);
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && e.contains("ship.csv:3:2: `x` is not a number"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

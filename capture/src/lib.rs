@@ -7,6 +7,7 @@ pub mod autopilot;
 pub mod camera;
 pub mod landing;
 pub mod motion;
+pub mod motion_file;
 pub mod render;
 pub mod rng;
 pub mod scenario;

@@ -4,94 +4,107 @@
 //! estimate stage delivers them.
 
 use deckwatch_capture::motion::{DeckHeave, MotionProfile, ShipMotion, SpectrumShipMotion, VehicleSway};
+use deckwatch_capture::motion_file::RecordedShipMotion;
 use deckwatch_capture::rng::SplitMix64;
+use deckwatch_common::messages::FROZEN_IMAGE_REPEATS;
 use deckwatch_decide::decision::{DecisionConfig, DeckObservation};
-use deckwatch_decide::eval::{evaluate, Measured, RuleOutcome};
+use deckwatch_decide::eval::{evaluate, RuleOutcome};
+use deckwatch_decide::FrameInput;
 use std::time::Instant;
 
 #[derive(clap::Args)]
 pub struct DecideEvalArgs {
-    /// Minutes of ship motion per series.
-    #[arg(long, default_value_t = 30.0)]
-    minutes: f64,
+    /// Minutes of ship motion per series (default 30; with `--motion-csv`, the file's whole
+    /// length).
+    #[arg(long)]
+    pub(crate) minutes: Option<f64>,
     /// Attitude rate (Hz).
     #[arg(long, default_value_t = 10.0)]
-    rate: f64,
+    pub(crate) rate: f64,
     /// Seeds (sea phases, noise).
     #[arg(long, value_delimiter = ',', default_value = "1,2,3")]
-    seeds: Vec<u64>,
+    pub(crate) seeds: Vec<u64>,
     /// Sea states: 4 (x0.25 of the sea-state-6 amplitudes), 5 (x0.5), 6 (x1); with
     /// `--motion jonswap` 3-6 (their significant wave heights and peak periods).
     #[arg(long, value_delimiter = ',', default_value = "4,5,6")]
-    sea_states: Vec<u32>,
+    pub(crate) sea_states: Vec<u32>,
     /// `irregular` (each mode spread over 8 nearby periods), `regular` (three sinusoids), or
     /// `jonswap` (a wave spectrum of 300 components through a simple ship response, with a
     /// wandering heading: not the family the predictor fits).
     #[arg(long, default_value = "irregular")]
-    motion: String,
+    pub(crate) motion: String,
+    /// With `--motion jonswap`: the waves' mean heading off the bow (deg; 0 head seas, 90 beam
+    /// seas), one series per heading.
+    #[arg(long, value_delimiter = ',', default_value = "60")]
+    pub(crate) headings: Vec<f64>,
+    /// The ship's motion from a file (CSV: `time_s,roll_deg,pitch_deg,heave_m`, optional
+    /// `yaw_deg`; README "Ship motion from a file") instead of a simulated sea: one series per
+    /// seed (the measurement's noise and faults), `--sea-states` and `--motion` unused.
+    #[arg(long)]
+    pub(crate) motion_csv: Option<std::path::PathBuf>,
     /// Attitude noise (deg, standard deviation per angle).
     #[arg(long, default_value_t = 0.05)]
-    noise_deg: f64,
+    pub(crate) noise_deg: f64,
     /// Share of frames without a valid attitude.
     #[arg(long, default_value_t = 0.02)]
-    dropout: f64,
+    pub(crate) dropout: f64,
     /// Share of frames with a gross error (5-15 deg on one angle).
     #[arg(long, default_value_t = 0.002)]
-    outliers: f64,
+    pub(crate) outliers: f64,
     /// Noise of the measured deck height (m, standard deviation): the full pose's altitude and
     /// the autopilot's height. The deck heaves as the sea state's `DeckHeave`.
     #[arg(long, default_value_t = 0.02)]
-    heave_noise_m: f64,
+    pub(crate) heave_noise_m: f64,
     /// The heave's amplitude relative to the sea state's (a swell from ahead heaves the ship
     /// more than it rolls it).
     #[arg(long, default_value_t = 1.0)]
-    heave_scale: f64,
+    pub(crate) heave_scale: f64,
     /// Frozen input: stretches a minute during which the measurement repeats itself bit for bit
     /// (a frozen camera), each `--frozen-s` long.
     #[arg(long, default_value_t = 0.0)]
-    frozen_per_min: f64,
+    pub(crate) frozen_per_min: f64,
     #[arg(long, default_value_t = 2.0)]
-    frozen_s: f64,
+    pub(crate) frozen_s: f64,
     /// Share of frames whose roll is NaN (a broken estimate that says it is valid).
     #[arg(long, default_value_t = 0.0)]
-    nan_share: f64,
+    pub(crate) nan_share: f64,
     /// Share of frames that arrive stale (1 s after capture).
     #[arg(long, default_value_t = 0.0)]
-    stale_share: f64,
+    pub(crate) stale_share: f64,
     /// Jitter of the frames' capture stamps (ms, standard deviation).
     #[arg(long, default_value_t = 0.0)]
-    jitter_ms: f64,
+    pub(crate) jitter_ms: f64,
     /// Capture -> decision latency (ms).
     #[arg(long, default_value_t = 5.0)]
-    latency_ms: f64,
+    pub(crate) latency_ms: f64,
     /// The camera's vehicle: `level`, or `sway` (a hovering quadrotor's sway, which the
     /// estimate stage compensates with the autopilot's attitude: its errors below land in the
     /// deck attitude).
     #[arg(long, default_value = "level")]
-    vehicle: String,
+    pub(crate) vehicle: String,
     /// Noise of the autopilot's attitude (deg, per angle).
     #[arg(long, default_value_t = 0.0)]
-    vehicle_noise_deg: f64,
+    pub(crate) vehicle_noise_deg: f64,
     /// Bias of the autopilot's roll and pitch (deg).
     #[arg(long, value_delimiter = ',', allow_negative_numbers = true, default_values_t = [0.0, 0.0])]
-    vehicle_bias_deg: Vec<f64>,
+    pub(crate) vehicle_bias_deg: Vec<f64>,
     /// Timing error of the autopilot's samples against the frames (ms): with a swaying vehicle
     /// the compensation is off by the sway over this time.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    vehicle_time_error_ms: f64,
+    pub(crate) vehicle_time_error_ms: f64,
     /// Outages of the autopilot's attitude stream per minute (frames in them are not
     /// compensated).
     #[arg(long, default_value_t = 0.0)]
-    vehicle_outages_per_min: f64,
+    pub(crate) vehicle_outages_per_min: f64,
     /// Length of each outage (s).
     #[arg(long, default_value_t = 1.0)]
-    vehicle_outage_s: f64,
+    pub(crate) vehicle_outage_s: f64,
     /// Pipeline configuration whose `[decide]` section to use (default: built-in).
     #[arg(long)]
-    config: Option<std::path::PathBuf>,
+    pub(crate) config: Option<std::path::PathBuf>,
     /// One JSON object per series instead of the table.
     #[arg(long)]
-    json: bool,
+    pub(crate) json: bool,
 }
 
 fn scale_of(sea_state: u32) -> Result<f64, String> {
@@ -115,23 +128,127 @@ fn row(rule: &str, o: &RuleOutcome) -> String {
     )
 }
 
-pub fn run(a: DecideEvalArgs) -> Result<(), String> {
-    let (pipeline, file) = crate::pipeline::load(a.config.as_deref())?;
-    let config: DecisionConfig = pipeline.decide;
-    config.validate().map_err(|e| format!("{file}: decide.{e}"))?;
-    if !(a.rate > 0.0 && a.minutes > 0.0) {
+/// One simulated sea: the deck's roll, pitch (deg) and heave (m) over time.
+pub(crate) struct Sea {
+    motion: Box<dyn MotionProfile>,
+    /// The sinusoid models have no heave of their own: the sea state's `DeckHeave`.
+    heave: Option<DeckHeave>,
+    heave_scale: f64,
+}
+
+impl Sea {
+    /// The sea `--motion` names, at sea state `ss`, waves from `heading_deg` off the bow (the
+    /// spectrum sea only), phases from `seed`.
+    pub(crate) fn new(a: &DecideEvalArgs, ss: u32, seed: u64, heading_deg: f64) -> Result<Self, String> {
+        if let Some(path) = &a.motion_csv {
+            let motion = RecordedShipMotion::load(path).map_err(|e| format!("--motion-csv: {e}"))?;
+            return Ok(Self {
+                motion: Box::new(motion),
+                heave: None,
+                heave_scale: a.heave_scale,
+            });
+        }
+        let motion: Box<dyn MotionProfile> = match a.motion.as_str() {
+            "irregular" => Box::new(ShipMotion::irregular(seed, scale_of(ss)?, 8)),
+            "regular" => Box::new(ShipMotion::scaled(seed, scale_of(ss)?)),
+            "jonswap" => Box::new(
+                SpectrumShipMotion::sea_state_from(ss, seed, heading_deg)
+                    .ok_or(format!("--sea-states: {ss} has no JONSWAP sea (3, 4, 5, 6)"))?,
+            ),
+            other => {
+                return Err(format!(
+                    "--motion: unknown `{other}` (irregular, regular, jonswap)"
+                ))
+            }
+        };
+        let heave = match a.motion.as_str() {
+            "jonswap" => None,
+            _ => Some(DeckHeave::sea_state_6(seed, scale_of(ss)? * a.heave_scale)),
+        };
+        Ok(Self {
+            motion,
+            heave,
+            heave_scale: a.heave_scale,
+        })
+    }
+
+    /// The true deck at `t`: roll, pitch (deg), height (m).
+    pub(crate) fn truth(&self, t: f64) -> [f64; 3] {
+        let s = self.motion.sample(t);
+        let [r, p, _] = s.attitude.to_degrees();
+        let h = self
+            .heave
+            .as_ref()
+            .map_or(self.heave_scale * s.deck_heave_m, |h| h.at(t));
+        [r, p, h]
+    }
+}
+
+/// The series `--sea-states`, `--seeds` and (for the spectrum sea) `--headings` ask for, in
+/// order: (sea state, seed, heading off the bow in deg).
+pub(crate) fn series(a: &DecideEvalArgs) -> Vec<(u32, u64, f64)> {
+    if a.motion_csv.is_some() {
+        return a.seeds.iter().map(|&seed| (0, seed, f64::NAN)).collect();
+    }
+    let headings: &[f64] = if a.motion == "jonswap" {
+        &a.headings
+    } else {
+        &[f64::NAN]
+    };
+    let mut out = Vec::new();
+    for &ss in &a.sea_states {
+        for &heading in headings {
+            for &seed in &a.seeds {
+                out.push((ss, seed, heading));
+            }
+        }
+    }
+    out
+}
+
+/// A series' name in the tables: `sea/seed`, and `@heading` for the spectrum sea.
+pub(crate) fn series_name(ss: u32, seed: u64, heading: f64) -> String {
+    if ss == 0 {
+        format!("file/{seed}")
+    } else if heading.is_finite() {
+        format!("{ss}/{seed}@{heading}")
+    } else {
+        format!("{ss}/{seed}")
+    }
+}
+
+/// The minutes of each series: `--minutes`, else 30, or a motion file's whole length (which
+/// must be long enough for `--minutes`).
+pub(crate) fn minutes(a: &DecideEvalArgs) -> Result<f64, String> {
+    let Some(path) = &a.motion_csv else {
+        return Ok(a.minutes.unwrap_or(30.0));
+    };
+    let file_min = RecordedShipMotion::load(path)
+        .map_err(|e| format!("--motion-csv: {e}"))?
+        .duration_s()
+        / 60.0;
+    match a.minutes {
+        None => Ok(file_min),
+        Some(m) if m <= file_min + 1e-9 => Ok(m),
+        Some(m) => Err(format!(
+            "--motion-csv: {} holds {:.2} min of motion, --minutes asks for {m}",
+            path.display(),
+            file_min
+        )),
+    }
+}
+
+/// Checks the options that shape the measured stream.
+pub(crate) fn check(a: &DecideEvalArgs) -> Result<(), String> {
+    if !(a.rate > 0.0 && a.minutes.is_none_or(|m| m > 0.0)) {
         return Err("--rate and --minutes must be positive".into());
     }
-    let n = (a.minutes * 60.0 * a.rate) as usize;
-    let sway = match a.vehicle.as_str() {
-        "level" => false,
-        "sway" => true,
-        other => return Err(format!("--vehicle: unknown `{other}` (level, sway)")),
-    };
-    let bias = match a.vehicle_bias_deg[..] {
-        [r, p] if r.is_finite() && p.is_finite() => [r, p],
-        _ => return Err("--vehicle-bias-deg: two finite angles (roll, pitch)".into()),
-    };
+    if !matches!(a.vehicle.as_str(), "level" | "sway") {
+        return Err(format!("--vehicle: unknown `{}` (level, sway)", a.vehicle));
+    }
+    if !matches!(a.vehicle_bias_deg[..], [r, p] if r.is_finite() && p.is_finite()) {
+        return Err("--vehicle-bias-deg: two finite angles (roll, pitch)".into());
+    }
     if !(a.vehicle_noise_deg >= 0.0
         && a.vehicle_outages_per_min >= 0.0
         && a.vehicle_outage_s > 0.0
@@ -149,10 +266,102 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
     {
         return Err("--nan-share, --stale-share, --dropout, --outliers are shares in [0, 1]; --frozen-*, --jitter-ms must not be negative".into());
     }
+    if a.headings.is_empty() || !a.headings.iter().all(|h| h.is_finite()) {
+        return Err("--headings: finite angles (deg)".into());
+    }
+    Ok(())
+}
+
+/// The measured stream of one series: the truth plus what `a` adds (noise, dropped frames,
+/// outliers, NaN, stale and frozen frames, stamp jitter, the vehicle's compensation errors and
+/// outages), as the estimate stage would deliver it, from a random stream of `seed` and `ss`.
+pub(crate) fn measure(a: &DecideEvalArgs, minutes: f64, sea: &Sea, ss: u32, seed: u64) -> Vec<FrameInput> {
+    let n = (minutes * 60.0 * a.rate) as usize + usize::from(a.motion_csv.is_some());
+    let sway = a.vehicle == "sway";
+    let bias = [a.vehicle_bias_deg[0], a.vehicle_bias_deg[1]];
+    let mut rng = SplitMix64::new(seed.wrapping_mul(0x9E37_79B9) ^ ss as u64);
+    // What compensating with the autopilot's attitude leaves in the deck's roll and pitch: the
+    // sway over the timing error, the autopilot's bias and noise.
+    let hover = VehicleSway::hover(seed, 1.0);
+    let dt = a.vehicle_time_error_ms / 1e3;
+    let vehicle_error = |t: f64, rng: &mut SplitMix64| {
+        let [r1, p1, _] = hover.attitude(t).to_degrees();
+        let [r0, p0, _] = hover.attitude(t - dt).to_degrees();
+        let timing = if sway { [r1 - r0, p1 - p0] } else { [0.0; 2] };
+        [0, 1].map(|i| timing[i] + bias[i] + a.vehicle_noise_deg * rng.next_gaussian())
+    };
+    // Outages: a Poisson process of starts, each `vehicle_outage_s` long; frozen input the same
+    // way.
+    let mut outage_until = f64::NEG_INFINITY;
+    let p_start = a.vehicle_outages_per_min / 60.0 / a.rate;
+    let (mut frozen_until, mut frozen_deck, mut repeats) = (f64::NEG_INFINITY, None, 0u32);
+    let p_frozen = a.frozen_per_min / 60.0 / a.rate;
+    (0..n)
+        .map(|k| {
+            let t = k as f64 / a.rate;
+            let [r, p, h] = sea.truth(t);
+            if rng.next_f64() < p_start {
+                outage_until = outage_until.max(t + a.vehicle_outage_s);
+            }
+            let [er, ep] = vehicle_error(t, &mut rng);
+            let (r, p) = (r + er, p + ep);
+            if rng.next_f64() < p_frozen {
+                frozen_until = frozen_until.max(t + a.frozen_s);
+            }
+            let deck = if rng.next_f64() < a.dropout {
+                None
+            } else {
+                let mut m = [
+                    r + a.noise_deg * rng.next_gaussian(),
+                    p + a.noise_deg * rng.next_gaussian(),
+                ];
+                let height = h + a.heave_noise_m * rng.next_gaussian();
+                if rng.next_f64() < a.outliers {
+                    let i = (rng.next_u64() % 2) as usize;
+                    m[i] += (5.0 + 10.0 * rng.next_f64()) * if rng.next_f64() < 0.5 { -1.0 } else { 1.0 };
+                }
+                if rng.next_f64() < a.nan_share {
+                    m[0] = f64::NAN;
+                }
+                Some(DeckObservation::new(m[0], m[1], height))
+            };
+            // A frozen camera: the same image again and again. The estimate stage sees
+            // the same markers and, from the `FROZEN_IMAGE_REPEATS`-th repeat on, says
+            // so (no valid attitude); the repeats before pass as the same measurement.
+            let (deck, frozen_image) = if t < frozen_until {
+                let frozen = *frozen_deck.get_or_insert(deck);
+                let seen = frozen.is_some() && repeats >= FROZEN_IMAGE_REPEATS;
+                repeats += 1;
+                (if seen { None } else { frozen }, seen)
+            } else {
+                frozen_deck = None;
+                repeats = 0;
+                (deck, false)
+            };
+            let stamp = t + a.jitter_ms / 1e3 * rng.next_gaussian();
+            let late = if rng.next_f64() < a.stale_share { 1.0 } else { 0.0 };
+            FrameInput {
+                t_s: stamp,
+                deck,
+                age_s: a.latency_ms / 1e3 + late,
+                vehicle_missing: t < outage_until,
+                frozen_image,
+            }
+        })
+        .collect()
+}
+
+pub fn run(a: DecideEvalArgs) -> Result<(), String> {
+    let (pipeline, file) = crate::pipeline::load(a.config.as_deref())?;
+    let config: DecisionConfig = pipeline.decide;
+    config.validate().map_err(|e| format!("{file}: decide.{e}"))?;
+    check(&a)?;
+    let minutes = minutes(&a)?;
+    let n = (minutes * 60.0 * a.rate) as usize;
     if !a.json {
         println!(
             "{} min at {} Hz per series, {} motion, noise {} deg, heave noise {} m x{}, dropout {}, outliers {}, NaN {}, stale {}, frozen {}/min of {} s, jitter {} ms; vehicle {} (autopilot noise {} deg, bias {:?} deg, timing {} ms, {} outages/min of {} s); capacity roll/pitch {}/{} deg, rates {}/{} deg/s, heave {:?} rate {} m/s, touchdown {} s",
-            a.minutes, a.rate, a.motion, a.noise_deg, a.heave_noise_m, a.heave_scale, a.dropout, a.outliers, a.nan_share, a.stale_share,
+            minutes, a.rate, a.motion_csv.as_ref().map_or(a.motion.clone(), |p| p.display().to_string()), a.noise_deg, a.heave_noise_m, a.heave_scale, a.dropout, a.outliers, a.nan_share, a.stale_share,
             a.frozen_per_min, a.frozen_s, a.jitter_ms, a.vehicle, a.vehicle_noise_deg,
             a.vehicle_bias_deg, a.vehicle_time_error_ms, a.vehicle_outages_per_min, a.vehicle_outage_s, config.max_abs_roll_deg,
             config.max_abs_pitch_deg, config.max_abs_roll_rate_dps, config.max_abs_pitch_rate_dps, config.heave,
@@ -165,97 +374,11 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
     }
     let (mut total_smart, mut total_naive) = (RuleOutcome::default(), RuleOutcome::default());
     let mut oracle_share = Vec::new();
-    for &ss in &a.sea_states {
-        for &seed in &a.seeds {
-            // The deck's roll, pitch (deg) and heave (m) over time.
-            let motion: Box<dyn MotionProfile> = match a.motion.as_str() {
-                "irregular" => Box::new(ShipMotion::irregular(seed, scale_of(ss)?, 8)),
-                "regular" => Box::new(ShipMotion::scaled(seed, scale_of(ss)?)),
-                "jonswap" => Box::new(
-                    SpectrumShipMotion::sea_state(ss, seed)
-                        .ok_or(format!("--sea-states: {ss} has no JONSWAP sea (3, 4, 5, 6)"))?,
-                ),
-                other => {
-                    return Err(format!(
-                        "--motion: unknown `{other}` (irregular, regular, jonswap)"
-                    ))
-                }
-            };
-            // The sinusoid models have no heave of their own: the sea state's `DeckHeave`.
-            let heave = match a.motion.as_str() {
-                "jonswap" => None,
-                _ => Some(DeckHeave::sea_state_6(seed, scale_of(ss)? * a.heave_scale)),
-            };
-            let truth = |t: f64| {
-                let s = motion.sample(t);
-                let [r, p, _] = s.attitude.to_degrees();
-                let h = heave.as_ref().map_or(a.heave_scale * s.deck_heave_m, |h| h.at(t));
-                [r, p, h]
-            };
-            let mut rng = SplitMix64::new(seed.wrapping_mul(0x9E37_79B9) ^ ss as u64);
-            // What compensating with the autopilot's attitude leaves in the deck's roll and
-            // pitch: the sway over the timing error, the autopilot's bias and noise.
-            let hover = VehicleSway::hover(seed, 1.0);
-            let dt = a.vehicle_time_error_ms / 1e3;
-            let vehicle_error = |t: f64, rng: &mut SplitMix64| {
-                let [r1, p1, _] = hover.attitude(t).to_degrees();
-                let [r0, p0, _] = hover.attitude(t - dt).to_degrees();
-                let timing = if sway { [r1 - r0, p1 - p0] } else { [0.0; 2] };
-                [0, 1].map(|i| timing[i] + bias[i] + a.vehicle_noise_deg * rng.next_gaussian())
-            };
-            // Outages: a Poisson process of starts, each `vehicle_outage_s` long; frozen input
-            // the same way.
-            let mut outage_until = f64::NEG_INFINITY;
-            let p_start = a.vehicle_outages_per_min / 60.0 / a.rate;
-            let (mut frozen_until, mut frozen_deck) = (f64::NEG_INFINITY, None);
-            let p_frozen = a.frozen_per_min / 60.0 / a.rate;
-            let stream: Vec<Measured> = (0..n)
-                .map(|k| {
-                    let t = k as f64 / a.rate;
-                    let [r, p, h] = truth(t);
-                    if rng.next_f64() < p_start {
-                        outage_until = outage_until.max(t + a.vehicle_outage_s);
-                    }
-                    let [er, ep] = vehicle_error(t, &mut rng);
-                    let (r, p) = (r + er, p + ep);
-                    if rng.next_f64() < p_frozen {
-                        frozen_until = frozen_until.max(t + a.frozen_s);
-                    }
-                    let deck = if rng.next_f64() < a.dropout {
-                        None
-                    } else {
-                        let mut m = [
-                            r + a.noise_deg * rng.next_gaussian(),
-                            p + a.noise_deg * rng.next_gaussian(),
-                        ];
-                        let height = h + a.heave_noise_m * rng.next_gaussian();
-                        if rng.next_f64() < a.outliers {
-                            let i = (rng.next_u64() % 2) as usize;
-                            m[i] +=
-                                (5.0 + 10.0 * rng.next_f64()) * if rng.next_f64() < 0.5 { -1.0 } else { 1.0 };
-                        }
-                        if rng.next_f64() < a.nan_share {
-                            m[0] = f64::NAN;
-                        }
-                        Some(DeckObservation::new(m[0], m[1], height))
-                    };
-                    // A frozen camera: the same measurement again and again.
-                    let deck = if t < frozen_until {
-                        *frozen_deck.get_or_insert(deck)
-                    } else {
-                        frozen_deck = None;
-                        deck
-                    };
-                    let stamp = t + a.jitter_ms / 1e3 * rng.next_gaussian();
-                    let late = if rng.next_f64() < a.stale_share { 1.0 } else { 0.0 };
-                    Measured {
-                        t: stamp,
-                        deck,
-                        now: stamp + a.latency_ms / 1e3 + late,
-                        vehicle_missing: t < outage_until,
-                    }
-                })
-                .collect();
+    for (ss, seed, heading) in series(&a) {
+        let sea = Sea::new(&a, ss, seed, heading)?;
+        let truth = |t: f64| sea.truth(t);
+        let stream = measure(&a, minutes, &sea, ss, seed);
+        {
             let clock = Instant::now();
             let (smart, naive) = evaluate(&truth, &config, &stream).map_err(|e| e.to_string())?;
             oracle_share.push(smart.safe_time_share);
@@ -263,7 +386,7 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
             if a.json {
                 println!(
                     "{}",
-                    serde_json::json!({"sea_state": ss, "seed": seed, "frames": n, "state_machine": smart, "naive": naive, "us_per_frame": per_frame_us})
+                    serde_json::json!({"sea_state": ss, "seed": seed, "heading_deg": heading.is_finite().then_some(heading), "frames": n, "state_machine": smart, "naive": naive, "us_per_frame": per_frame_us})
                 );
             } else {
                 let reasons: Vec<String> = smart
@@ -273,7 +396,7 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
                     .collect();
                 println!(
                     "{:<10} {}   aborts: {}; decision cost p50/p99/max {:.0}/{:.0}/{:.0} us",
-                    format!("{ss}/{seed}"),
+                    series_name(ss, seed, heading),
                     row("state machine", &smart),
                     if reasons.is_empty() {
                         "-".to_string()

@@ -47,6 +47,7 @@ mod flight;
 mod inproc;
 mod launch;
 mod pipeline;
+mod predict_eval;
 mod soak;
 mod tables;
 mod trials;
@@ -91,6 +92,9 @@ enum Command {
     /// Evaluate the landing decision on long simulated ship-motion series against the truth,
     /// beside the naive rule: unsafe clearances and availability.
     DecideEval(decide_eval::DecideEvalArgs),
+    /// Evaluate the deck-motion forecast against the truth: errors at several horizons per sea
+    /// state and predictor, and whether each predictor's stated 95 % band holds.
+    PredictEval(predict_eval::PredictEvalArgs),
     /// Closed-loop landing trials: a simulated vehicle lands on the spectrum seas through the
     /// stage chain, judged at contact; beside the naive rule and an oracle.
     Trials(trials::TrialsArgs),
@@ -444,6 +448,7 @@ fn main() -> ExitCode {
         },
         Command::Inproc(a) => inproc::run(*a),
         Command::DecideEval(a) => decide_eval::run(a),
+        Command::PredictEval(a) => predict_eval::run(a),
         Command::Trials(a) => trials::run(a),
         Command::Soak(a) => soak::run(a),
         Command::Budget(a) => budget::run(a),

@@ -5,8 +5,12 @@
 
 pub mod decision;
 pub mod eval;
+pub mod forecast_eval;
+pub mod frame;
 pub mod predict;
 
 pub use decision::{
-    Decision, DecisionConfig, DecisionConfigError, DeckObservation, HeaveUse, LandingDecider, Predictor,
+    Decision, DecisionConfig, DecisionConfigError, DeckForecast, DeckObservation, HeaveUse, LandingDecider,
+    Predictor,
 };
+pub use frame::FrameInput;

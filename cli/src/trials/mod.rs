@@ -8,7 +8,8 @@
 //! that knows the future motion.
 
 use deckwatch_capture::landing::{ClosedLoopScene, FlightPath, SharedFlightPath};
-use deckwatch_capture::motion::{MotionProfile, SpectrumShipMotion, VehicleSway};
+use deckwatch_capture::motion::{MotionProfile, MotionSample, SpectrumShipMotion, VehicleSway};
+use deckwatch_capture::motion_file::RecordedShipMotion;
 use deckwatch_capture::rng::SplitMix64;
 use deckwatch_common::messages::{
     AttitudeMessage, DecisionReason, FrameHeader, FrameSource, LandingDecision, VehicleSample,
@@ -36,6 +37,12 @@ pub struct TrialsArgs {
     /// Mean headings of the waves off the bow (deg; 0 head seas, 90 beam seas).
     #[arg(long, value_delimiter = ',', default_value = "30,75")]
     pub headings_deg: Vec<f64>,
+    /// The ship's motion from a file (CSV: `time_s,roll_deg,pitch_deg,heave_m`, optional
+    /// `yaw_deg`; README "Ship motion from a file"): the rendered deck follows it, and the
+    /// report's sea is `0`. `--sea-states` and `--headings-deg` are unused; approach k starts
+    /// 421 k s into the file (wrapped to fit its length).
+    #[arg(long)]
+    pub motion_csv: Option<std::path::PathBuf>,
     /// Approaches per sea state, seed and heading (each starts at a different time of the sea).
     #[arg(long, default_value_t = 10)]
     pub approaches: u32,
@@ -130,10 +137,36 @@ impl Rule {
 
 mod processes;
 
+/// The deck's motion in a trial: a spectrum sea, or a recorded one.
+#[derive(Clone)]
+enum TrialSea {
+    Spectrum(SpectrumShipMotion),
+    Recorded(std::sync::Arc<RecordedShipMotion>),
+}
+
+impl MotionProfile for TrialSea {
+    fn sample(&self, t_s: f64) -> MotionSample {
+        match self {
+            Self::Spectrum(s) => s.sample(t_s),
+            Self::Recorded(r) => r.sample(t_s),
+        }
+    }
+}
+
+/// The sea states (and headings) the jobs run over: `--sea-states` and `--headings-deg`, or
+/// with a motion file one "sea" 0 at no heading.
+fn seas(a: &TrialsArgs) -> (Vec<u32>, Vec<f64>) {
+    if a.motion_csv.is_some() {
+        (vec![0], vec![f64::NAN])
+    } else {
+        (a.sea_states.clone(), a.headings_deg.clone())
+    }
+}
+
 /// One approach's world: the sea, the vehicle's sway and where the approach starts in them.
 #[derive(Clone)]
 struct World {
-    sea: SpectrumShipMotion,
+    sea: TrialSea,
     sway: VehicleSway,
     sea_offset_s: f64,
 }
@@ -141,18 +174,37 @@ struct World {
 impl World {
     /// The world of `job`.
     fn of(job: Job, a: &TrialsArgs) -> Result<Self, String> {
+        let sway = VehicleSway::hover(job.seed.wrapping_mul(1000) + job.index as u64, a.sway);
+        if let Some(path) = &a.motion_csv {
+            let sea = RecordedShipMotion::load(path).map_err(|e| format!("--motion-csv: {e}"))?;
+            // Each approach needs its whole length (and the decision's look ahead) of motion.
+            let usable_s = sea.duration_s() - a.max_approach_s - 10.0;
+            if !(usable_s > 0.0) {
+                return Err(format!(
+                    "--motion-csv: {} holds {:.1} s of motion, an approach needs {:.1} s",
+                    path.display(),
+                    sea.duration_s(),
+                    a.max_approach_s + 10.0
+                ));
+            }
+            return Ok(Self {
+                sea: TrialSea::Recorded(std::sync::Arc::new(sea)),
+                sway,
+                sea_offset_s: (421.0 * job.index as f64) % usable_s,
+            });
+        }
         let sea = SpectrumShipMotion::sea_state_from(job.sea_state, job.seed, job.heading_deg).ok_or(
             format!("--sea-states: {} has no spectrum sea (3, 4, 5, 6)", job.sea_state),
         )?;
         Ok(Self {
-            sea,
-            sway: VehicleSway::hover(job.seed.wrapping_mul(1000) + job.index as u64, a.sway),
+            sea: TrialSea::Spectrum(sea),
+            sway,
             // Approaches 7 min apart in the sea (its heading wanders over 10 min).
             sea_offset_s: 60.0 + 421.0 * job.index as f64,
         })
     }
 
-    fn scene(&self, path: SharedFlightPath) -> ClosedLoopScene<SpectrumShipMotion> {
+    fn scene(&self, path: SharedFlightPath) -> ClosedLoopScene<TrialSea> {
         ClosedLoopScene {
             sea: self.sea.clone(),
             sway: self.sway.clone(),
@@ -543,10 +595,11 @@ struct Setup {
 
 /// The first approach (the one logged).
 fn jobs_first(a: &TrialsArgs) -> Option<Job> {
+    let (sea_states, headings) = seas(a);
     Some(Job {
-        sea_state: *a.sea_states.first()?,
+        sea_state: *sea_states.first()?,
         seed: *a.seeds.first()?,
-        heading_deg: *a.headings_deg.first()?,
+        heading_deg: *headings.first()?,
         index: 0,
     })
     .filter(|_| a.approaches > 0)
@@ -610,10 +663,13 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
     if !shares_ok {
         return Err("--drop-share is a share in [0, 1]; --frozen-*, --vehicle-outage*, --sway, --stage-latency-ms must not be negative, --rate and --threads positive".into());
     }
-    for &ss in &a.sea_states {
+    for &ss in seas(&a).0.iter().filter(|&&ss| ss != 0) {
         if SpectrumShipMotion::sea_state(ss, 1).is_none() {
             return Err(format!("--sea-states: {ss} has no spectrum sea (3, 4, 5, 6)"));
         }
+    }
+    if let Some(job) = jobs_first(&a) {
+        World::of(job, &a)?; // a motion file that cannot be used says so before any flight
     }
     let pipeline = trial_pipeline(&a)?;
     let capacity = pipeline.decide.clone();
@@ -655,9 +711,10 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
         );
     }
     let mut jobs = Vec::new();
-    for &sea_state in &a.sea_states {
+    let (sea_states, headings) = seas(&a);
+    for &sea_state in &sea_states {
         for &seed in &a.seeds {
-            for &heading_deg in &a.headings_deg {
+            for &heading_deg in &headings {
                 for index in 0..a.approaches {
                     jobs.push(Job {
                         sea_state,

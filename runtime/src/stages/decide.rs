@@ -9,11 +9,8 @@
 
 use crate::config::{ConfigError, PipelineConfig};
 use crate::stage::Stage;
-use deckwatch_common::messages::{
-    monotonic_ns, AttitudeFailure, AttitudeMessage, DecisionReason, GapCounter, LandingDecision,
-};
-use deckwatch_common::vehicle::Compensation;
-use deckwatch_decide::{DecisionConfig, DeckObservation, LandingDecider};
+use deckwatch_common::messages::{monotonic_ns, AttitudeMessage, GapCounter, LandingDecision};
+use deckwatch_decide::{DecisionConfig, FrameInput, LandingDecider};
 use deckwatch_viz::Item;
 use std::time::Duration;
 
@@ -24,25 +21,11 @@ pub struct DecideStage {
     last: Option<LandingDecision>,
     /// The newest input: its time on the frames' timeline (s) and when it arrived (ns).
     last_input: Option<(f64, u64)>,
-    /// The time between the newest two inputs on the frames' timeline (s): when the next
-    /// frame is expected.
-    frame_interval_s: Option<f64>,
     /// What the viewer was last shown (state changes, the calm window drawn ahead).
     view: deckwatch_viz::entities::DecisionView,
     pub dropped: u64,
     pub processed: u64,
     pub watchdog_decisions: u64,
-}
-
-fn seconds(ns: u64) -> f64 {
-    ns as f64 / 1e9
-}
-
-/// A frame's time on its source's timeline (s): every source stamps it (the simulator and
-/// replay from their own clock, a camera with the sensor time); 0 is a valid time (the first
-/// simulated frame).
-fn frame_time_s(a: &AttitudeMessage) -> f64 {
-    seconds(a.context.source_timestamp_ns)
 }
 
 impl DecideStage {
@@ -58,7 +41,6 @@ impl DecideStage {
             gaps: GapCounter::new(joined_late),
             last: None,
             last_input: None,
-            frame_interval_s: None,
             view,
             dropped: 0,
             processed: 0,
@@ -70,31 +52,9 @@ impl DecideStage {
     pub fn process(&mut self, a: &AttitudeMessage, received_ns: u64) -> LandingDecision {
         self.dropped += self.gaps.observe(a.stamp.seq, a.stamp.drops.total());
         self.processed += 1;
-        let deck = a.valid.get().then(|| {
-            let [r, p, _] = a.rpy.to_degrees();
-            DeckObservation::new(r, p, a.deck_height_m)
-        });
-        let captured = a.stamp.times.captured_ns;
-        // A message without a capture time cannot be judged fresh.
-        let age_s = if captured == 0 {
-            f64::INFINITY
-        } else {
-            received_ns as f64 / 1e9 - seconds(captured)
-        };
-        let t = frame_time_s(a);
-        let d = if a.valid.get() && a.vehicle.compensation == Compensation::Missing {
-            // The deck relative to a tilted camera is not the deck.
-            self.decider.refuse(t, DecisionReason::NoVehicleAttitude)
-        } else if a.failure == AttitudeFailure::FrozenImage {
-            // Not a missing attitude but a broken camera: nothing rides through it.
-            self.decider.refuse(t, DecisionReason::FrozenInput)
-        } else {
-            self.decider.update_at_capture(t, deck, age_s)
-        };
-        if let Some((previous, _)) = self.last_input {
-            self.frame_interval_s = Some(t - previous).filter(|dt| *dt > 0.0 && *dt < 1.0);
-        }
-        self.last_input = Some((t, received_ns));
+        let frame = FrameInput::from_attitude(a, received_ns);
+        let d = self.decider.decide_frame(&frame);
+        self.last_input = Some((frame.t_s, received_ns));
         let (start, length) = d.calm_window.unwrap_or((f64::NAN, f64::NAN));
         let mut out = LandingDecision {
             stamp: a.stamp,
@@ -152,12 +112,14 @@ impl Stage for DecideStage {
     }
 
     fn after_outputs(&mut self) {
-        let Some(lead) = self.frame_interval_s else { return };
+        let Some(lead) = self.decider.frame_interval_s() else {
+            return;
+        };
         if self.decider.refit_due(lead).is_some() {
             // The processes the decision just woke (the link, the launcher) go first where
             // they share this core: the refit is not on their path.
             std::thread::yield_now();
-            self.decider.refit_ahead(lead);
+            self.decider.refit_between_frames();
         }
     }
 
@@ -185,8 +147,9 @@ impl Stage for DecideStage {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use deckwatch_common::messages::DecisionState;
     use deckwatch_common::messages::VehicleAttitude;
+    use deckwatch_common::messages::{DecisionReason, DecisionState};
+    use deckwatch_common::vehicle::Compensation;
     use deckwatch_common::Rpy;
 
     #[test]
@@ -323,5 +286,74 @@ mod tests {
         let (a, b) = (run(1_000_000), run(40_000_000));
         assert_eq!(a, b);
         assert!(a.iter().any(|d| d.1 != DecisionReason::Warmup));
+    }
+
+    /// `decide-eval` (the decide crate's `decide_stream`) and this stage make the same decision
+    /// on every frame of one stream with every kind of refusal in it: frozen images, an
+    /// uncompensated camera, missing and stale attitudes, stamp jitter.
+    #[test]
+    fn the_evaluation_and_the_stage_decide_alike() {
+        use deckwatch_common::messages::AttitudeFailure;
+        use deckwatch_decide::DeckObservation;
+        let mut frames = Vec::new();
+        let mut messages = Vec::new();
+        for k in 0..1500u64 {
+            let jitter_ns = (k * 7919 % 11) * 1_000_000;
+            let t_ns = k * 100_000_000 + jitter_ns;
+            let t = t_ns as f64 / 1e9;
+            let deck = Rpy::from_degrees(1.2 * (0.7 * t).sin(), 0.9 * (0.45 * t + 1.0).sin(), 0.0);
+            let height_m = 0.2 * (0.6 * t).sin();
+            let frozen_image = (400..440).contains(&(k % 500));
+            let vehicle_missing = (200..215).contains(&(k % 300));
+            let invalid = k % 37 == 0 || frozen_image;
+            let late_ns = if k % 53 == 0 { 1_000_000_000 } else { 5_000_000 };
+            let mut a = AttitudeMessage {
+                valid: (!invalid).into(),
+                rpy: deck,
+                deck_height_m: height_m,
+                ..Default::default()
+            };
+            if frozen_image {
+                a.failure = AttitudeFailure::FrozenImage.into();
+            }
+            if vehicle_missing {
+                a.vehicle.compensation = Compensation::Missing.into();
+            }
+            a.stamp.seq = k;
+            a.context.source_timestamp_ns = t_ns;
+            a.stamp.times.captured_ns = 3_000_000_000 + t_ns;
+            let received_ns = a.stamp.times.captured_ns + late_ns;
+            let [r, p, _] = deck.to_degrees();
+            frames.push(deckwatch_decide::FrameInput {
+                t_s: t,
+                deck: (!invalid).then(|| DeckObservation::new(r, p, height_m)),
+                age_s: late_ns as f64 / 1e9,
+                vehicle_missing,
+                frozen_image,
+            });
+            messages.push((a, received_ns));
+        }
+        let evaluated = deckwatch_decide::eval::decide_stream(&DecisionConfig::default(), &frames).unwrap();
+        let mut stage = DecideStage::new(DecisionConfig::default(), false).unwrap();
+        let mut reasons = std::collections::BTreeSet::new();
+        for (k, ((a, received_ns), e)) in messages.iter().zip(&evaluated).enumerate() {
+            let d = stage.process(a, *received_ns);
+            stage.after_outputs();
+            assert_eq!(
+                (d.state.get(), d.reason.get()),
+                (e.state, e.reason),
+                "frame {k}: the stage and the evaluation disagree"
+            );
+            reasons.insert(e.reason.name());
+        }
+        for reason in [
+            "frozen-input",
+            "no-vehicle-attitude",
+            "invalid-attitude",
+            "stale-data",
+            "within-capacity",
+        ] {
+            assert!(reasons.contains(reason), "{reason} never met: {reasons:?}");
+        }
     }
 }

@@ -1,0 +1,159 @@
+//! `deckwatch predict-eval`: the deck-motion forecast against the true motion. For roll, pitch,
+//! the deck height and their rates: the forecast error (RMS, 99th percentile) at several
+//! horizons, per sea state and predictor, and the calibration of each predictor's stated 95 %
+//! band (pointwise, and for the whole touchdown). The streams are `decide-eval`'s (the same
+//! options, seas and faults); the predictors are the decider itself, configured with each
+//! `[decide] predictor`, fed frame by frame as the decide stage feeds it, and persistence.
+
+use crate::decide_eval::{check, measure, minutes, series, series_name, DecideEvalArgs, Sea};
+use deckwatch_decide::decision::{DecisionConfig, Predictor};
+use deckwatch_decide::forecast_eval::{judge_forecasts, ForecastReport, Forecaster, Persistence, QUANTITIES};
+use deckwatch_decide::LandingDecider;
+
+#[derive(clap::Args)]
+pub struct PredictEvalArgs {
+    #[command(flatten)]
+    stream: DecideEvalArgs,
+    /// Forecast horizons (s).
+    #[arg(long, value_delimiter = ',', default_value = "0.5,1,2,4,8")]
+    horizons: Vec<f64>,
+    /// Predictors: `ar` (autoregressive, with its stated band), `sinusoids` (the dominant
+    /// sinusoids, with the held-out error bound), `persistence` (the last measurement).
+    #[arg(long, value_delimiter = ',', default_value = "persistence,sinusoids,ar")]
+    predictors: Vec<String>,
+    /// One forecast judged every this many seconds of each series.
+    #[arg(long, default_value_t = 1.0)]
+    every_s: f64,
+    /// One line per series as well as the totals per sea state.
+    #[arg(long)]
+    per_series: bool,
+}
+
+fn forecaster(name: &str, config: &DecisionConfig) -> Result<Box<dyn Forecaster>, String> {
+    let with = |predictor| -> Result<Box<dyn Forecaster>, String> {
+        let c = DecisionConfig {
+            predictor,
+            ..config.clone()
+        };
+        Ok(Box::new(
+            LandingDecider::new(c).map_err(|e| format!("decide.{e}"))?,
+        ))
+    };
+    match name {
+        "ar" => with(Predictor::Ar),
+        "sinusoids" => with(Predictor::Sinusoids),
+        "persistence" => Ok(Box::new(Persistence::new(config.window_s))),
+        other => Err(format!(
+            "--predictors: unknown `{other}` (persistence, sinusoids, ar)"
+        )),
+    }
+}
+
+fn print_report(label: &str, predictor: &str, r: &ForecastReport, touchdown_s: f64) {
+    for (q, name) in QUANTITIES.iter().enumerate() {
+        if r.errors[q].iter().all(|e| e.abs_errors.is_empty()) {
+            continue;
+        }
+        let cells: Vec<String> = r.errors[q]
+            .iter()
+            .map(|e| {
+                if e.abs_errors.is_empty() {
+                    format!("{:>20}", "-")
+                } else {
+                    format!("{:>6.3} {:>6.3} {:>5.1}%", e.rms(), e.p99(), 100.0 * e.coverage())
+                }
+            })
+            .collect();
+        println!(
+            "{label:<10} {predictor:<12} {name:<15} {}  {:>5.1}%",
+            cells.join(" "),
+            100.0 * r.window_coverage(q)
+        );
+    }
+    println!(
+        "{label:<10} {predictor:<12} {:<15} {} windows of {touchdown_s} s, every quantity inside: {:.1}%",
+        "all",
+        r.windows,
+        100.0 * r.window_all_inside as f64 / r.windows.max(1) as f64
+    );
+}
+
+pub fn run(a: PredictEvalArgs) -> Result<(), String> {
+    let (pipeline, file) = crate::pipeline::load(a.stream.config.as_deref())?;
+    let config: DecisionConfig = pipeline.decide;
+    config.validate().map_err(|e| format!("{file}: decide.{e}"))?;
+    check(&a.stream)?;
+    let minutes = minutes(&a.stream)?;
+    if a.horizons.is_empty()
+        || !a
+            .horizons
+            .iter()
+            .all(|h| h.is_finite() && *h >= 0.0 && *h <= 60.0)
+    {
+        return Err("--horizons: seconds in [0, 60]".into());
+    }
+    if !(a.every_s > 0.0) {
+        return Err("--every-s must be positive".into());
+    }
+    for p in &a.predictors {
+        forecaster(p, &config)?;
+    }
+    println!(
+        "{} min at {} Hz per series, {} motion; noise {} deg, heave noise {} m, dropout {}, outliers {}; window {} s, touchdown {} s, risk per touchdown {}",
+        minutes, a.stream.rate, a.stream.motion_csv.as_ref().map_or(a.stream.motion.clone(), |p| p.display().to_string()), a.stream.noise_deg, a.stream.heave_noise_m,
+        a.stream.dropout, a.stream.outliers, config.window_s, config.touchdown_s, config.risk_per_touchdown
+    );
+    let horizons: Vec<String> = a
+        .horizons
+        .iter()
+        .map(|h| format!("{:>20}", format!("{h} s: rms p99 in95")))
+        .collect();
+    println!(
+        "{:<10} {:<12} {:<15} {}  {:>6}",
+        "sea",
+        "predictor",
+        "quantity",
+        horizons.join(" "),
+        "window"
+    );
+    let all = series(&a.stream);
+    let mut sea_states: Vec<u32> = all.iter().map(|s| s.0).collect();
+    sea_states.dedup();
+    let mut overall: Vec<ForecastReport> = vec![ForecastReport::default(); a.predictors.len()];
+    for ss in sea_states {
+        let mut totals: Vec<ForecastReport> = vec![ForecastReport::default(); a.predictors.len()];
+        for &(_, seed, heading) in all.iter().filter(|s| s.0 == ss) {
+            let sea = Sea::new(&a.stream, ss, seed, heading)?;
+            let truth = |t: f64| sea.truth(t);
+            let stream = measure(&a.stream, minutes, &sea, ss, seed);
+            for (k, name) in a.predictors.iter().enumerate() {
+                let mut f = forecaster(name, &config)?;
+                let r = judge_forecasts(
+                    &truth,
+                    f.as_mut(),
+                    &stream,
+                    &a.horizons,
+                    config.touchdown_s,
+                    a.every_s,
+                );
+                if a.per_series {
+                    print_report(&series_name(ss, seed, heading), name, &r, config.touchdown_s);
+                }
+                totals[k].merge(&r);
+            }
+        }
+        for (k, name) in a.predictors.iter().enumerate() {
+            let label = if ss == 0 {
+                "file".to_string()
+            } else {
+                format!("SS{ss}")
+            };
+            print_report(&label, name, &totals[k], config.touchdown_s);
+            overall[k].merge(&totals[k]);
+        }
+    }
+    for (k, name) in a.predictors.iter().enumerate() {
+        print_report("all", name, &overall[k], config.touchdown_s);
+    }
+    Ok(())
+}

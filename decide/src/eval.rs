@@ -86,10 +86,15 @@ impl TrueDeckState {
             .all(|(_, value, limit)| value.abs() <= *limit)
     }
 
-    fn limits(&self, c: &DecisionConfig) -> [(&'static str, f64, f64); 5] {
+    fn limits(&self, c: &DecisionConfig) -> [(&'static str, f64, f64); 6] {
         [
             ("roll", self.roll_deg, c.max_abs_roll_deg),
             ("pitch", self.pitch_deg, c.max_abs_pitch_deg),
+            (
+                "tilt",
+                crate::decision::tilt_deg(self.roll_deg, self.pitch_deg),
+                c.max_tilt_deg,
+            ),
             ("roll-rate", self.roll_rate_dps, c.max_abs_roll_rate_dps),
             ("pitch-rate", self.pitch_rate_dps, c.max_abs_pitch_rate_dps),
             ("heave-rate", self.heave_rate_mps, c.max_abs_heave_rate_mps),

@@ -762,6 +762,17 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
     for (job, r) in jobs.iter().zip(results) {
         let Some(r) = r else { continue };
         for (rule, o) in r? {
+            // Every unsafe touchdown, with what it broke, to look into.
+            if let Some(v) = o.touchdown.as_ref().filter(|v| !v.safe()) {
+                let record = serde_json::json!({"unsafe_touchdown": {
+                    "sea_state": job.sea_state, "seed": job.seed, "heading_deg": job.heading_deg,
+                    "index": job.index, "rule": rule.name(), "verdict": v}});
+                if a.json {
+                    println!("{record}");
+                } else {
+                    eprintln!("{record}");
+                }
+            }
             per_sea
                 .entry(job.sea_state)
                 .or_default()

@@ -425,6 +425,8 @@ struct Models {
     /// Per channel: what the predictor's stated standard deviation is multiplied by so that
     /// its band held what happened (1 or more; see [`LandingDecider::band_scale`]).
     band_scale: [f64; 3],
+    /// Every channel's band has been checked against what followed (`MIN_BAND_EVIDENCE`).
+    band_checked: bool,
 }
 
 /// One channel's predictor.
@@ -512,11 +514,17 @@ const PLAUSIBLE_HEAVE_RATE_MPS: f64 = 5.0;
 /// than 95 %, because the scale is measured on the last `error_memory_s` and a sea's wave
 /// groups change faster (at 0.95 the band held 92-95 % 2 s ahead on the development seas).
 const BAND_EVIDENCE_QUANTILE: f64 = 0.975;
+/// The held-out misses the band's scale is measured on are this recent (s): long enough for
+/// 20 or more, short enough that the coarse fits of the first seconds after a warm-up (a lower
+/// order on a short history) stop widening the band soon after better ones take over (with
+/// 30 s, the median wait after arrival in the development trials was 42 s).
+const BAND_MEMORY_S: f64 = 10.0;
 /// Held-out misses needed before the band's scale is measured rather than assumed.
 const MIN_BAND_EVIDENCE: usize = 20;
-/// The band's scale before there is evidence: the autoregressive predictor's raw 95 % band
-/// held about 87 % of the truths 2 s ahead on the development seas (BENCHMARKS "Deck-motion
-/// prediction"); 1.5 widens it to about what the measured scale settles at.
+/// The band's scale before there is evidence (forecasts shown, never a clearance): the
+/// autoregressive predictor's raw 95 % band held about 87 % of the truths 2 s ahead on the
+/// development seas (BENCHMARKS "Deck-motion prediction"); 1.5 widens it to about what the
+/// measured scale settles at.
 const PRIOR_BAND_SCALE: f64 = 1.5;
 /// A measurement this many of the model's standard deviations away is an innovation the model
 /// does not explain (with a predictor that states its uncertainty).
@@ -537,7 +545,7 @@ pub struct LandingDecider {
     /// (time, held-out angle error, held-out heave error) of recent refits.
     errors: VecDeque<(f64, f64, f64)>,
     /// (time, per channel: the held-out miss in the stated standard deviations) of the samples
-    /// recent refits were checked on, over `error_memory_s`.
+    /// recent refits were checked on, over `BAND_MEMORY_S`.
     band_misses: VecDeque<(f64, [f64; 3])>,
     last_fit: f64,
     last_grid: f64,
@@ -1040,11 +1048,11 @@ impl LandingDecider {
         while self
             .band_misses
             .front()
-            .is_some_and(|&(tm, _)| end - tm > c.error_memory_s)
+            .is_some_and(|&(tm, _)| end - tm > BAND_MEMORY_S)
         {
             self.band_misses.pop_front();
         }
-        let band_scale = self.band_scale();
+        let (band_scale, band_checked) = self.band_scale();
         while self
             .errors
             .front()
@@ -1088,17 +1096,19 @@ impl LandingDecider {
             holdout_error,
             heave_error,
             band_scale,
+            band_checked,
         })
     }
 
     /// Per channel, the factor on the predictor's stated standard deviation that makes its 95 %
-    /// band hold `BAND_EVIDENCE_QUANTILE` of the held-out misses of the last `error_memory_s`
-    /// (never below 1).
+    /// band hold `BAND_EVIDENCE_QUANTILE` of the held-out misses of the last `BAND_MEMORY_S`
+    /// (never below 1); and whether every channel has that evidence (no clearance before).
     /// With fewer than `MIN_BAND_EVIDENCE` misses (the first seconds after a warm-up) there is
     /// no track record yet: `PRIOR_BAND_SCALE`.
-    fn band_scale(&self) -> [f64; 3] {
+    fn band_scale(&self) -> ([f64; 3], bool) {
         let mut scale = [PRIOR_BAND_SCALE; 3];
-        for (k, s) in scale.iter_mut().enumerate() {
+        let mut checked = true;
+        for (k, s) in scale.iter_mut().enumerate().take(self.channels) {
             let mut z: Vec<f64> = self
                 .band_misses
                 .iter()
@@ -1106,13 +1116,14 @@ impl LandingDecider {
                 .filter(|z| z.is_finite())
                 .collect();
             if z.len() < MIN_BAND_EVIDENCE {
+                checked = false;
                 continue;
             }
             let i = ((z.len() as f64 * BAND_EVIDENCE_QUANTILE).ceil() as usize).min(z.len()) - 1;
             let (_, q95, _) = z.select_nth_unstable_by(i, f64::total_cmp);
             *s = (*q95 / Z95).max(1.0);
         }
-        scale
+        (scale, checked)
     }
 
     /// The margins to enter `ClearToLand`: the configured ones plus the prediction's error
@@ -1282,6 +1293,11 @@ impl LandingDecider {
                     // Held: still the reason the landing was aborted for.
                     decision.state = DecisionState::Abort;
                     decision.reason = self.abort_reason;
+                } else if self.config.predictor == Predictor::Ar && !m.band_checked {
+                    // A band not yet checked against what came after is not cleared on (a
+                    // held-out trial cleared on one 3 s after the warm-up and touched down at
+                    // 0.62 m/s of heave rate: BENCHMARKS.md, "Deck-motion prediction").
+                    decision.reason = DecisionReason::Warmup;
                 } else if self.predicted_within(&m, now, now + self.config.touchdown_s, enter) {
                     decision.state = DecisionState::ClearToLand;
                     decision.new_commit = true;

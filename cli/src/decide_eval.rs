@@ -275,8 +275,13 @@ pub(crate) fn check(a: &DecideEvalArgs) -> Result<(), String> {
 /// The measured stream of one series: the truth plus what `a` adds (noise, dropped frames,
 /// outliers, NaN, stale and frozen frames, stamp jitter, the vehicle's compensation errors and
 /// outages), as the estimate stage would deliver it, from a random stream of `seed` and `ss`.
+/// Frames per series: `minutes` at `--rate`, and with a motion file the one at its end too.
+pub(crate) fn frames(a: &DecideEvalArgs, minutes: f64) -> usize {
+    (minutes * 60.0 * a.rate) as usize + usize::from(a.motion_csv.is_some())
+}
+
 pub(crate) fn measure(a: &DecideEvalArgs, minutes: f64, sea: &Sea, ss: u32, seed: u64) -> Vec<FrameInput> {
-    let n = (minutes * 60.0 * a.rate) as usize + usize::from(a.motion_csv.is_some());
+    let n = frames(a, minutes);
     let sway = a.vehicle == "sway";
     let bias = [a.vehicle_bias_deg[0], a.vehicle_bias_deg[1]];
     let mut rng = SplitMix64::new(seed.wrapping_mul(0x9E37_79B9) ^ ss as u64);
@@ -357,7 +362,7 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
     config.validate().map_err(|e| format!("{file}: decide.{e}"))?;
     check(&a)?;
     let minutes = minutes(&a)?;
-    let n = (minutes * 60.0 * a.rate) as usize;
+    let n = frames(&a, minutes);
     if !a.json {
         println!(
             "{} min at {} Hz per series, {} motion, noise {} deg, heave noise {} m x{}, dropout {}, outliers {}, NaN {}, stale {}, frozen {}/min of {} s, jitter {} ms; vehicle {} (autopilot noise {} deg, bias {:?} deg, timing {} ms, {} outages/min of {} s); capacity roll/pitch {}/{} deg, rates {}/{} deg/s, heave {:?} rate {} m/s, touchdown {} s",

@@ -18,7 +18,8 @@ pub struct PredictEvalArgs {
     #[arg(long, value_delimiter = ',', default_value = "0.5,1,2,4,8")]
     horizons: Vec<f64>,
     /// Predictors: `ar` (autoregressive, with its stated band), `sinusoids` (the dominant
-    /// sinusoids, with the held-out error bound), `persistence` (the last measurement).
+    /// sinusoids, with the held-out error bound; its own window, warm-up and margins unless the
+    /// configuration chose it), `persistence` (the last measurement).
     #[arg(long, value_delimiter = ',', default_value = "persistence,sinusoids,ar")]
     predictors: Vec<String>,
     /// One forecast judged every this many seconds of each series.
@@ -41,6 +42,11 @@ fn forecaster(name: &str, config: &DecisionConfig) -> Result<Box<dyn Forecaster>
     };
     match name {
         "ar" => with(Predictor::Ar),
+        // A configuration made for the autoregressive predictor gives the sinusoid fit the
+        // settings it was measured with (`DecisionConfig::sinusoid_defaults`).
+        "sinusoids" if config.predictor == Predictor::Ar => Ok(Box::new(
+            LandingDecider::new(DecisionConfig::sinusoid_defaults()).map_err(|e| format!("decide.{e}"))?,
+        )),
         "sinusoids" => with(Predictor::Sinusoids),
         "persistence" => Ok(Box::new(Persistence::new(config.window_s))),
         other => Err(format!(

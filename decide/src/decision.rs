@@ -241,6 +241,20 @@ impl DecisionConfig {
         roll_deg.abs() <= self.max_abs_roll_deg && pitch_deg.abs() <= self.max_abs_pitch_deg
     }
 
+    /// The sinusoid predictor with the settings it was measured with while it was the default
+    /// (window 40 s, warm-up 20 s, margins 0.5 deg, 0.5 deg/s, 0.1 m/s).
+    pub fn sinusoid_defaults() -> Self {
+        Self {
+            predictor: Predictor::Sinusoids,
+            window_s: 40.0,
+            min_history_s: 20.0,
+            margin_deg: 0.5,
+            rate_margin_dps: 0.5,
+            heave_rate_margin_mps: 0.1,
+            ..Self::default()
+        }
+    }
+
     /// The band's width in standard deviations for `risk_per_touchdown` (see there).
     pub fn band_z(&self) -> f64 {
         crate::predict::normal_quantile(1.0 - self.risk_per_touchdown / LIMITS)
@@ -1425,15 +1439,7 @@ mod tests {
 
     /// The sinusoid predictor as it was the default: its window, warm-up and margins.
     fn sinusoid_config() -> DecisionConfig {
-        DecisionConfig {
-            predictor: Predictor::Sinusoids,
-            window_s: 40.0,
-            min_history_s: 20.0,
-            margin_deg: 0.5,
-            rate_margin_dps: 0.5,
-            heave_rate_margin_mps: 0.1,
-            ..Default::default()
-        }
+        DecisionConfig::sinusoid_defaults()
     }
 
     fn fitting_between_frames_decides_alike_with(config: DecisionConfig, same_windows: bool) {

@@ -40,13 +40,17 @@ fn forecaster(name: &str, config: &DecisionConfig) -> Result<Box<dyn Forecaster>
             LandingDecider::new(c).map_err(|e| format!("decide.{e}"))?,
         ))
     };
+    let own = |c: DecisionConfig| -> Result<Box<dyn Forecaster>, String> {
+        Ok(Box::new(
+            LandingDecider::new(c).map_err(|e| format!("decide.{e}"))?,
+        ))
+    };
+    // Each predictor with the settings it was measured with, unless the configuration chose it
+    // (`DecisionConfig::ar_defaults`, `sinusoid_defaults`).
     match name {
-        "ar" => with(Predictor::Ar),
-        // A configuration made for the autoregressive predictor gives the sinusoid fit the
-        // settings it was measured with (`DecisionConfig::sinusoid_defaults`).
-        "sinusoids" if config.predictor == Predictor::Ar => Ok(Box::new(
-            LandingDecider::new(DecisionConfig::sinusoid_defaults()).map_err(|e| format!("decide.{e}"))?,
-        )),
+        "ar" if config.predictor == Predictor::Ar => with(Predictor::Ar),
+        "ar" => own(DecisionConfig::ar_defaults()),
+        "sinusoids" if config.predictor == Predictor::Ar => own(DecisionConfig::sinusoid_defaults()),
         "sinusoids" => with(Predictor::Sinusoids),
         "persistence" => Ok(Box::new(Persistence::new(config.window_s))),
         other => Err(format!(

@@ -491,11 +491,26 @@ impl ArModel {
             }
         });
         let b = DVector::from_fn(rows, |r, _| x[r + order]);
-        // Least squares through the singular value decomposition, directions the data do not
-        // fix left out (see `AR_CUTOFF`).
-        let svd = a.clone().try_svd(true, true, f64::EPSILON, 1000)?;
-        let largest = svd.singular_values.max();
-        let mut coef = svd.solve(&b, AR_CUTOFF * largest).ok()?;
+        // Least squares with the directions the data do not fix left out (see `AR_CUTOFF`):
+        // the eigen-decomposition of the normal equations (the singular values squared: a
+        // decomposition of (order + 1)^2 instead of one of the whole design, ten times cheaper).
+        let ata = a.tr_mul(&a);
+        let atb = a.tr_mul(&b);
+        let eigen = nalgebra::linalg::SymmetricEigen::try_new(ata, f64::EPSILON, 1000)?;
+        let largest = eigen.eigenvalues.max();
+        if !(largest > 0.0) {
+            return None;
+        }
+        let projected = eigen.eigenvectors.tr_mul(&atb);
+        let scaled = DVector::from_fn(order + 1, |i, _| {
+            let l = eigen.eigenvalues[i];
+            if l > AR_CUTOFF * AR_CUTOFF * largest {
+                projected[i] / l
+            } else {
+                0.0
+            }
+        });
+        let mut coef = &eigen.eigenvectors * scaled;
         let resid = &b - &a * &coef;
         let fit_rms = (resid.norm_squared() / rows as f64).sqrt();
         // A fit whose recursion grows (a root on or outside the unit circle) would forecast

@@ -264,12 +264,12 @@ impl DecisionConfig {
 
     /// The band's width in standard deviations for `risk_per_touchdown` (see there).
     pub fn band_z(&self) -> f64 {
-        crate::predict::normal_quantile(1.0 - self.risk_per_touchdown / LIMITS)
+        deckwatch_common::stats::normal_quantile(1.0 - self.risk_per_touchdown / LIMITS)
     }
 
     /// The same for `go_around_risk`: the band a committed touchdown must stay within.
     pub fn stay_band_z(&self) -> f64 {
-        crate::predict::normal_quantile(1.0 - self.go_around_risk / LIMITS)
+        deckwatch_common::stats::normal_quantile(1.0 - self.go_around_risk / LIMITS)
     }
 
     /// Checks every field; the error names it.

@@ -141,18 +141,18 @@ impl Default for DecisionConfig {
             gap_recovery_s: 1.0,
             max_plausible_rate_dps: 40.0,
             frozen_input_count: 3,
-            window_s: 40.0,
-            min_history_s: 20.0,
+            window_s: 120.0,
+            min_history_s: 8.0,
             refit_interval_s: 1.0,
-            predictor: Predictor::Sinusoids,
+            predictor: Predictor::Ar,
             ar_order: 48,
             risk_per_touchdown: 1e-3,
             go_around_risk: 0.2,
             components: 4,
             fit_memory_s: 10.0,
-            margin_deg: 0.5,
-            rate_margin_dps: 0.5,
-            heave_rate_margin_mps: 0.1,
+            margin_deg: 0.0,
+            rate_margin_dps: 0.0,
+            heave_rate_margin_mps: 0.0,
             max_holdout_error_deg: 2.0,
             max_holdout_error_m: 0.3,
             holdout_s: 2.0,
@@ -241,25 +241,49 @@ impl DecisionConfig {
         roll_deg.abs() <= self.max_abs_roll_deg && pitch_deg.abs() <= self.max_abs_pitch_deg
     }
 
-    /// The sinusoid predictor with the settings it was measured with (the defaults).
+    /// The sinusoid predictor with the settings it was measured with: a 40 s window, 20 s of
+    /// warm-up, fixed margins on top of its held-out error bound.
     pub fn sinusoid_defaults() -> Self {
-        Self::default()
+        Self {
+            predictor: Predictor::Sinusoids,
+            ..Self::default()
+        }
+        .with_predictor_defaults(|_| false)
     }
 
     /// The autoregressive predictor with the settings it was developed and measured with
-    /// (BENCHMARKS.md, "Deck-motion prediction"): window 120 s, warm-up 8 s, no fixed margins
-    /// (its band is the margin). Not yet the default: through the real processes of a debug
-    /// build the closed-loop trial drops frames with it (tests/trials.rs), not yet looked into.
+    /// (BENCHMARKS.md, "Deck-motion prediction"): the defaults.
     pub fn ar_defaults() -> Self {
-        Self {
-            predictor: Predictor::Ar,
-            window_s: 120.0,
-            min_history_s: 8.0,
-            margin_deg: 0.0,
-            rate_margin_dps: 0.0,
-            heave_rate_margin_mps: 0.0,
-            ..Self::default()
+        Self::default()
+    }
+
+    /// This configuration with each key whose default depends on the predictor, unless `given`
+    /// says it was set explicitly, at its own predictor's default: `predictor = "sinusoids"`
+    /// alone in a file gives the sinusoid fit as it was measured. Those keys: an autoregressive
+    /// fit wants a longer window and states its own band (no fixed margins); the sinusoid fit a
+    /// shorter window, a longer warm-up and margins on its held-out error bound.
+    pub fn with_predictor_defaults(mut self, given: impl Fn(&str) -> bool) -> Self {
+        let (window_s, min_history_s, margin_deg, rate_margin_dps, heave_rate_margin_mps) =
+            match self.predictor {
+                Predictor::Ar => (120.0, 8.0, 0.0, 0.0, 0.0),
+                Predictor::Sinusoids => (40.0, 20.0, 0.5, 0.5, 0.1),
+            };
+        for (key, field, value) in [
+            ("window_s", &mut self.window_s, window_s),
+            ("min_history_s", &mut self.min_history_s, min_history_s),
+            ("margin_deg", &mut self.margin_deg, margin_deg),
+            ("rate_margin_dps", &mut self.rate_margin_dps, rate_margin_dps),
+            (
+                "heave_rate_margin_mps",
+                &mut self.heave_rate_margin_mps,
+                heave_rate_margin_mps,
+            ),
+        ] {
+            if !given(key) {
+                *field = value;
+            }
         }
+        self
     }
 
     /// The band's width in standard deviations for `risk_per_touchdown` (see there).

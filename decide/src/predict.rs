@@ -432,19 +432,10 @@ impl ArModel {
         let x = resample(t, y, dt, n);
         // x_k = c + sum_i a_i x_{k-i}: the intercept keeps an offset deck exact.
         let rows = n - order;
-        let a = DMatrix::from_fn(rows, order + 1, |r, i| {
-            if i == order {
-                1.0
-            } else {
-                x[r + order - 1 - i]
-            }
-        });
-        let b = DVector::from_fn(rows, |r, _| x[r + order]);
+        let (ata, atb) = normal_equations(&x, order);
         // Least squares with the directions the data do not fix left out (see `AR_CUTOFF`):
         // the eigen-decomposition of the normal equations (the singular values squared: a
         // decomposition of (order + 1)^2 instead of one of the whole design, ten times cheaper).
-        let ata = a.tr_mul(&a);
-        let atb = a.tr_mul(&b);
         let eigen = nalgebra::linalg::SymmetricEigen::try_new(ata, f64::EPSILON, 1000)?;
         let largest = eigen.eigenvalues.max();
         if !(largest > 0.0) {
@@ -460,8 +451,13 @@ impl ArModel {
             }
         });
         let mut coef = &eigen.eigenvectors * scaled;
-        let resid = &b - &a * &coef;
-        let fit_rms = (resid.norm_squared() / rows as f64).sqrt();
+        let resid_sq: f64 = (0..rows)
+            .map(|r| {
+                let predicted = coef[order] + (0..order).map(|i| coef[i] * x[r + order - 1 - i]).sum::<f64>();
+                (x[r + order] - predicted).powi(2)
+            })
+            .sum();
+        let fit_rms = (resid_sq / rows as f64).sqrt();
         // A fit whose recursion grows (a root on or outside the unit circle) would forecast
         // without bound: its roots are pulled inside (a_i scaled by r^i moves every root z to
         // r z), which keeps its frequencies.
@@ -478,7 +474,7 @@ impl ArModel {
         let steps = ((horizon_s / dt).ceil() as usize).max(1);
         let params = (order + 1) as f64;
         let dof = (rows as f64 - params).max(1.0);
-        let innovation_var = resid.norm_squared() / dof * (1.0 + params / rows as f64);
+        let innovation_var = resid_sq / dof * (1.0 + params / rows as f64);
         // Impulse response: psi_j = sum_i a_i psi_{j-1-i}.
         let mut psi = vec![0.0; steps + 2];
         psi[0] = 1.0;
@@ -632,6 +628,39 @@ impl ArModel {
 /// heave rate 10 % over the limit). A ridge fixes that too but damps every forecast.
 const AR_CUTOFF: f64 = 1e-5;
 
+/// The normal equations `(A^T A, A^T b)` of the autoregression of order `p` on `x`: row `r` of
+/// `A` is `x[r + p - 1], ..., x[r], 1` and `b[r] = x[r + p]`. Built from lagged products
+/// `S(u, v) = sum_r x[r + u] x[r + v]`, whose neighbours along a diagonal differ by one term at
+/// each end: `O(n p)` instead of the `O(n p^2)` of multiplying the design out.
+fn normal_equations(x: &[f64], p: usize) -> (DMatrix<f64>, DVector<f64>) {
+    let rows = x.len() - p;
+    // Lags 0..=p: lag p is the target's.
+    let lags = p + 1;
+    let mut s = DMatrix::<f64>::zeros(lags, lags);
+    for v in 0..lags {
+        s[(0, v)] = (0..rows).map(|r| x[r] * x[r + v]).sum();
+    }
+    for u in 1..lags {
+        for v in u..lags {
+            s[(u, v)] = s[(u - 1, v - 1)] - x[u - 1] * x[v - 1] + x[u - 1 + rows] * x[v - 1 + rows];
+        }
+    }
+    let lagged = |u: usize, v: usize| s[(u.min(v), u.max(v))];
+    let mut sums = vec![(0..rows).map(|r| x[r]).sum::<f64>(); lags];
+    for u in 1..lags {
+        sums[u] = sums[u - 1] - x[u - 1] + x[u - 1 + rows];
+    }
+    // Column i of A is lag p - 1 - i; the last column is the intercept's.
+    let ata = DMatrix::from_fn(p + 1, p + 1, |i, j| match (i == p, j == p) {
+        (true, true) => rows as f64,
+        (true, false) => sums[p - 1 - j],
+        (false, true) => sums[p - 1 - i],
+        (false, false) => lagged(p - 1 - i, p - 1 - j),
+    });
+    let atb = DVector::from_fn(p + 1, |i, _| if i == p { sums[p] } else { lagged(p - 1 - i, p) });
+    (ata, atb)
+}
+
 /// The largest root an autoregressive fit may keep: motion that neither grows nor stays.
 const MAX_ROOT_RADIUS: f64 = 0.999;
 
@@ -764,5 +793,22 @@ mod ar_tests {
             (0.93..=0.975).contains(&share),
             "{inside} of {total} inside: {share}"
         );
+    }
+
+    #[test]
+    fn the_normal_equations_from_lagged_products_are_the_designs() {
+        // An irregular series with an offset: every lag and the intercept matter.
+        let x: Vec<f64> = (0..90)
+            .map(|k| 2.0 + (0.37 * k as f64).sin() + 0.1 * ((k * k) % 7) as f64)
+            .collect();
+        for p in [2usize, 5, 29] {
+            let rows = x.len() - p;
+            let a = DMatrix::from_fn(rows, p + 1, |r, i| if i == p { 1.0 } else { x[r + p - 1 - i] });
+            let b = DVector::from_fn(rows, |r, _| x[r + p]);
+            let (ata, atb) = normal_equations(&x, p);
+            let scale = a.tr_mul(&a).amax();
+            assert!((ata - a.tr_mul(&a)).amax() < 1e-12 * scale, "order {p}");
+            assert!((atb - a.tr_mul(&b)).amax() < 1e-12 * scale, "order {p}");
+        }
     }
 }

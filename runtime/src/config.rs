@@ -111,10 +111,19 @@ pub const DEFAULTS: &str = "(defaults)";
 impl PipelineConfig {
     /// Parses `text` (from `file`, for messages). Values are checked by [`Self::validate`].
     pub fn from_toml(file: &str, text: &str) -> Result<Self, ConfigError> {
-        toml::from_str(text).map_err(|e| ConfigError::Parse {
+        let parse_error = |e: toml::de::Error| ConfigError::Parse {
             file: file.to_string(),
             message: e.to_string(),
-        })
+        };
+        let mut config: Self = toml::from_str(text).map_err(parse_error)?;
+        // `[decide]` keys the file leaves out take its predictor's defaults, not the default
+        // predictor's.
+        let table: toml::Table = toml::from_str(text).map_err(parse_error)?;
+        let decide = table.get("decide").and_then(toml::Value::as_table);
+        config.decide = config
+            .decide
+            .with_predictor_defaults(|key| decide.is_some_and(|d| d.contains_key(key)));
+        Ok(config)
     }
 
     /// Reads and parses a file.
@@ -272,6 +281,24 @@ impl PipelineConfig {
 mod tests {
     use super::*;
     use deckwatch_common::messages::{EstimatorKind, FrameSource};
+
+    #[test]
+    fn a_predictor_named_alone_brings_its_own_settings() {
+        let sinusoids = |text: &str| PipelineConfig::from_toml("p.toml", text).unwrap().decide;
+        assert_eq!(
+            sinusoids("[decide]\npredictor = \"sinusoids\"\n"),
+            DecisionConfig::sinusoid_defaults()
+        );
+        // What the file says stays.
+        let own_window = sinusoids("[decide]\npredictor = \"sinusoids\"\nwindow_s = 60.0\n");
+        assert_eq!(own_window.window_s, 60.0);
+        assert_eq!(
+            own_window.margin_deg,
+            DecisionConfig::sinusoid_defaults().margin_deg
+        );
+        assert_eq!(sinusoids(""), DecisionConfig::ar_defaults());
+        assert_eq!(sinusoids("[decide]\nmin_history_s = 12.0\n").min_history_s, 12.0);
+    }
 
     #[test]
     fn errors_name_file_line_and_key() {

@@ -317,11 +317,19 @@ fn stream(
         if now >= next_position {
             next_position = now + 20_000_000;
             if streaming {
-                let heave = world.truth(t)[2];
-                let height_m = path.lock().unwrap_or_else(|e| e.into_inner()).height_m(t, heave);
+                // Height and vertical speed, as an autopilot's estimator gives them (the link
+                // carries the height to each attitude sample by the speed).
+                let height_at = |t: f64| {
+                    let heave = world.truth(t)[2];
+                    path.lock().unwrap_or_else(|e| e.into_inner()).height_m(t, heave)
+                };
+                const DT_S: f64 = 0.005;
+                let height_m = height_at(t);
+                let up_mps = (height_at(t + DT_S) - height_at(t - DT_S)) / (2.0 * DT_S);
                 send(MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA {
                     time_boot_ms: boot_ms,
                     z: -height_m as f32,
+                    vz: -up_mps as f32,
                     ..Default::default()
                 }));
             }

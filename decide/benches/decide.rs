@@ -1,5 +1,5 @@
 //! The landing decision's cost per attitude, one thread: `cargo bench -p deckwatch-decide --bench
-//! decide`.
+//! decide`; and the autoregressive fit's parts.
 //!
 //! A deck rolling and pitching like a ship in a moderate sea (three swells each) at 30 frames a
 //! second, fed one attitude at a time to the decider with its default configuration: the mean
@@ -63,6 +63,37 @@ fn main() {
             }
             total
         })
+    });
+    group.finish();
+    // The autoregressive fit's normal equations for one channel (order 48 on 120 s at 5 Hz):
+    // from lagged products (what the fit uses) beside multiplying the design matrix out (what
+    // it did before), in one run.
+    let mut group = c.benchmark_group("ar_normal_equations");
+    let x: Vec<f64> = (0..600).map(|k| deck_at(k as f64 * 0.2).roll_deg).collect();
+    const ORDER: usize = 48;
+    group.bench_function("lagged_products", |b| {
+        b.iter(|| deckwatch_decide::predict::normal_equations(black_box(&x), ORDER))
+    });
+    group.bench_function("design_product", |b| {
+        b.iter(|| {
+            let x = black_box(&x);
+            let rows = x.len() - ORDER;
+            let a = nalgebra::DMatrix::from_fn(rows, ORDER + 1, |r, i| {
+                if i == ORDER {
+                    1.0
+                } else {
+                    x[r + ORDER - 1 - i]
+                }
+            });
+            let y = nalgebra::DVector::from_fn(rows, |r, _| x[r + ORDER]);
+            (a.tr_mul(&a), a.tr_mul(&y))
+        })
+    });
+    // One channel's whole fit (normal equations, eigen-decomposition, roots, forecast).
+    let t: Vec<f64> = (0..1200).map(|k| k as f64 * 0.1).collect();
+    let y: Vec<f64> = t.iter().map(|&t| deck_at(t).roll_deg).collect();
+    group.bench_function("whole_fit_one_channel", |b| {
+        b.iter(|| deckwatch_decide::predict::ArModel::fit(black_box(&t), black_box(&y), ORDER, 0.2, 25.0))
     });
     group.finish();
     c.final_summary();

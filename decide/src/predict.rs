@@ -632,7 +632,7 @@ const AR_CUTOFF: f64 = 1e-5;
 /// `A` is `x[r + p - 1], ..., x[r], 1` and `b[r] = x[r + p]`. Built from lagged products
 /// `S(u, v) = sum_r x[r + u] x[r + v]`, whose neighbours along a diagonal differ by one term at
 /// each end: `O(n p)` instead of the `O(n p^2)` of multiplying the design out.
-fn normal_equations(x: &[f64], p: usize) -> (DMatrix<f64>, DVector<f64>) {
+pub fn normal_equations(x: &[f64], p: usize) -> (DMatrix<f64>, DVector<f64>) {
     let rows = x.len() - p;
     // Lags 0..=p: lag p is the target's.
     let lags = p + 1;

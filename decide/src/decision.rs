@@ -457,6 +457,8 @@ struct Models {
     /// Per channel: what the predictor's stated standard deviation is multiplied by so that
     /// its band held what happened (1 or more; see [`LandingDecider::band_scale`]).
     band_scale: [f64; 3],
+    /// The same for each channel's rate (see [`LandingDecider::band_scale`]).
+    rate_band_scale: [f64; 3],
     /// Every channel's band has been checked against what followed (`MIN_BAND_EVIDENCE`).
     band_checked: bool,
 }
@@ -561,6 +563,14 @@ const MIN_BAND_EVIDENCE: usize = 20;
 /// development seas (BENCHMARKS "Deck-motion prediction"); 1.5 widens it to about what the
 /// measured scale settles at.
 const PRIOR_BAND_SCALE: f64 = 1.5;
+/// The least scale of a rate's band. A rate's stated deviation counts every innovation as a
+/// kick to the motion, the measurement's noise too, and comes out wide (the rate bands held
+/// 99-100 % of the truths up to 2 s ahead on the development seas): its scale may go below 1,
+/// as far as its own held-out misses say, but not below this.
+const MIN_RATE_BAND_SCALE: f64 = 0.25;
+/// Half the span of the centred line that measures the deck's rate for the rate band's
+/// misses (s).
+const RATE_CHECK_HALF_WINDOW_S: f64 = 0.5;
 /// A measurement this many of the model's standard deviations away is an innovation the model
 /// does not explain (with a predictor that states its uncertainty).
 const INNOVATION_Z: f64 = 4.0;
@@ -581,7 +591,7 @@ pub struct LandingDecider {
     errors: VecDeque<(f64, f64, f64)>,
     /// (time, per channel: the held-out miss in the stated standard deviations) of the samples
     /// recent refits were checked on, over `BAND_MEMORY_S`.
-    band_misses: VecDeque<(f64, [f64; 3])>,
+    band_misses: VecDeque<(f64, [f64; 6])>,
     last_fit: f64,
     last_grid: f64,
     jump_run: u32,
@@ -734,7 +744,7 @@ impl LandingDecider {
             f.rate[k] = track.rate(t);
             if banded {
                 f.band95[k] = Z95 * m.band_scale[k] * track.std(t);
-                f.rate_band95[k] = Z95 * m.band_scale[k] * track.rate_std(t);
+                f.rate_band95[k] = Z95 * m.rate_band_scale[k] * track.rate_std(t);
             } else {
                 f.band95[k] = if k == HEAVE {
                     m.heave_error
@@ -890,11 +900,15 @@ impl LandingDecider {
             // model's rate carried back there by its own acceleration (compared at `t`, a
             // rolling deck's acceleration alone made one frame in ten at sea states 5 and 6
             // "unexplained").
+            // Judged on the value's scale (1 or more), not the rate band's own: the measured
+            // rate has its noise too (with the rate band's scale, six times as many frames were
+            // "unexplained" on the development seas).
             let outside = |k: usize, limit: f64| {
                 let track = &m.tracks[k];
                 let acceleration = (track.rate(t + FIT_SPACING_S) - track.rate(t)) / FIT_SPACING_S;
                 let expected = track.rate(t) - acceleration * (t - mean_t);
-                (expected - rates[k]).abs() > limit.max(INNOVATION_Z * m.band_scale[k] * track.rate_std(t))
+                (expected - rates[k]).abs()
+                    > limit.max(INNOVATION_Z * m.band_scale[k] * track.rate_std(t))
             };
             if outside(ROLL, c.max_rate_innovation_dps)
                 || outside(PITCH, c.max_rate_innovation_dps)
@@ -1078,9 +1092,16 @@ impl LandingDecider {
                 .iter()
                 .filter(|h| h.0 > from && h.0 <= t0 + c.holdout_s)
             {
-                let mut z = [f64::NAN; 3];
+                // Values, then rates against the deck's rate measured around `ti` (a line
+                // through the samples of a second centred on it: unbiased by the deck's
+                // acceleration; its noise only makes the misses look larger).
+                let mut z = [f64::NAN; 6];
+                let measured_rate = self.centred_rate(ti, RATE_CHECK_HALF_WINDOW_S);
                 for (k, track) in old.iter().enumerate() {
                     z[k] = (v[k] - track.value(ti)).abs() / track.std(ti);
+                    if let Some(rates) = measured_rate {
+                        z[3 + k] = (rates[k] - track.rate(ti)).abs() / track.rate_std(ti);
+                    }
                 }
                 self.band_misses.push_back((ti, z));
             }
@@ -1092,7 +1113,7 @@ impl LandingDecider {
         {
             self.band_misses.pop_front();
         }
-        let (band_scale, band_checked) = self.band_scale();
+        let (band_scale, rate_band_scale, band_checked) = self.band_scale();
         while self
             .errors
             .front()
@@ -1136,19 +1157,24 @@ impl LandingDecider {
             holdout_error,
             heave_error,
             band_scale,
+            rate_band_scale,
             band_checked,
         })
     }
 
     /// Per channel, the factor on the predictor's stated standard deviation that makes its 95 %
     /// band hold `BAND_EVIDENCE_QUANTILE` of the held-out misses of the last `BAND_MEMORY_S`
-    /// (never below 1); and whether every channel has that evidence (no clearance before).
-    /// With fewer than `MIN_BAND_EVIDENCE` misses (the first seconds after a warm-up) there is
-    /// no track record yet: `PRIOR_BAND_SCALE`.
-    fn band_scale(&self) -> ([f64; 3], bool) {
-        let mut scale = [PRIOR_BAND_SCALE; 3];
+    /// (never below 1), and the same for its rate (never below `MIN_RATE_BAND_SCALE`); and
+    /// whether every channel's value has that evidence (no clearance before). With fewer than
+    /// `MIN_BAND_EVIDENCE` misses (the first seconds after a warm-up) there is no track record
+    /// yet: `PRIOR_BAND_SCALE`.
+    fn band_scale(&self) -> ([f64; 3], [f64; 3], bool) {
+        let mut scale = [PRIOR_BAND_SCALE; 6];
         let mut checked = true;
-        for (k, s) in scale.iter_mut().enumerate().take(self.channels) {
+        for (k, s) in scale.iter_mut().enumerate() {
+            if k % 3 >= self.channels {
+                continue;
+            }
             let mut z: Vec<f64> = self
                 .band_misses
                 .iter()
@@ -1156,14 +1182,60 @@ impl LandingDecider {
                 .filter(|z| z.is_finite())
                 .collect();
             if z.len() < MIN_BAND_EVIDENCE {
-                checked = false;
+                // The rates' evidence comes later (each needs a second of samples around it):
+                // their prior scale stands until then.
+                checked &= k >= 3;
                 continue;
             }
             let i = ((z.len() as f64 * BAND_EVIDENCE_QUANTILE).ceil() as usize).min(z.len()) - 1;
             let (_, q95, _) = z.select_nth_unstable_by(i, f64::total_cmp);
-            *s = (*q95 / Z95).max(1.0);
+            let least = if k < 3 { 1.0 } else { MIN_RATE_BAND_SCALE };
+            *s = (*q95 / Z95).max(least);
         }
-        (scale, checked)
+        (
+            [scale[0], scale[1], scale[2]],
+            [scale[3], scale[4], scale[5]],
+            checked,
+        )
+    }
+
+    /// Whether the rates measured through the newest samples (`RATE_WINDOW_S`) are beyond the
+    /// capacity.
+    fn measured_rate_outside(&self) -> bool {
+        let c = &self.config;
+        let Some(&(t, _)) = self.history.back() else {
+            return false;
+        };
+        self.measured_rate(t, RATE_WINDOW_S).is_some_and(|(rates, _)| {
+            rates[ROLL].abs() > c.max_abs_roll_rate_dps
+                || rates[PITCH].abs() > c.max_abs_pitch_rate_dps
+                || (self.channels > HEAVE && rates[HEAVE].abs() > c.max_abs_heave_rate_mps)
+        })
+    }
+
+    /// Each channel's rate at `t` from a least-squares line through the samples within
+    /// `half_s` of it, on both sides (None without samples that far on each side).
+    fn centred_rate(&self, t: f64, half_s: f64) -> Option<[f64; 3]> {
+        let near: Vec<&(f64, [f64; 3])> = self
+            .history
+            .iter()
+            .filter(|h| (h.0 - t).abs() <= half_s)
+            .collect();
+        let (first, last) = (near.first()?.0, near.last()?.0);
+        if near.len() < 5 || first > t - 0.8 * half_s || last < t + 0.8 * half_s {
+            return None;
+        }
+        let n = near.len() as f64;
+        let mt = near.iter().map(|h| h.0).sum::<f64>() / n;
+        let stt: f64 = near.iter().map(|h| (h.0 - mt).powi(2)).sum();
+        if !(stt > 0.0) {
+            return None;
+        }
+        let slope = |k: usize| {
+            let mv = near.iter().map(|h| h.1[k]).sum::<f64>() / n;
+            near.iter().map(|h| (h.0 - mt) * (h.1[k] - mv)).sum::<f64>() / stt
+        };
+        Some([slope(ROLL), slope(PITCH), slope(HEAVE)])
     }
 
     /// The margins to enter `ClearToLand`: the configured ones plus the prediction's error
@@ -1235,7 +1307,8 @@ impl LandingDecider {
     fn exceedance_risk(&self, m: &Models, times: impl Iterator<Item = f64>, limits: &[f64; 6]) -> f64 {
         let (roll, pitch) = (&m.tracks[ROLL], &m.tracks[PITCH]);
         let heave = m.tracks.get(HEAVE);
-        let [sr, sp, sh] = m.band_scale;
+        let [sr, sp, _] = m.band_scale;
+        let [rr, rp, rh] = m.rate_band_scale;
         let mut worst = [0.0f64; 6];
         for t in times {
             let (rm, rs) = (roll.value(t), sr * roll.std(t));
@@ -1244,10 +1317,10 @@ impl LandingDecider {
                 outside_probability(rm, rs, limits[0]),
                 outside_probability(pm, ps, limits[1]),
                 tilt_outside_probability((rm, rs), (pm, ps), limits[2]),
-                outside_probability(roll.rate(t), sr * roll.rate_std(t), limits[3]),
-                outside_probability(pitch.rate(t), sp * pitch.rate_std(t), limits[4]),
+                outside_probability(roll.rate(t), rr * roll.rate_std(t), limits[3]),
+                outside_probability(pitch.rate(t), rp * pitch.rate_std(t), limits[4]),
                 heave.map_or(0.0, |h| {
-                    outside_probability(h.rate(t), sh * h.rate_std(t), limits[5])
+                    outside_probability(h.rate(t), rh * h.rate_std(t), limits[5])
                 }),
             ];
             for (w, p) in worst.iter_mut().zip(tails) {
@@ -1386,6 +1459,11 @@ impl LandingDecider {
                     // the models before (a noise-free heave cleared 1.1 s after such a miss into
                     // 0.635 m/s: unit test `the_heave_rate_is_part_of_the_capacity`).
                     decision.reason = DecisionReason::PredictionUnreliable;
+                } else if self.measured_rate_outside() {
+                    // The deck is measured moving faster than the capacity now, whatever the
+                    // model says (a noise-free heave whose model was off by 0.06 m/s cleared
+                    // at a measured 0.61 m/s against 0.6).
+                    decision.reason = DecisionReason::OutsideCapacity;
                 } else if self.predicted_within(&m, now, now + self.config.touchdown_s, enter) {
                     decision.state = DecisionState::ClearToLand;
                     decision.new_commit = true;
@@ -1630,6 +1708,34 @@ mod tests {
             t += 0.1;
             assert!(t < 120.0, "a moderate sea has calm windows");
         }
+    }
+
+    #[test]
+    fn the_risk_of_leaving_a_limit_is_a_normal_tail_and_the_tilt_is_bounded_from_above() {
+        // Two-sided: the 95 % band.
+        assert!((outside_probability(0.0, 1.0, Z95) - 0.05).abs() < 1e-9);
+        // One side dominates: P(N(3, 1) > 5) = P(N(0, 1) > 2).
+        assert!((outside_probability(3.0, 1.0, 5.0) - 0.022_750_131_948_179).abs() < 1e-9);
+        // A mean beyond the limit with no stated deviation is outside for sure; far inside, 0.
+        assert_eq!(outside_probability(5.1, 0.0, 5.0), 1.0);
+        assert_eq!(outside_probability(0.0, 0.1, 5.0), 0.0);
+        // Roll and pitch centred, 1 deg each, independent: the tilt is about Rayleigh,
+        // P(tilt > L) = exp(-L^2 / 2). The bound is above it: 2.4, 6.4 and 31 times at 2, 3 and
+        // 4 deg (the square inside the disc; it holds whatever roll and pitch's correlation).
+        for (limit, looser) in [(2.0_f64, 3.0), (3.0, 8.0), (4.0, 35.0)] {
+            let rayleigh = (-limit * limit / 2.0).exp();
+            let bound = tilt_outside_probability((0.0, 1.0), (0.0, 1.0), limit);
+            assert!(
+                bound >= rayleigh && bound <= looser * rayleigh,
+                "{limit}: {bound} vs {rayleigh}"
+            );
+        }
+        // Pitch certain at 0: the tilt is the roll's.
+        let roll_only = tilt_outside_probability((3.0, 1.0), (0.0, 0.0), 5.0);
+        assert!(
+            (roll_only - outside_probability(3.0, 1.0, 5.0)).abs() < 1e-6,
+            "{roll_only}"
+        );
     }
 
     /// A committed touchdown rides through missing attitudes (the blind last metre) and a lone

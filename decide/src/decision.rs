@@ -567,7 +567,7 @@ const PRIOR_BAND_SCALE: f64 = 1.5;
 /// kick to the motion, the measurement's noise too, and comes out wide (the rate bands held
 /// 99-100 % of the truths up to 2 s ahead on the development seas): its scale may go below 1,
 /// as far as its own held-out misses say, but not below this.
-const MIN_RATE_BAND_SCALE: f64 = 0.25;
+const MIN_RATE_BAND_SCALE: f64 = 0.75;
 /// Half the span of the centred line that measures the deck's rate for the rate band's
 /// misses (s).
 const RATE_CHECK_HALF_WINDOW_S: f64 = 0.5;
@@ -907,8 +907,7 @@ impl LandingDecider {
                 let track = &m.tracks[k];
                 let acceleration = (track.rate(t + FIT_SPACING_S) - track.rate(t)) / FIT_SPACING_S;
                 let expected = track.rate(t) - acceleration * (t - mean_t);
-                (expected - rates[k]).abs()
-                    > limit.max(INNOVATION_Z * m.band_scale[k] * track.rate_std(t))
+                (expected - rates[k]).abs() > limit.max(INNOVATION_Z * m.band_scale[k] * track.rate_std(t))
             };
             if outside(ROLL, c.max_rate_innovation_dps)
                 || outside(PITCH, c.max_rate_innovation_dps)
@@ -1096,7 +1095,13 @@ impl LandingDecider {
                 // through the samples of a second centred on it: unbiased by the deck's
                 // acceleration; its noise only makes the misses look larger).
                 let mut z = [f64::NAN; 6];
-                let measured_rate = self.centred_rate(ti, RATE_CHECK_HALF_WINDOW_S);
+                // The rates from the last quarter alone: scaled on the whole last half, the
+                // rate bands held 92-94 % 2 s ahead and a held-out sea cleared into 0.61 m/s
+                // of heave rate (BENCHMARKS.md, "Deck-motion prediction").
+                let far_end = ti >= t0 + 0.75 * c.holdout_s;
+                let measured_rate = far_end
+                    .then(|| self.centred_rate(ti, RATE_CHECK_HALF_WINDOW_S))
+                    .flatten();
                 for (k, track) in old.iter().enumerate() {
                     z[k] = (v[k] - track.value(ti)).abs() / track.std(ti);
                     if let Some(rates) = measured_rate {

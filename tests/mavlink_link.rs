@@ -224,7 +224,9 @@ fn pymavlink_autopilot_and_ground_station() {
         .iter()
         .filter(|r| captured(r) < stop_ns - 100_000_000 && captured(r) > first_target_ns)
         .all(|r| r["reason"] != "no-vehicle-attitude"));
-    let ride_through_ns = 1_000_000_000;
+    // The ride-through is counted from the first frame without the vehicle's attitude: up to a
+    // frame after the last sample + max_gap_ms.
+    let ride_through_ns = 1_000_000_000 + (1e9 / RATE_HZ) as u64;
     let after: Vec<_> = rows
         .iter()
         .filter(|r| captured(r) > stop_ns + 30_000_000)

@@ -142,8 +142,9 @@ impl Default for DecisionConfig {
             gap_recovery_s: 1.0,
             max_plausible_rate_dps: 40.0,
             frozen_input_count: 3,
-            window_s: 120.0,
-            min_history_s: 8.0,
+            // The predictor's own (`with_predictor_defaults`, below).
+            window_s: f64::NAN,
+            min_history_s: f64::NAN,
             refit_interval_s: 1.0,
             predictor: Predictor::Ar,
             ar_order: 48,
@@ -151,9 +152,9 @@ impl Default for DecisionConfig {
             go_around_risk: 0.2,
             components: 4,
             fit_memory_s: 10.0,
-            margin_deg: 0.0,
-            rate_margin_dps: 0.0,
-            heave_rate_margin_mps: 0.0,
+            margin_deg: f64::NAN,
+            rate_margin_dps: f64::NAN,
+            heave_rate_margin_mps: f64::NAN,
             max_holdout_error_deg: 2.0,
             max_holdout_error_m: 0.3,
             holdout_s: 2.0,
@@ -166,6 +167,7 @@ impl Default for DecisionConfig {
             abort_hold_s: 2.0,
             ride_through_ms: 1000.0,
         }
+        .with_predictor_defaults(|_| false)
     }
 }
 
@@ -991,26 +993,8 @@ impl LandingDecider {
     /// `window` seconds, and their mean time (where a line's slope is the rate); None with fewer
     /// than 4 samples.
     fn measured_rate(&self, t: f64, window: f64) -> Option<([f64; 3], f64)> {
-        let recent: Vec<&(f64, [f64; 3])> = self
-            .history
-            .iter()
-            .rev()
-            .take_while(|h| t - h.0 <= window)
-            .collect();
-        if recent.len() < 4 {
-            return None;
-        }
-        let n = recent.len() as f64;
-        let mt = recent.iter().map(|h| h.0).sum::<f64>() / n;
-        let stt: f64 = recent.iter().map(|h| (h.0 - mt).powi(2)).sum();
-        if !(stt > 0.0) {
-            return None;
-        }
-        let slope = |k: usize| {
-            let mv = recent.iter().map(|h| h.1[k]).sum::<f64>() / n;
-            recent.iter().map(|h| (h.0 - mt) * (h.1[k] - mv)).sum::<f64>() / stt
-        };
-        Some(([slope(ROLL), slope(PITCH), slope(HEAVE)], mt))
+        let line = fit_line(self.history.iter().rev().take_while(|h| t - h.0 <= window))?;
+        (line.count >= 4).then_some((line.slopes, line.mean_t))
     }
 
     fn fit(&mut self) -> Option<Models> {
@@ -1221,26 +1205,15 @@ impl LandingDecider {
     /// Each channel's rate at `t` from a least-squares line through the samples within
     /// `half_s` of it, on both sides (None without samples that far on each side).
     fn centred_rate(&self, t: f64, half_s: f64) -> Option<[f64; 3]> {
-        let near: Vec<&(f64, [f64; 3])> = self
+        let near = self
             .history
             .iter()
-            .filter(|h| (h.0 - t).abs() <= half_s)
-            .collect();
-        let (first, last) = (near.first()?.0, near.last()?.0);
-        if near.len() < 5 || first > t - 0.8 * half_s || last < t + 0.8 * half_s {
-            return None;
-        }
-        let n = near.len() as f64;
-        let mt = near.iter().map(|h| h.0).sum::<f64>() / n;
-        let stt: f64 = near.iter().map(|h| (h.0 - mt).powi(2)).sum();
-        if !(stt > 0.0) {
-            return None;
-        }
-        let slope = |k: usize| {
-            let mv = near.iter().map(|h| h.1[k]).sum::<f64>() / n;
-            near.iter().map(|h| (h.0 - mt) * (h.1[k] - mv)).sum::<f64>() / stt
-        };
-        Some([slope(ROLL), slope(PITCH), slope(HEAVE)])
+            .rev()
+            .skip_while(|h| h.0 > t + half_s)
+            .take_while(|h| h.0 >= t - half_s);
+        let line = fit_line(near)?;
+        let both_sides = line.first_t <= t - 0.8 * half_s && line.last_t >= t + 0.8 * half_s;
+        (line.count >= 5 && both_sides).then_some(line.slopes)
     }
 
     /// The margins to enter `ClearToLand`: the configured ones plus the prediction's error
@@ -1500,6 +1473,50 @@ impl LandingDecider {
     }
 }
 
+/// A least-squares line through samples (time s, roll, pitch, height) per channel.
+struct LineFit {
+    slopes: [f64; 3],
+    /// The samples' mean time: where a line's slope is the rate.
+    mean_t: f64,
+    count: usize,
+    first_t: f64,
+    last_t: f64,
+}
+
+/// The line through `samples` (in any order); None without two distinct times. Two passes over
+/// the iterator and no allocation: the decision fits one on every frame.
+fn fit_line<'a>(samples: impl Iterator<Item = &'a (f64, [f64; 3])> + Clone) -> Option<LineFit> {
+    let (mut count, mut sum_t, mut sum_v) = (0usize, 0.0, [0.0; 3]);
+    let (mut first_t, mut last_t) = (f64::INFINITY, f64::NEG_INFINITY);
+    for &(t, v) in samples.clone() {
+        count += 1;
+        sum_t += t;
+        for k in 0..3 {
+            sum_v[k] += v[k];
+        }
+        first_t = first_t.min(t);
+        last_t = last_t.max(t);
+    }
+    let n = count as f64;
+    let mean_t = sum_t / n;
+    let mean_v = sum_v.map(|s| s / n);
+    let (mut stt, mut stv) = (0.0, [0.0; 3]);
+    for &(t, v) in samples {
+        let dt = t - mean_t;
+        stt += dt * dt;
+        for k in 0..3 {
+            stv[k] += dt * (v[k] - mean_v[k]);
+        }
+    }
+    (stt > 0.0).then(|| LineFit {
+        slopes: stv.map(|s| s / stt),
+        mean_t,
+        count,
+        first_t,
+        last_t,
+    })
+}
+
 /// The probability that a normal value of `mean` and `std` is beyond `limit` either way (`std`
 /// 0: whether the mean is).
 fn outside_probability(mean: f64, std: f64, limit: f64) -> f64 {
@@ -1713,6 +1730,24 @@ mod tests {
             t += 0.1;
             assert!(t < 120.0, "a moderate sea has calm windows");
         }
+    }
+
+    #[test]
+    fn a_line_through_samples_gives_each_channel_its_slope_at_their_mean_time() {
+        let samples: Vec<(f64, [f64; 3])> = (0..6)
+            .map(|k| {
+                let t = 1000.0 + 0.1 * k as f64;
+                (t, [2.0 * t, -0.5 * t + 3.0, (t - 1000.0).powi(2)])
+            })
+            .collect();
+        let line = fit_line(samples.iter().rev()).unwrap();
+        assert_eq!((line.count, line.first_t, line.last_t), (6, 1000.0, 1000.5));
+        assert!((line.mean_t - 1000.25).abs() < 1e-9);
+        assert!((line.slopes[0] - 2.0).abs() < 1e-6 && (line.slopes[1] + 0.5).abs() < 1e-6);
+        // A parabola's line has the parabola's slope at the mean time.
+        assert!((line.slopes[2] - 2.0 * 0.25).abs() < 1e-6, "{:?}", line.slopes);
+        // One time only: no line.
+        assert!(fit_line(samples[..1].iter()).is_none());
     }
 
     #[test]

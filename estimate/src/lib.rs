@@ -1,16 +1,20 @@
 //! Deck attitude estimators: pure algorithms, no IPC and no logging; the runtime's estimate
 //! stage wires them to the pipeline.
 //!
+//! - [`deck_estimator`]: [`DeckEstimator`], the estimation pipeline of one camera around the
+//!   estimators (vehicle attitude, heading, deck height, rolling shutter, frozen images).
 //! - [`paper`]: the paper's ellipse method with the corrections of NOTES.md.
 //! - [`ellipse`]: the eq. (3) conic fit both use.
 
 pub mod config;
+pub mod deck_estimator;
 pub mod ellipse;
 pub mod motion;
 pub mod paper;
 pub mod pose;
 
 pub use config::EstimateConfig;
+pub use deck_estimator::DeckEstimator;
 pub use ellipse::{Ellipse, EllipseFit, EllipseFitError};
 pub use motion::DeckMotionHistory;
 pub use paper::{NotEstimable, PaperEstimate, PaperEstimator, PaperVariant};

@@ -161,7 +161,7 @@ fn offset_camera_at_varying_altitude_is_exact() {
 
 #[test]
 fn altimeter_error_hurts_only_the_printed_variant() {
-    // NOTES item 5: acos(q / r) with the known r makes beta sensitive to the altimeter.
+    // CONVENTIONS.md C5: acos(q / r) with the known r makes beta sensitive to the altimeter.
     let ship = ShipMotion::sea_state_6(1);
     let printed = run(
         &ship,

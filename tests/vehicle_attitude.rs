@@ -1,4 +1,4 @@
-//! A camera carried by a swaying vehicle (NOTES.md item 8): exact projections of the markers
+//! A camera carried by a swaying vehicle (CONVENTIONS.md §5): exact projections of the markers
 //! through the tilted camera, then both estimators with and without the vehicle's attitude. With
 //! it, the deck's attitude in the world frame is exact to rounding; without it, it is wrong by
 //! about the vehicle's tilt (what deckwatch reported before).

@@ -1,5 +1,5 @@
 //! A simulated autopilot's attitude stream: what the vehicle's attitude looks like once it has
-//! gone through an autopilot's estimator and a link (NOTES.md item 8). Samples at the
+//! gone through an autopilot's estimator and a link (CONVENTIONS.md §5). Samples at the
 //! autopilot's rate, each the true `R_V` turned by a constant bias and Gaussian noise (both
 //! small rotations in the body frame), stamped with a timing error: what latency and clock
 //! synchronisation leave in a timestamp once it is on the frames' clock (TIMESYNC leaves about

@@ -9,7 +9,7 @@ use std::f64::consts::TAU;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MotionSample {
     pub t_s: f64,
-    /// True deck attitude (X-Y-Z roll/pitch/yaw, NOTES.md conventions).
+    /// True deck attitude (X-Y-Z roll/pitch/yaw, CONVENTIONS.md §2).
     pub attitude: Rpy,
     /// True camera position over the deck.
     pub viewpoint: Viewpoint,
@@ -257,7 +257,7 @@ pub const HOVER_SWAY_ROLL: [(f64, f64); 3] = [(6.0, 4.0), (2.4, 1.25), (0.7, 0.6
 pub const HOVER_SWAY_PITCH: [(f64, f64); 3] = [(5.0, 5.0), (2.2, 1.45), (0.6, 0.67)];
 pub const HOVER_SWAY_YAW: [(f64, f64); 2] = [(4.0, 50.0), (1.0, 10.0)];
 
-/// The attitude of the vehicle that carries the camera (`R_V`, body to world; NOTES.md item 8)
+/// The attitude of the vehicle that carries the camera (`R_V`, body to world; CONVENTIONS.md §5)
 /// over time: a sum of sinusoids per axis with phases from the seed.
 #[derive(Debug, Clone, PartialEq)]
 pub struct VehicleSway {

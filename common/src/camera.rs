@@ -143,7 +143,7 @@ impl CameraModel {
     }
 
     /// The paper's camera: 3280x2464 with focal angles 45.4 x 31.1 deg (non-square pixels:
-    /// fx = 1640 / tan(22.7 deg) = 3920.55 (NOTES.md rounds it to 3919.5), fy = 1232 / tan(15.55 deg) = 4427.4).
+    /// fx = 1640 / tan(22.7 deg) = 3920.55 (sometimes rounded to 3919.5; CONVENTIONS.md §3), fy = 1232 / tan(15.55 deg) = 4427.4).
     pub fn paper() -> Self {
         Self::centred(
             3280,
@@ -316,7 +316,7 @@ mod tests {
     #[test]
     fn presets_match_notes() {
         let p = CameraModel::paper();
-        // NOTES.md prints 3919.5, but its own formula 1640 / tan(22.7 deg) gives 3920.55.
+        // 3919.5 is sometimes quoted, but the formula 1640 / tan(22.7 deg) gives 3920.55.
         assert!((p.fx - 3920.546).abs() < 1e-3, "{}", p.fx);
         assert!((p.fy - 4427.4).abs() < 0.1, "{}", p.fy);
         assert_eq!((p.cx, p.cy), (1639.5, 1231.5));

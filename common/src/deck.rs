@@ -1,4 +1,4 @@
-//! The marker layout on the flight deck and its index convention (NOTES.md):
+//! The marker layout on the flight deck and its index convention (CONVENTIONS.md §4):
 //! index 0 = centre; index 1 + k (k = 0..n_ring) = ring marker at 360 k / n_ring degrees from +x
 //! toward +y (counter-clockwise seen from above); index 1 is the bow marker. The opposite of ring
 //! marker k is ring marker (k + n_ring / 2) mod n_ring.
@@ -39,7 +39,7 @@ impl Default for DeckLayout {
 }
 
 impl DeckLayout {
-    /// The paper's deck: 8 markers on a 1 m ring plus the centre; disc radii as NOTES.md
+    /// The paper's deck: 8 markers on a 1 m ring plus the centre; disc radii as CONVENTIONS.md §4
     /// recommends for detection (0.05 m, bow 0.08 m).
     pub fn paper() -> Self {
         Self {

@@ -68,7 +68,7 @@ pub fn rms_residual(h: &Matrix3<f64>, src: &[[f64; 2]], dst: &[[f64; 2]]) -> f64
 
 /// The centre of the image (under `h`) of the circle of radius `r` around `c`, and the image of
 /// `c` itself. They differ: perspective moves the centre of an imaged disc away from the image
-/// of the disc's centre (NOTES.md item 6).
+/// of the disc's centre (CONVENTIONS.md C6).
 pub fn imaged_circle_centre(h: &Matrix3<f64>, c: [f64; 2], r: f64) -> Option<([f64; 2], [f64; 2])> {
     let circle = Matrix3::new(
         1.0,

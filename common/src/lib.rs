@@ -1,7 +1,7 @@
 //! What every part of deckwatch shares, defined once: the frame and angle conventions, the camera
 //! and deck models, image views and the recording format.
 //!
-//! Conventions (NOTES.md): world frame W at the deck centre, x = bow of the level deck, y = port,
+//! Conventions (CONVENTIONS.md): world frame W at the deck centre, x = bow of the level deck, y = port,
 //! z = up; `P_world = R * P_deck`; `R = Rz(alpha) Rx(beta) Rz(gamma) = Rx(roll) Ry(pitch) Rz(yaw)`;
 //! level camera looking down, image up = bow, image left = port; pixel centres at integers.
 

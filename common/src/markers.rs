@@ -64,7 +64,7 @@ pub struct MarkerSet {
     pub count: u32,
     /// Whether the markers were found by tracking (regions around the previous frame's).
     pub tracked: WireBool,
-    /// Whether the centres are free of the perspective bias of disc centroids (NOTES.md item 6);
+    /// Whether the centres are free of the perspective bias of disc centroids (CONVENTIONS.md C6);
     /// false: raw centroids, an estimator should correct them.
     pub perspective_corrected: WireBool,
     pub markers: [Marker; MAX_MARKERS],

@@ -332,7 +332,7 @@ impl Truth {
 }
 
 /// The attitude of the vehicle that carried the camera when the frame was taken (`R_V`, body
-/// to world; NOTES.md item 8), and how it is known.
+/// to world; CONVENTIONS.md §5), and how it is known.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::AnyBitPattern)]
 #[cfg_attr(
@@ -550,7 +550,7 @@ pub enum EstimatorKind {
     PaperAtan2 = 0,
     /// The paper's method exactly as printed (acos, needs the altimeter).
     PaperPrinted = 1,
-    /// The paper's method with the fitted ellipse's major axis (NOTES.md item 5).
+    /// The paper's method with the fitted ellipse's major axis (CONVENTIONS.md C5).
     PaperFittedMajorAxis = 2,
     /// Full planar pose from every visible marker (`estimate::pose`).
     FullPose = 3,

@@ -1,4 +1,4 @@
-//! The recording format (NOTES.md): a folder with
+//! The recording format (README; the columns' meaning in CONVENTIONS.md §9): a folder with
 //! - `camera.json`: `width, height, fx, fy, cx, cy, distortion` (`[k1,k2,p1,p2,k3]`) and `deck`
 //!   (`ring_radius_m, marker_radius_m, bow_marker_radius_m, n_ring, markers_deck_xyz_m`);
 //!   unknown extra keys are ignored;
@@ -246,7 +246,7 @@ pub struct GroundTruth {
     pub offset_x_m: Option<f64>,
     pub offset_y_m: Option<f64>,
     /// The attitude of the vehicle carrying the camera at mid-exposure (`R_V`, body to world,
-    /// X-Y-Z degrees; NOTES.md item 8); None: a level camera.
+    /// X-Y-Z degrees; CONVENTIONS.md §5); None: a level camera.
     pub vehicle_roll_deg: Option<f64>,
     pub vehicle_pitch_deg: Option<f64>,
     pub vehicle_yaw_deg: Option<f64>,

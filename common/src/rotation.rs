@@ -1,4 +1,4 @@
-//! Attitude conventions of deckwatch (NOTES.md, "Conventions"): the single source of truth.
+//! Attitude conventions of deckwatch (CONVENTIONS.md): the single source of truth.
 //!
 //! `P_world = R * P_deck`, with
 //! `R = Rz(alpha) Rx(beta) Rz(gamma)` (the paper's 3-1-3 sequence) `= Rx(roll) Ry(pitch) Rz(yaw)`.
@@ -197,7 +197,7 @@ impl Euler313 {
 
     /// The Hamilton quaternion of `Rz(alpha) Rx(beta) Rz(gamma)`, in closed form.
     ///
-    /// This is the paper's printed formula with the sign of its q2 corrected (NOTES.md): the
+    /// This is the paper's printed formula with the sign of its q2 corrected (CONVENTIONS.md §2): the
     /// printed q2 `s(g/2)s(b/2)c(a/2) - c(g/2)s(b/2)s(a/2)` is the negative of the true y part.
     pub fn to_quaternion(&self) -> Quaternion {
         let (sa, ca) = (self.alpha / 2.0).sin_cos();

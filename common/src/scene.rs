@@ -6,7 +6,7 @@
 //! `R_V = Rx(roll) Ry(pitch) Rz(yaw)`, the deck's X-Y-Z order), looking straight down with image
 //! up = body forward: `p_cam = R_CW0 R_V^T (P_world - C)` with
 //! `R_CW0 = [[0,-1,0],[-1,0,0],[0,0,-1]]` ([`camera_from_world`]). `R_V = I` is the paper's level
-//! camera (image up = bow, image left = port). NOTES.md item 8.
+//! camera (image up = bow, image left = port). CONVENTIONS.md §5.
 
 use crate::camera::CameraModel;
 use crate::deck::DeckLayout;

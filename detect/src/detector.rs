@@ -8,7 +8,7 @@
 //! coverage `(I - background) / (plateau - background)` (insensitive to light gradients).
 //! Identification is geometric (centre, bow, angles: [`crate::identify`]); with extra blobs
 //! (glints) the subsets are tried and the one whose homography to the deck fits best wins.
-//! Finally the perspective bias of disc centres (NOTES.md item 6) is removed with that
+//! Finally the perspective bias of disc centres (CONVENTIONS.md C6) is removed with that
 //! homography: the centre of an imaged disc is not the image of the disc's centre.
 //!
 //! Tracking: the next frame first looks only in regions around the previous markers; when that

@@ -1,4 +1,4 @@
-//! Geometric identification: which blob is which marker (NOTES.md indices: 0 centre, 1 bow, then
+//! Geometric identification: which blob is which marker (CONVENTIONS.md §4 indices: 0 centre, 1 bow, then
 //! counter-clockwise as seen from above). Centre = the blob nearest the centroid of the others,
 //! bow = the clearly largest ring blob, the rest by their angle from the bow around the centre.
 

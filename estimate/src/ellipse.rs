@@ -1,5 +1,5 @@
 //! Ellipse through points: the paper's eq. (3) conic least squares (x^2 coefficient fixed to 1),
-//! solved with faer, and the ellipse parameters with the corrections of NOTES.md item 3.
+//! solved with faer, and the ellipse parameters with the corrections of CONVENTIONS.md C3.
 
 pub use deckwatch_common::ellipse::Ellipse;
 use faer::linalg::solvers::SolveLstsq;

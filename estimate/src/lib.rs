@@ -3,7 +3,7 @@
 //!
 //! - [`deck_estimator`]: [`DeckEstimator`], the estimation pipeline of one camera around the
 //!   estimators (vehicle attitude, heading, deck height, rolling shutter, frozen images).
-//! - [`paper`]: the paper's ellipse method with the corrections of NOTES.md.
+//! - [`paper`]: the paper's ellipse method with the corrections of CONVENTIONS.md.
 //! - [`ellipse`]: the eq. (3) conic fit both use.
 
 pub mod config;

@@ -1,15 +1,15 @@
-//! The paper's estimator (Jang, Martinez Macias, Bewley), with the corrections of NOTES.md.
+//! The paper's estimator (Jang, Martinez Macias, Bewley), with the corrections of CONVENTIONS.md (C1-C5).
 //!
 //! 1. Marker pixels (undistorted) -> image coordinates from the principal point, Xp right, Yp up.
-//! 2. "Corrected image" (eq. (7) re-derived, NOTES item 2): each ring marker i with its opposite
+//! 2. "Corrected image" (eq. (7) re-derived, CONVENTIONS.md C2): each ring marker i with its opposite
 //!    i' gives its 3D position in the world frame from the altimeter height h and the centre
 //!    marker's image m0, exactly for a level camera even when it is offset from the deck centre.
 //!    (Extension for occlusions: a ring marker whose opposite is hidden is placed where its
 //!    viewing ray meets the deck plane spanned by the complete pairs.)
 //! 3. Eq. (3): conic least squares through the corrected ring points' (x, y); ellipse parameters
-//!    (NOTES item 3). The major axis's angle is alpha.
+//!    (CONVENTIONS.md C3). The major axis's angle is alpha.
 //! 4. beta from the right triangle of Fig. 8, gamma from the isosceles triangle of Fig. 9 between
-//!    the major-axis end OX' and the bow marker OX'' (NOTES item 4); see [`PaperVariant`].
+//!    the major-axis end OX' and the bow marker OX'' (CONVENTIONS.md C4); see [`PaperVariant`].
 //! 5. `R = Rz(alpha) Rx(beta) Rz(gamma)` -> Hamilton quaternion and roll/pitch/yaw (X-Y-Z).
 
 use crate::ellipse::{Ellipse, EllipseFit, EllipseFitError};
@@ -25,7 +25,7 @@ pub enum PaperVariant {
     /// radius r. Needs an accurate altimeter (0.1 % altitude error gives up to 1.75 deg); loses
     /// half the digits near a level deck and near gamma = 0 (acos of ~1).
     Printed,
-    /// NOTES item 5: the fitted semi-major axis p in place of r in both formulas. Insensitive to
+    /// CONVENTIONS.md C5: the fitted semi-major axis p in place of r in both formulas. Insensitive to
     /// altitude error; same conditioning as `Printed`.
     FittedMajorAxis,
     /// The same two triangles solved with atan2 from their legs: beta from the height of the
@@ -168,7 +168,7 @@ impl PaperEstimator {
     /// Estimates the deck attitude from marker pixels in marker-index order (None = not seen;
     /// distorted pixels as detected) and the altimeter height of the camera over the deck centre.
     /// The same for a camera carried by a vehicle at attitude `vehicle` (`R_V`, body to world,
-    /// NOTES.md item 8). The method assumes a level camera, so the marker bearings are first
+    /// CONVENTIONS.md §5). The method assumes a level camera, so the marker bearings are first
     /// turned into those of a virtual level camera at the same optical centre (a pure rotation
     /// of the viewing rays: `r_level = R_CW0 R_V R_CW0^T r_cam`), then estimated as usual; the
     /// altimeter's height is still the optical centre's. The image ellipse of the result is in
@@ -209,7 +209,7 @@ impl PaperEstimator {
         let h = altitude_m.unwrap_or(1.0);
         let (fx, fy) = (self.camera.fx, self.camera.fy);
 
-        // Step 1: image coordinates from the principal point, Xp right, Yp up (NOTES item 1).
+        // Step 1: image coordinates from the principal point, Xp right, Yp up (CONVENTIONS.md C1).
         let mut m = [None::<[f64; 2]>; MAX_MARKERS];
         for (i, uv) in markers.iter().enumerate() {
             let Some(uv) = uv else { continue };
@@ -429,7 +429,7 @@ impl PaperEstimator {
     }
 }
 
-/// Eq. (7), re-derived (NOTES item 2): the world position of ring marker i from its image m_i,
+/// Eq. (7), re-derived (CONVENTIONS.md C2): the world position of ring marker i from its image m_i,
 /// its opposite's image m_i' and the centre's image m0 (Xp right, Yp up), camera level at height
 /// h. Since P_i + P_i' = 0 and the three images are collinear, `depth_i = 2 h d_i' / (d_i + d_i')`.
 fn correct_pair(

@@ -6,7 +6,7 @@
 //! Levenberg-Marquardt minimises the reprojection error in pixels over the rotation vector and
 //! the translation. A marker that reprojects worse than `max_reprojection_px` is dropped and the
 //! pose re-solved (at least 4 markers, the bow among them, must remain). Centroids still biased
-//! by perspective (NOTES.md item 6) are corrected with the pose and the pose solved again. The
+//! by perspective (CONVENTIONS.md C6) are corrected with the pose and the pose solved again. The
 //! angles' covariance comes from the Jacobian at the optimum, scaled by the residual.
 //!
 //! Conventions as everywhere (`common::scene`): `p_cam = R_CW (R P_deck - C)`, so the deck
@@ -204,7 +204,7 @@ impl PoseEstimator {
     }
 
     /// The same for a camera carried by a vehicle at attitude `vehicle` (`R_V`, body to world,
-    /// NOTES.md item 8): the pose is solved in the camera (the deck relative to the camera is
+    /// CONVENTIONS.md §5): the pose is solved in the camera (the deck relative to the camera is
     /// the same whatever the vehicle does) and composed with `R_V R_CW0^T`, so the deck's
     /// attitude and the camera's position come out in the world frame.
     pub fn estimate_with_vehicle(

@@ -3,13 +3,12 @@
 //! rule. Measurements are the truth plus Gaussian noise, dropped frames and outliers, as the
 //! estimate stage delivers them.
 
-use deckwatch_capture::motion::{DeckHeave, MotionProfile, ShipMotion, SpectrumShipMotion, VehicleSway};
+use deckwatch_capture::motion::{DeckHeave, MotionProfile, ShipMotion, SpectrumShipMotion};
 use deckwatch_capture::motion_file::RecordedShipMotion;
-use deckwatch_capture::rng::SplitMix64;
-use deckwatch_common::messages::FROZEN_IMAGE_REPEATS;
-use deckwatch_decide::decision::{DecisionConfig, DeckObservation};
+use deckwatch_decide::decision::DecisionConfig;
 use deckwatch_decide::eval::{evaluate, RuleOutcome};
 use deckwatch_decide::FrameInput;
+use deckwatch_trials::AttitudeStreamModel;
 use std::time::Instant;
 
 #[derive(clap::Args)]
@@ -238,129 +237,70 @@ pub(crate) fn minutes(a: &DecideEvalArgs) -> Result<f64, String> {
     }
 }
 
-/// Checks the options that shape the measured stream.
-pub(crate) fn check(a: &DecideEvalArgs) -> Result<(), String> {
-    if !(a.rate > 0.0 && a.minutes.is_none_or(|m| m > 0.0)) {
-        return Err("--rate and --minutes must be positive".into());
+/// The attitude stream the options describe (`trials::faults`: the one fault model).
+pub(crate) fn stream_model(a: &DecideEvalArgs) -> Result<AttitudeStreamModel, String> {
+    if !a.minutes.is_none_or(|m| m > 0.0) {
+        return Err("--minutes must be positive".into());
     }
     if !matches!(a.vehicle.as_str(), "level" | "sway") {
         return Err(format!("--vehicle: unknown `{}` (level, sway)", a.vehicle));
     }
-    if !matches!(a.vehicle_bias_deg[..], [r, p] if r.is_finite() && p.is_finite()) {
-        return Err("--vehicle-bias-deg: two finite angles (roll, pitch)".into());
-    }
-    if !(a.vehicle_noise_deg >= 0.0
-        && a.vehicle_outages_per_min >= 0.0
-        && a.vehicle_outage_s > 0.0
-        && a.vehicle_time_error_ms.is_finite()
-        && a.heave_noise_m >= 0.0
-        && a.heave_scale >= 0.0)
-    {
-        return Err("--vehicle-*: noise and outages must not be negative, outages must last".into());
-    }
-    let shares = [a.nan_share, a.stale_share, a.dropout, a.outliers];
-    if !(shares.iter().all(|v| (0.0..=1.0).contains(v))
-        && a.frozen_per_min >= 0.0
-        && a.frozen_s > 0.0
-        && a.jitter_ms >= 0.0)
-    {
-        return Err("--nan-share, --stale-share, --dropout, --outliers are shares in [0, 1]; --frozen-*, --jitter-ms must not be negative".into());
-    }
     if a.headings.is_empty() || !a.headings.iter().all(|h| h.is_finite()) {
         return Err("--headings: finite angles (deg)".into());
     }
-    Ok(())
+    let vehicle_bias_deg = match a.vehicle_bias_deg[..] {
+        [r, p] => [r, p],
+        _ => return Err("--vehicle-bias-deg: two finite angles (roll, pitch)".into()),
+    };
+    let model = AttitudeStreamModel {
+        rate_hz: a.rate,
+        noise_deg: a.noise_deg,
+        heave_noise_m: a.heave_noise_m,
+        dropout: a.dropout,
+        outliers: a.outliers,
+        nan_share: a.nan_share,
+        stale_share: a.stale_share,
+        jitter_ms: a.jitter_ms,
+        latency_ms: a.latency_ms,
+        frozen_per_min: a.frozen_per_min,
+        frozen_s: a.frozen_s,
+        vehicle_sways: a.vehicle == "sway",
+        vehicle_bias_deg,
+        vehicle_noise_deg: a.vehicle_noise_deg,
+        vehicle_time_error_ms: a.vehicle_time_error_ms,
+        vehicle_outages_per_min: a.vehicle_outages_per_min,
+        vehicle_outage_s: a.vehicle_outage_s,
+    };
+    model.validate().map_err(|e| e.to_string())?;
+    if !(a.heave_scale >= 0.0) {
+        return Err("--heave-scale must not be negative".into());
+    }
+    Ok(model)
 }
 
-/// The measured stream of one series: the truth plus what `a` adds (noise, dropped frames,
-/// outliers, NaN, stale and frozen frames, stamp jitter, the vehicle's compensation errors and
-/// outages), as the estimate stage would deliver it, from a random stream of `seed` and `ss`.
 /// Frames per series: `minutes` at `--rate`, and with a motion file the one at its end too.
 pub(crate) fn frames(a: &DecideEvalArgs, minutes: f64) -> usize {
     (minutes * 60.0 * a.rate) as usize + usize::from(a.motion_csv.is_some())
 }
 
-pub(crate) fn measure(a: &DecideEvalArgs, minutes: f64, sea: &Sea, ss: u32, seed: u64) -> Vec<FrameInput> {
-    let n = frames(a, minutes);
-    let sway = a.vehicle == "sway";
-    let bias = [a.vehicle_bias_deg[0], a.vehicle_bias_deg[1]];
-    let mut rng = SplitMix64::new(seed.wrapping_mul(0x9E37_79B9) ^ ss as u64);
-    // What compensating with the autopilot's attitude leaves in the deck's roll and pitch: the
-    // sway over the timing error, the autopilot's bias and noise.
-    let hover = VehicleSway::hover(seed, 1.0);
-    let dt = a.vehicle_time_error_ms / 1e3;
-    let vehicle_error = |t: f64, rng: &mut SplitMix64| {
-        let [r1, p1, _] = hover.attitude(t).to_degrees();
-        let [r0, p0, _] = hover.attitude(t - dt).to_degrees();
-        let timing = if sway { [r1 - r0, p1 - p0] } else { [0.0; 2] };
-        [0, 1].map(|i| timing[i] + bias[i] + a.vehicle_noise_deg * rng.next_gaussian())
-    };
-    // Outages: a Poisson process of starts, each `vehicle_outage_s` long; frozen input the same
-    // way.
-    let mut outage_until = f64::NEG_INFINITY;
-    let p_start = a.vehicle_outages_per_min / 60.0 / a.rate;
-    let (mut frozen_until, mut frozen_deck, mut repeats) = (f64::NEG_INFINITY, None, 0u32);
-    let p_frozen = a.frozen_per_min / 60.0 / a.rate;
-    (0..n)
-        .map(|k| {
-            let t = k as f64 / a.rate;
-            let [r, p, h] = sea.truth(t);
-            if rng.next_f64() < p_start {
-                outage_until = outage_until.max(t + a.vehicle_outage_s);
-            }
-            let [er, ep] = vehicle_error(t, &mut rng);
-            let (r, p) = (r + er, p + ep);
-            if rng.next_f64() < p_frozen {
-                frozen_until = frozen_until.max(t + a.frozen_s);
-            }
-            let deck = if rng.next_f64() < a.dropout {
-                None
-            } else {
-                let mut m = [
-                    r + a.noise_deg * rng.next_gaussian(),
-                    p + a.noise_deg * rng.next_gaussian(),
-                ];
-                let height = h + a.heave_noise_m * rng.next_gaussian();
-                if rng.next_f64() < a.outliers {
-                    let i = (rng.next_u64() % 2) as usize;
-                    m[i] += (5.0 + 10.0 * rng.next_f64()) * if rng.next_f64() < 0.5 { -1.0 } else { 1.0 };
-                }
-                if rng.next_f64() < a.nan_share {
-                    m[0] = f64::NAN;
-                }
-                Some(DeckObservation::new(m[0], m[1], height))
-            };
-            // A frozen camera: the same image again and again. The estimate stage sees
-            // the same markers and, from the `FROZEN_IMAGE_REPEATS`-th repeat on, says
-            // so (no valid attitude); the repeats before pass as the same measurement.
-            let (deck, frozen_image) = if t < frozen_until {
-                let frozen = *frozen_deck.get_or_insert(deck);
-                let seen = frozen.is_some() && repeats >= FROZEN_IMAGE_REPEATS;
-                repeats += 1;
-                (if seen { None } else { frozen }, seen)
-            } else {
-                frozen_deck = None;
-                repeats = 0;
-                (deck, false)
-            };
-            let stamp = t + a.jitter_ms / 1e3 * rng.next_gaussian();
-            let late = if rng.next_f64() < a.stale_share { 1.0 } else { 0.0 };
-            FrameInput {
-                t_s: stamp,
-                deck,
-                age_s: a.latency_ms / 1e3 + late,
-                vehicle_missing: t < outage_until,
-                frozen_image,
-            }
-        })
-        .collect()
+/// The measured stream of one series: the truth plus the faults of `model`, from a random
+/// stream of `seed` and `ss`.
+pub(crate) fn measure(
+    model: &AttitudeStreamModel,
+    a: &DecideEvalArgs,
+    minutes: f64,
+    sea: &Sea,
+    ss: u32,
+    seed: u64,
+) -> Vec<FrameInput> {
+    model.measure(&|t| sea.truth(t), frames(a, minutes), seed, ss)
 }
 
 pub fn run(a: DecideEvalArgs) -> Result<(), String> {
     let (pipeline, file) = crate::pipeline::load(a.config.as_deref())?;
     let config: DecisionConfig = pipeline.decide;
     config.validate().map_err(|e| format!("{file}: decide.{e}"))?;
-    check(&a)?;
+    let model = stream_model(&a)?;
     let minutes = minutes(&a)?;
     let n = frames(&a, minutes);
     if !a.json {
@@ -382,7 +322,7 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
     for (ss, seed, heading) in series(&a) {
         let sea = Sea::new(&a, ss, seed, heading)?;
         let truth = |t: f64| sea.truth(t);
-        let stream = measure(&a, minutes, &sea, ss, seed);
+        let stream = measure(&model, &a, minutes, &sea, ss, seed);
         {
             let clock = Instant::now();
             let (smart, naive) = evaluate(&truth, &config, &stream).map_err(|e| e.to_string())?;

@@ -5,7 +5,7 @@
 //! options, seas and faults); the predictors are the decider itself, configured with each
 //! `[decide] predictor`, fed frame by frame as the decide stage feeds it, and persistence.
 
-use crate::decide_eval::{check, measure, minutes, series, series_name, DecideEvalArgs, Sea};
+use crate::decide_eval::{measure, minutes, series, series_name, stream_model, DecideEvalArgs, Sea};
 use deckwatch_decide::decision::{DecisionConfig, Predictor};
 use deckwatch_decide::forecast_eval::{judge_forecasts, ForecastReport, Forecaster, Persistence, QUANTITIES};
 use deckwatch_decide::LandingDecider;
@@ -92,7 +92,7 @@ pub fn run(a: PredictEvalArgs) -> Result<(), String> {
     let (pipeline, file) = crate::pipeline::load(a.stream.config.as_deref())?;
     let config: DecisionConfig = pipeline.decide;
     config.validate().map_err(|e| format!("{file}: decide.{e}"))?;
-    check(&a.stream)?;
+    let model = stream_model(&a.stream)?;
     let minutes = minutes(&a.stream)?;
     if a.horizons.is_empty()
         || !a
@@ -135,7 +135,7 @@ pub fn run(a: PredictEvalArgs) -> Result<(), String> {
         for &(_, seed, heading) in all.iter().filter(|s| s.0 == ss) {
             let sea = Sea::new(&a.stream, ss, seed, heading)?;
             let truth = |t: f64| sea.truth(t);
-            let stream = measure(&a.stream, minutes, &sea, ss, seed);
+            let stream = measure(&model, &a.stream, minutes, &sea, ss, seed);
             for (k, name) in a.predictors.iter().enumerate() {
                 let mut f = forecaster(name, &config)?;
                 let r = judge_forecasts(

@@ -7,6 +7,14 @@
 //! An approach starts when the vehicle arrives in hover over the deck (the deck comes into
 //! view: the decider's warm-up starts then) and ends at contact or after `max_approach_s`.
 
+pub mod faults;
+pub mod fly;
+pub mod world;
+
+pub use faults::{AttitudeStreamModel, Episodes, FaultOptionError, FrameFaultModel, FrameFaults};
+pub use fly::{fly_approach, naive_command, ApproachTiming, ClosedLoopPipeline, FrameStep, PipelineRule};
+pub use world::{Approach, ApproachWorld, TrialSea, WorldError};
+
 use deckwatch_capture::landing::SharedFlightPath;
 use deckwatch_common::messages::DecisionState;
 use deckwatch_common::RotationMatrix;
@@ -239,6 +247,19 @@ pub struct ApproachOutcome {
     pub decisions: u64,
     /// The decisions received, by state and reason (`HOLD warmup`, ...).
     pub decisions_by_reason: BTreeMap<String, u64>,
+}
+
+impl ApproachOutcome {
+    /// A decision the autopilot received, counted by state and reason.
+    pub fn count_decision(&mut self, d: &deckwatch_common::messages::LandingDecision) {
+        let key = format!("{} {}", d.state.get().name(), d.reason.get().name());
+        *self.decisions_by_reason.entry(key).or_default() += 1;
+    }
+
+    /// A go-around's reason, counted.
+    pub fn count_go_around(&mut self, reason: deckwatch_common::messages::DecisionReason) {
+        *self.abort_reasons.entry(reason.name().into()).or_default() += 1;
+    }
 }
 
 /// A rule's approaches added up.

@@ -7,21 +7,16 @@
 //! approaches are flown by the naive rule (current angles within the limits) and by an oracle
 //! that knows the future motion.
 
-use deckwatch_capture::landing::{ClosedLoopScene, FlightPath, SharedFlightPath};
-use deckwatch_capture::motion::{MotionProfile, MotionSample, SpectrumShipMotion, VehicleSway};
+use deckwatch_capture::motion::SpectrumShipMotion;
 use deckwatch_capture::motion_file::RecordedShipMotion;
-use deckwatch_capture::rng::SplitMix64;
-use deckwatch_common::messages::{
-    AttitudeMessage, DecisionReason, FrameHeader, FrameSource, LandingDecision, VehicleSample,
-};
-use deckwatch_common::vehicle::{Compensation, VehicleAttitudeSource};
-use deckwatch_common::{Quaternion, RotationMatrix};
+use deckwatch_common::messages::{FrameSource, LandingDecision, VehicleSample};
+use deckwatch_common::vehicle::VehicleAttitudeSource;
 use deckwatch_decide::DecisionConfig;
 use deckwatch_runtime::chain::{ChainOutput, SimulatedClock, StageChain};
 use deckwatch_runtime::config::PipelineConfig;
 use deckwatch_trials::{
-    oracle_approach, ApproachModel, ApproachOutcome, Command, DecisionFollower, RuleSummary,
-    SimulatedAutopilot, TouchdownVerdict,
+    fly_approach, oracle_approach, Approach, ApproachModel, ApproachOutcome, ApproachTiming, ApproachWorld,
+    ClosedLoopPipeline, FrameFaultModel, FrameFaults, FrameStep, PipelineRule, RuleSummary, WorldError,
 };
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
@@ -137,22 +132,6 @@ impl Rule {
 
 mod processes;
 
-/// The deck's motion in a trial: a spectrum sea, or a recorded one.
-#[derive(Clone)]
-enum TrialSea {
-    Spectrum(SpectrumShipMotion),
-    Recorded(std::sync::Arc<RecordedShipMotion>),
-}
-
-impl MotionProfile for TrialSea {
-    fn sample(&self, t_s: f64) -> MotionSample {
-        match self {
-            Self::Spectrum(s) => s.sample(t_s),
-            Self::Recorded(r) => r.sample(t_s),
-        }
-    }
-}
-
 /// The sea states (and headings) the jobs run over: `--sea-states` and `--headings-deg`, or
 /// with a motion file one "sea" 0 at no heading.
 fn seas(a: &TrialsArgs) -> (Vec<u32>, Vec<f64>) {
@@ -160,147 +139,6 @@ fn seas(a: &TrialsArgs) -> (Vec<u32>, Vec<f64>) {
         (vec![0], vec![f64::NAN])
     } else {
         (a.sea_states.clone(), a.headings_deg.clone())
-    }
-}
-
-/// One approach's world: the sea, the vehicle's sway and where the approach starts in them.
-#[derive(Clone)]
-struct World {
-    sea: TrialSea,
-    sway: VehicleSway,
-    sea_offset_s: f64,
-}
-
-impl World {
-    /// The world of `job`.
-    fn of(job: Job, a: &TrialsArgs) -> Result<Self, String> {
-        let sway = VehicleSway::hover(job.seed.wrapping_mul(1000) + job.index as u64, a.sway);
-        if let Some(path) = &a.motion_csv {
-            let sea = RecordedShipMotion::load(path).map_err(|e| format!("--motion-csv: {e}"))?;
-            // Each approach needs its whole length (and the decision's look ahead) of motion.
-            let usable_s = sea.duration_s() - a.max_approach_s - 10.0;
-            if !(usable_s > 0.0) {
-                return Err(format!(
-                    "--motion-csv: {} holds {:.1} s of motion, an approach needs {:.1} s",
-                    path.display(),
-                    sea.duration_s(),
-                    a.max_approach_s + 10.0
-                ));
-            }
-            return Ok(Self {
-                sea: TrialSea::Recorded(std::sync::Arc::new(sea)),
-                sway,
-                sea_offset_s: (421.0 * job.index as f64) % usable_s,
-            });
-        }
-        let sea = SpectrumShipMotion::sea_state_from(job.sea_state, job.seed, job.heading_deg).ok_or(
-            format!("--sea-states: {} has no spectrum sea (3, 4, 5, 6)", job.sea_state),
-        )?;
-        Ok(Self {
-            sea: TrialSea::Spectrum(sea),
-            sway,
-            // Approaches 7 min apart in the sea (its heading wanders over 10 min).
-            sea_offset_s: 60.0 + 421.0 * job.index as f64,
-        })
-    }
-
-    fn scene(&self, path: SharedFlightPath) -> ClosedLoopScene<TrialSea> {
-        ClosedLoopScene {
-            sea: self.sea.clone(),
-            sway: self.sway.clone(),
-            path,
-            sea_offset_s: self.sea_offset_s,
-            // Hovering a little off the centre, as a position hold does.
-            offset_m: [0.08, -0.05],
-        }
-    }
-
-    /// The true deck: roll, pitch (deg) and heave (m) at the approach's t.
-    fn truth(&self, t: f64) -> [f64; 3] {
-        let s = self.sea.sample(t + self.sea_offset_s);
-        let [r, p, _] = s.attitude.to_degrees();
-        [r, p, s.deck_heave_m]
-    }
-
-    /// The deck's and the vehicle's attitudes (body to W) at t.
-    fn attitudes(&self, t: f64) -> (RotationMatrix, RotationMatrix) {
-        let deck = self.sea.sample(t + self.sea_offset_s).attitude.to_matrix();
-        (deck, self.sway.attitude(t + self.sea_offset_s).to_matrix())
-    }
-}
-
-/// Faults injected into one approach, from its own random stream.
-struct Faults {
-    rng: SplitMix64,
-    drop_share: f64,
-    frozen_p: f64,
-    frozen_s: f64,
-    frozen_until: f64,
-    frozen_pixels: Option<Vec<u8>>,
-    outage_p: f64,
-    outage_s: f64,
-    outage_until: f64,
-}
-
-impl Faults {
-    fn new(a: &TrialsArgs, seed: u64) -> Self {
-        let per_frame = |per_min: f64| per_min / 60.0 / a.rate;
-        Self {
-            rng: SplitMix64::new(seed ^ 0xFA17),
-            drop_share: a.drop_share,
-            frozen_p: per_frame(a.frozen_per_min),
-            frozen_s: a.frozen_s,
-            frozen_until: f64::NEG_INFINITY,
-            frozen_pixels: None,
-            outage_p: per_frame(a.vehicle_outages_per_min),
-            outage_s: a.vehicle_outage_s,
-            outage_until: f64::NEG_INFINITY,
-        }
-    }
-
-    /// Whether the autopilot's attitude stream is out at frame time t (drawn once per frame).
-    fn vehicle_out(&mut self, t: f64) -> bool {
-        if self.rng.next_f64() < self.outage_p {
-            self.outage_until = self.outage_until.max(t + self.outage_s);
-        }
-        t < self.outage_until
-    }
-
-    /// The frame at t on its way to detect: lost, frozen, or as it was.
-    fn inject(&mut self, t: f64, _header: &mut FrameHeader, pixels: &mut [u8]) -> bool {
-        self.freeze(t, pixels);
-        !self.lost()
-    }
-
-    /// Whether the next frame is lost on its way.
-    fn lost(&mut self) -> bool {
-        self.rng.next_f64() < self.drop_share
-    }
-
-    /// A frozen camera delivers its last image again and again, with new timestamps.
-    fn freeze(&mut self, t: f64, pixels: &mut [u8]) {
-        if self.rng.next_f64() < self.frozen_p {
-            self.frozen_until = self.frozen_until.max(t + self.frozen_s);
-        }
-        if t < self.frozen_until {
-            match &self.frozen_pixels {
-                Some(p) if p.len() == pixels.len() => pixels.copy_from_slice(p),
-                _ => self.frozen_pixels = Some(pixels.to_vec()),
-            }
-        } else {
-            self.frozen_pixels = None;
-        }
-    }
-}
-
-/// The command the naive rule gives on an attitude: land when the current angles are within
-/// the limits (and the attitude is compensated), never go around.
-fn naive_command(a: &AttitudeMessage, c: &DecisionConfig) -> Command {
-    let [r, p, _] = a.rpy.to_degrees();
-    if a.valid.get() && a.vehicle.compensation != Compensation::Missing && c.naive_within(r, p) {
-        Command::Land
-    } else {
-        Command::Wait
     }
 }
 
@@ -398,158 +236,120 @@ impl TrialLog {
     }
 }
 
+/// The stage chain as the pipeline an approach is flown through, on the approach's simulated
+/// clock; the first approach's frames and events go to the rerun log.
+struct ChainPipeline<'a> {
+    chain: StageChain,
+    clock: SimulatedClock,
+    log: Option<&'a mut TrialLog>,
+}
+
+impl ClosedLoopPipeline for ChainPipeline<'_> {
+    fn observe_vehicle(&mut self, sample: &VehicleSample) {
+        self.chain.estimate.observe_vehicle(sample);
+    }
+
+    fn next_frame(
+        &mut self,
+        _t_s: f64,
+        vehicle_over_deck_m: f64,
+        inject: &mut dyn FnMut(&mut [u8]) -> bool,
+    ) -> FrameStep {
+        match self
+            .chain
+            .next_frame(Some(self.clock), |_, pixels| inject(pixels))
+        {
+            None => FrameStep::SourceEnded,
+            Some(Err(_)) => FrameStep::Failed, // counted by the chain
+            Some(Ok(None)) => FrameStep::Lost,
+            Some(Ok(Some(o))) => {
+                if let Some(log) = self.log.as_deref_mut() {
+                    log.frame(&o, self.chain.pixels(), vehicle_over_deck_m);
+                }
+                FrameStep::Decided(Box::new(o.decision))
+            }
+        }
+    }
+
+    fn watchdog(&mut self, now_ns: u64) -> Option<LandingDecision> {
+        self.chain.watchdog(now_ns)
+    }
+
+    fn note(&mut self, time_ns: u64, text: &str) {
+        if let Some(log) = self.log.as_deref() {
+            log.text(time_ns, text.to_string());
+        }
+    }
+}
+
 /// Flies one approach through the stage chain: `Deckwatch` acts on the decisions, `Naive` on
 /// the attitudes.
 fn fly(
-    rule: Rule,
-    world: &World,
+    rule: PipelineRule,
+    world: &ApproachWorld,
     pipeline: &PipelineConfig,
     model: &ApproachModel,
     a: &TrialsArgs,
     seed: u64,
-    mut log: Option<&mut TrialLog>,
+    log: Option<&mut TrialLog>,
 ) -> Result<ApproachOutcome, String> {
-    let path: SharedFlightPath = Arc::new(Mutex::new(FlightPath::hover(model.hover_m)));
-    let source = pipeline
-        .capture()
-        .open_sim_with(Box::new(world.scene(path.clone())))
-        .map_err(|e| e.to_string())?;
-    let mut chain = StageChain::with_source(pipeline, source).map_err(|e| e.to_string())?;
-    let latency_ns = (a.stage_latency_ms * 1e6) as u64;
-    let clock = SimulatedClock {
-        epoch_ns: 1_000_000_000,
-        stage_latency_ns: latency_ns,
-    };
-    let reaction_s = 3.0 * latency_ns as f64 / 1e9;
-    let mut autopilot = SimulatedAutopilot::new(*model, path.clone());
-    let mut follow = DecisionFollower::default();
-    let mut faults = Faults::new(a, seed);
-    let mut out = ApproachOutcome::default();
-    let capacity = &pipeline.decide;
-    let vehicle_period_s = 0.01; // the autopilot's attitude stream at 100 Hz
-    let mut next_vehicle_s = -0.05;
-    let mut vehicle_seq = 0;
-    let heave = |t: f64| world.truth(t)[2];
-    let time_ns = |t: f64| clock.at((t.max(0.0) * 1e9) as u64);
-    let judge = |t: f64| {
-        let (r_d, r_v) = world.attitudes(t);
-        TouchdownVerdict::judge(&|t| world.truth(t), &r_d, &r_v, t, capacity, model)
-    };
-    for k in 0u64.. {
-        let t = k as f64 / a.rate;
-        let t_decided = t + reaction_s;
-        if let Some(contact) = autopilot.contact_s().filter(|&c| c <= t_decided) {
-            out.touchdown = Some(judge(contact));
-            break;
-        }
-        if t > model.max_approach_s {
-            break;
-        }
-        // The autopilot's attitude stream up to when estimate sees the frame.
-        let out_now = faults.vehicle_out(t);
-        while next_vehicle_s <= t + 1.5 * latency_ns as f64 / 1e9 {
-            let tv = next_vehicle_s;
-            next_vehicle_s += vehicle_period_s;
-            if out_now {
-                continue;
-            }
-            let (_, r_v) = world.attitudes(tv);
-            let height_m = path
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .height_m(tv, heave(tv));
-            chain.estimate.observe_vehicle(&VehicleSample {
-                seq: vehicle_seq,
-                time_ns: time_ns(tv),
-                received_ns: time_ns(tv),
-                quaternion: Quaternion::from_matrix(&r_v),
-                altitude_m: f64::NAN,
-                height_m,
-                link_up: true.into(),
-                ..Default::default()
-            });
-            vehicle_seq += 1;
-        }
-        let step = chain.next_frame(Some(clock), |h, px| faults.inject(t, h, px));
-        out.frames += 1;
-        let command = match step {
-            None => break,
-            Some(Err(_)) => Command::Wait, // counted by the chain; nothing reaches the autopilot
-            Some(Ok(None)) => {
-                // Lost on the way: decide's watchdog speaks if the silence is long enough.
-                match chain.watchdog(time_ns(t_decided)) {
-                    Some(d) if rule == Rule::Deckwatch => {
-                        out.decisions += 1;
-                        count_decision(&mut out, &d);
-                        let c = follow.command(d.state.get());
-                        if c == Command::GoAround && autopilot.contact_s().is_some() {
-                            count_reason(&mut out, d.reason.get());
-                        }
-                        c
-                    }
-                    _ => Command::Wait,
-                }
-            }
-            Some(Ok(Some(o))) => {
-                out.decisions += 1;
-                if let Some(log) = log.as_deref_mut() {
-                    let over = path
-                        .lock()
-                        .unwrap_or_else(|e| e.into_inner())
-                        .over_deck_m(t, heave(t));
-                    log.frame(&o, chain.pixels(), over);
-                }
-                match rule {
-                    Rule::Deckwatch => {
-                        count_decision(&mut out, &o.decision);
-                        let c = follow.command(o.decision.state.get());
-                        if c == Command::GoAround && autopilot.contact_s().is_some() {
-                            count_reason(&mut out, o.decision.reason.get());
-                        }
-                        c
-                    }
-                    _ => naive_command(&o.attitude, capacity),
-                }
-            }
-        };
-        if autopilot.act(t_decided, heave(t_decided), command) {
-            if let Some(log) = log.as_deref() {
-                let what = if command == Command::Land {
-                    format!(
-                        "COMMIT at {t_decided:.2} s: descending, contact at {:.2} s",
-                        t_decided + model.touchdown_s
-                    )
-                } else {
-                    format!(
-                        "GO-AROUND at {t_decided:.2} s: climbing back to {} m",
-                        model.hover_m
-                    )
-                };
-                log.text(time_ns(t_decided), what);
-            }
-        }
-    }
-    out.commits = autopilot.commits;
-    out.go_arounds = autopilot.go_arounds;
-    if let (Some(log), Some(v)) = (log, &out.touchdown) {
-        let verdict = if v.safe() {
-            "SAFE".to_string()
-        } else {
-            format!("UNSAFE ({})", v.violations.join(", "))
-        };
-        log.text(time_ns(v.t_s), format!("TOUCHDOWN at {:.2} s: {verdict}", v.t_s));
-    }
-    Ok(out)
+    let timing = timing(a);
+    let mut faults = FrameFaults::new(&fault_model(a), a.rate, seed);
+    fly_approach(
+        rule,
+        world,
+        &pipeline.decide,
+        model,
+        timing,
+        &mut faults,
+        |scene| {
+            let source = pipeline
+                .capture()
+                .open_sim_with(Box::new(scene))
+                .map_err(|e| e.to_string())?;
+            Ok::<_, String>(ChainPipeline {
+                chain: StageChain::with_source(pipeline, source).map_err(|e| e.to_string())?,
+                clock: SimulatedClock {
+                    epoch_ns: deckwatch_trials::fly::EPOCH_NS,
+                    stage_latency_ns: timing.stage_latency_ns,
+                },
+                log,
+            })
+        },
+    )
 }
 
-/// A go-around's reason, counted.
-fn count_reason(out: &mut ApproachOutcome, reason: DecisionReason) {
-    *out.abort_reasons.entry(reason.name().into()).or_default() += 1;
+/// The approach's clock from the options.
+fn timing(a: &TrialsArgs) -> ApproachTiming {
+    ApproachTiming {
+        rate_hz: a.rate,
+        stage_latency_ns: (a.stage_latency_ms * 1e6) as u64,
+    }
 }
 
-fn count_decision(out: &mut ApproachOutcome, d: &LandingDecision) {
-    let key = format!("{} {}", d.state.get().name(), d.reason.get().name());
-    *out.decisions_by_reason.entry(key).or_default() += 1;
+/// The frame faults the options ask for.
+fn fault_model(a: &TrialsArgs) -> FrameFaultModel {
+    FrameFaultModel {
+        drop_share: a.drop_share,
+        frozen_per_min: a.frozen_per_min,
+        frozen_s: a.frozen_s,
+        vehicle_outages_per_min: a.vehicle_outages_per_min,
+        vehicle_outage_s: a.vehicle_outage_s,
+    }
+}
+
+/// The world of one approach, on the motion file when one is given.
+fn world_of(
+    job: Approach,
+    a: &TrialsArgs,
+    recorded: Option<&Arc<RecordedShipMotion>>,
+) -> Result<ApproachWorld, String> {
+    ApproachWorld::new(job, recorded, a.sway, a.max_approach_s).map_err(|e| match (e, &a.motion_csv) {
+        (e @ WorldError::MotionTooShort { .. }, Some(path)) => {
+            format!("--motion-csv: {}: {e}", path.display())
+        }
+        (e, _) => format!("--sea-states: {e}"),
+    })
 }
 
 /// The pipeline the trials run: the configuration's stages on the simulator at the trial's
@@ -570,33 +370,19 @@ fn trial_pipeline(a: &TrialsArgs) -> Result<PipelineConfig, String> {
     Ok(p)
 }
 
-/// One approach to fly: its sea, seed, heading and number.
-#[derive(Debug, Clone, Copy)]
-struct Job {
-    sea_state: u32,
-    seed: u64,
-    heading_deg: f64,
-    index: u32,
-}
-
-impl Job {
-    /// The seed of the approach's own randomness (its faults).
-    fn approach_seed(&self) -> u64 {
-        self.seed.wrapping_mul(0x9E37_79B9) ^ ((self.sea_state as u64) << 32) ^ self.index as u64
-    }
-}
-
 /// Everything every approach shares.
 struct Setup {
     rules: Vec<Rule>,
     pipeline: PipelineConfig,
     model: ApproachModel,
+    /// `--motion-csv`, read once.
+    recorded: Option<Arc<RecordedShipMotion>>,
 }
 
 /// The first approach (the one logged).
-fn jobs_first(a: &TrialsArgs) -> Option<Job> {
+fn jobs_first(a: &TrialsArgs) -> Option<Approach> {
     let (sea_states, headings) = seas(a);
-    Some(Job {
+    Some(Approach {
         sea_state: *sea_states.first()?,
         seed: *a.seeds.first()?,
         heading_deg: *headings.first()?,
@@ -609,8 +395,8 @@ fn jobs_first(a: &TrialsArgs) -> Option<Job> {
 type JobResult = Result<Vec<(Rule, ApproachOutcome)>, String>;
 
 /// Flies one approach by every rule.
-fn fly_job(job: Job, setup: &Setup, a: &TrialsArgs, log: Option<&mut Option<TrialLog>>) -> JobResult {
-    let world = World::of(job, a)?;
+fn fly_job(job: Approach, setup: &Setup, a: &TrialsArgs, log: Option<&mut Option<TrialLog>>) -> JobResult {
+    let world = world_of(job, a, setup.recorded.as_ref())?;
     let approach_seed = job.approach_seed();
     let capacity = &setup.pipeline.decide;
     let model = &setup.model;
@@ -631,7 +417,12 @@ fn fly_job(job: Job, setup: &Setup, a: &TrialsArgs, log: Option<&mut Option<Tria
                     (Rule::Deckwatch, Some(l)) => l.as_mut(),
                     _ => None,
                 };
-                let o = fly(rule, &world, &setup.pipeline, model, a, approach_seed, logged)?;
+                let flown = if rule == Rule::Deckwatch {
+                    PipelineRule::Deckwatch
+                } else {
+                    PipelineRule::Naive
+                };
+                let o = fly(flown, &world, &setup.pipeline, model, a, approach_seed, logged)?;
                 if rule == Rule::Deckwatch {
                     if let Some(l) = log.as_deref_mut().and_then(Option::take) {
                         let at = o.touchdown.as_ref().map_or(model.max_approach_s, |v| v.t_s);
@@ -651,25 +442,25 @@ fn fly_job(job: Job, setup: &Setup, a: &TrialsArgs, log: Option<&mut Option<Tria
 
 pub fn run(a: TrialsArgs) -> Result<(), String> {
     let rules: Vec<Rule> = a.rules.iter().map(|r| Rule::parse(r)).collect::<Result<_, _>>()?;
-    let shares_ok = (0.0..=1.0).contains(&a.drop_share)
-        && a.frozen_per_min >= 0.0
-        && a.frozen_s > 0.0
-        && a.vehicle_outages_per_min >= 0.0
-        && a.vehicle_outage_s > 0.0
-        && a.sway >= 0.0
-        && a.rate > 0.0
-        && a.stage_latency_ms >= 0.0
-        && a.threads > 0;
+    fault_model(&a).validate().map_err(|e| e.to_string())?;
+    let shares_ok = a.sway >= 0.0 && a.rate > 0.0 && a.stage_latency_ms >= 0.0 && a.threads > 0;
     if !shares_ok {
-        return Err("--drop-share is a share in [0, 1]; --frozen-*, --vehicle-outage*, --sway, --stage-latency-ms must not be negative, --rate and --threads positive".into());
+        return Err("--sway, --stage-latency-ms must not be negative, --rate and --threads positive".into());
     }
     for &ss in seas(&a).0.iter().filter(|&&ss| ss != 0) {
         if SpectrumShipMotion::sea_state(ss, 1).is_none() {
             return Err(format!("--sea-states: {ss} has no spectrum sea (3, 4, 5, 6)"));
         }
     }
+    let recorded = match &a.motion_csv {
+        Some(path) => Some(Arc::new(
+            RecordedShipMotion::load(path).map_err(|e| format!("--motion-csv: {e}"))?,
+        )),
+        None => None,
+    };
     if let Some(job) = jobs_first(&a) {
-        World::of(job, &a)?; // a motion file that cannot be used says so before any flight
+        // A motion file that cannot be used says so before any flight.
+        world_of(job, &a, recorded.as_ref())?;
     }
     let pipeline = trial_pipeline(&a)?;
     let capacity = pipeline.decide.clone();
@@ -716,7 +507,7 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
         for &seed in &a.seeds {
             for &heading_deg in &headings {
                 for index in 0..a.approaches {
-                    jobs.push(Job {
+                    jobs.push(Approach {
                         sea_state,
                         seed,
                         heading_deg,
@@ -730,6 +521,7 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
         rules,
         pipeline,
         model,
+        recorded,
     };
     let clock = Instant::now();
     // Approaches are independent: as many at once as there are cores (each its own chain).
@@ -834,7 +626,7 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
 }
 
 /// The same approaches in one process (simulated clock) and through the processes (real time).
-fn agreement(jobs: &[Job], setup: &Setup, a: &TrialsArgs) -> Result<(), String> {
+fn agreement(jobs: &[Approach], setup: &Setup, a: &TrialsArgs) -> Result<(), String> {
     let brief = |o: &ApproachOutcome| match &o.touchdown {
         Some(v) => format!(
             "{} commits, {} go-arounds, touchdown at {:.1} s {}",
@@ -849,9 +641,9 @@ fn agreement(jobs: &[Job], setup: &Setup, a: &TrialsArgs) -> Result<(), String> 
         println!("the same approaches through the processes at real time (detect, estimate, decide, link; MAVLink on UDP):");
     }
     for &job in jobs {
-        let world = World::of(job, a)?;
+        let world = world_of(job, a, setup.recorded.as_ref())?;
         let inproc = fly(
-            Rule::Deckwatch,
+            PipelineRule::Deckwatch,
             &world,
             &setup.pipeline,
             &setup.model,

@@ -5,7 +5,7 @@
 //! streams HEARTBEAT, ATTITUDE_QUATERNION and LOCAL_POSITION_NED, answers TIMESYNC, and acts on
 //! the decision state the link sends (`dw_state`, `dw_reason`) when it arrives.
 
-use super::{count_reason, Faults, Job, Setup, TrialsArgs, World};
+use super::{fault_model, world_of, Setup, TrialsArgs};
 use crate::launch::{launch, LaunchOptions};
 use deckwatch_capture::landing::{FlightPath, SharedFlightPath};
 use deckwatch_common::messages::{monotonic_ns, DecisionReason, DecisionState};
@@ -16,7 +16,10 @@ use deckwatch_link::outgoing::names;
 use deckwatch_link::{MavHeader, MavMessage};
 use deckwatch_runtime::bus::{services, Bus};
 use deckwatch_runtime::stages::capture::{complete_header, new_header};
-use deckwatch_trials::{ApproachOutcome, DecisionFollower, SimulatedAutopilot, TouchdownVerdict};
+use deckwatch_trials::{
+    Approach, ApproachOutcome, ApproachWorld, DecisionFollower, FrameFaults, SimulatedAutopilot,
+    TouchdownVerdict,
+};
 use mavlink::dialects::common::{
     MavAutopilot, MavModeFlag, MavState, MavType, ATTITUDE_QUATERNION_DATA, HEARTBEAT_DATA,
     LOCAL_POSITION_NED_DATA, TIMESYNC_DATA,
@@ -74,8 +77,8 @@ fn listen(conn: Arc<mavlink::Connection<MavMessage>>, stop: Arc<AtomicBool>, hea
 }
 
 /// Flies `job`'s approach by the decision, through the processes.
-pub(super) fn fly(job: Job, setup: &Setup, a: &TrialsArgs) -> Result<ApproachOutcome, String> {
-    let world = World::of(job, a)?;
+pub(super) fn fly(job: Approach, setup: &Setup, a: &TrialsArgs) -> Result<ApproachOutcome, String> {
+    let world = world_of(job, a, setup.recorded.as_ref())?;
     let port = free_port()?;
     let mut config = setup.pipeline.clone();
     config.link.enabled = true;
@@ -106,13 +109,13 @@ pub(super) fn fly(job: Job, setup: &Setup, a: &TrialsArgs) -> Result<ApproachOut
 }
 
 fn fly_with(
-    world: &World,
+    world: &ApproachWorld,
     setup: &Setup,
     a: &TrialsArgs,
     config: &deckwatch_runtime::config::PipelineConfig,
     port: u16,
     stop: &Arc<AtomicBool>,
-    job: Job,
+    job: Approach,
 ) -> Result<ApproachOutcome, String> {
     let model = setup.model;
     let path: SharedFlightPath = Arc::new(Mutex::new(FlightPath::hover(model.hover_m)));
@@ -182,7 +185,7 @@ fn fly_with(
     let width = source.camera().width as usize;
     let mut autopilot = SimulatedAutopilot::new(model, path.clone());
     let mut follow = DecisionFollower::default();
-    let mut faults = Faults::new(a, job.approach_seed());
+    let mut faults = FrameFaults::new(&fault_model(a), a.rate, job.approach_seed());
     let mut out = ApproachOutcome::default();
     let heave = |t: f64| world.truth(t)[2];
     let capacity = &config.decide;
@@ -222,7 +225,7 @@ fn fly_with(
                 && descending
                 && command == deckwatch_trials::Command::GoAround
             {
-                count_reason(&mut out, reason);
+                out.count_go_around(reason);
             }
         }
         // The camera: frame k when it is due.
@@ -274,7 +277,7 @@ fn stream(
     stop: &AtomicBool,
     out: &AtomicBool,
     path: &SharedFlightPath,
-    world: &World,
+    world: &ApproachWorld,
     start: u64,
 ) {
     let mut sequence = 0u8;

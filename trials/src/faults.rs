@@ -1,0 +1,409 @@
+//! The fault models of the evaluations, defined once: what goes wrong between the sea and the
+//! decision. `deckwatch trials` injects [`FrameFaults`] into rendered frames on their way to
+//! detect (lost frames, a frozen camera, outages of the autopilot's attitude stream);
+//! `decide-eval` and `predict-eval` draw the attitude stream the estimate stage would deliver
+//! from [`AttitudeStreamModel`] (noise, dropouts, gross errors, NaN, stale and frozen frames,
+//! stamp jitter, the vehicle compensation's errors and outages). Both time their episodes (a
+//! frozen camera, an outage) with [`Episodes`].
+
+use deckwatch_capture::motion::VehicleSway;
+use deckwatch_capture::rng::SplitMix64;
+use deckwatch_common::messages::FROZEN_IMAGE_REPEATS;
+use deckwatch_decide::{DeckObservation, FrameInput};
+
+/// Episodes that start at random (a Poisson process, drawn once per frame) and last a fixed
+/// time each: a frozen camera, an outage of a stream. Overlapping episodes merge.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Episodes {
+    start_probability_per_frame: f64,
+    duration_s: f64,
+    until_s: f64,
+}
+
+impl Episodes {
+    /// `per_min` episodes a minute on average, `duration_s` each, at `rate_hz` frames a second.
+    pub fn new(per_min: f64, duration_s: f64, rate_hz: f64) -> Self {
+        Self {
+            start_probability_per_frame: per_min / 60.0 / rate_hz,
+            duration_s,
+            until_s: f64::NEG_INFINITY,
+        }
+    }
+
+    /// Whether an episode is under way at the frame at `t_s` (one draw from `rng`).
+    pub fn at(&mut self, t_s: f64, rng: &mut SplitMix64) -> bool {
+        if rng.next_f64() < self.start_probability_per_frame {
+            self.until_s = self.until_s.max(t_s + self.duration_s);
+        }
+        t_s < self.until_s
+    }
+}
+
+/// An invalid fault option: which, and what it must be.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{option}: {must}")]
+pub struct FaultOptionError {
+    pub option: &'static str,
+    pub must: &'static str,
+}
+
+fn require(ok: bool, option: &'static str, must: &'static str) -> Result<(), FaultOptionError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(FaultOptionError { option, must })
+    }
+}
+
+/// Faults of the closed-loop trials, on frames (`deckwatch trials --drop-share ...`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameFaultModel {
+    /// Share of frames lost between capture and detect.
+    pub drop_share: f64,
+    /// A frozen camera (the same image again, with new timestamps) this often a minute...
+    pub frozen_per_min: f64,
+    /// ... for this long each (s).
+    pub frozen_s: f64,
+    /// Outages of the autopilot's attitude stream a minute...
+    pub vehicle_outages_per_min: f64,
+    /// ... each this long (s).
+    pub vehicle_outage_s: f64,
+}
+
+/// No faults (episodes of the command line's default lengths, none of them starting).
+impl Default for FrameFaultModel {
+    fn default() -> Self {
+        Self {
+            drop_share: 0.0,
+            frozen_per_min: 0.0,
+            frozen_s: 2.0,
+            vehicle_outages_per_min: 0.0,
+            vehicle_outage_s: 1.0,
+        }
+    }
+}
+
+impl FrameFaultModel {
+    pub fn validate(&self) -> Result<(), FaultOptionError> {
+        require(
+            (0.0..=1.0).contains(&self.drop_share),
+            "--drop-share",
+            "a share in [0, 1]",
+        )?;
+        require(
+            self.frozen_per_min >= 0.0 && self.frozen_s > 0.0,
+            "--frozen-per-min, --frozen-s",
+            "not negative, and frozen spells must last",
+        )?;
+        require(
+            self.vehicle_outages_per_min >= 0.0 && self.vehicle_outage_s > 0.0,
+            "--vehicle-outages-per-min, --vehicle-outage-s",
+            "not negative, and outages must last",
+        )
+    }
+}
+
+/// [`FrameFaultModel`] applied to one approach's frames, from the approach's own random stream.
+pub struct FrameFaults {
+    rng: SplitMix64,
+    drop_share: f64,
+    frozen: Episodes,
+    frozen_pixels: Option<Vec<u8>>,
+    vehicle_outages: Episodes,
+}
+
+impl FrameFaults {
+    pub fn new(model: &FrameFaultModel, rate_hz: f64, approach_seed: u64) -> Self {
+        Self {
+            rng: SplitMix64::new(approach_seed ^ 0xFA17),
+            drop_share: model.drop_share,
+            frozen: Episodes::new(model.frozen_per_min, model.frozen_s, rate_hz),
+            frozen_pixels: None,
+            vehicle_outages: Episodes::new(model.vehicle_outages_per_min, model.vehicle_outage_s, rate_hz),
+        }
+    }
+
+    /// Whether the autopilot's attitude stream is out at frame time `t_s` (drawn once per frame).
+    pub fn vehicle_out(&mut self, t_s: f64) -> bool {
+        self.vehicle_outages.at(t_s, &mut self.rng)
+    }
+
+    /// The frame at `t_s` on its way to detect: frozen or as it was; false when it is lost.
+    pub fn inject(&mut self, t_s: f64, pixels: &mut [u8]) -> bool {
+        self.freeze(t_s, pixels);
+        !self.lost()
+    }
+
+    /// Whether the next frame is lost on its way.
+    pub fn lost(&mut self) -> bool {
+        self.rng.next_f64() < self.drop_share
+    }
+
+    /// A frozen camera delivers its last image again and again, with new timestamps.
+    pub fn freeze(&mut self, t_s: f64, pixels: &mut [u8]) {
+        if self.frozen.at(t_s, &mut self.rng) {
+            match &self.frozen_pixels {
+                Some(p) if p.len() == pixels.len() => pixels.copy_from_slice(p),
+                _ => self.frozen_pixels = Some(pixels.to_vec()),
+            }
+        } else {
+            self.frozen_pixels = None;
+        }
+    }
+}
+
+/// The attitude stream the estimate stage would deliver on a sea, with its faults
+/// (`decide-eval`, `predict-eval`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AttitudeStreamModel {
+    /// Attitudes a second.
+    pub rate_hz: f64,
+    /// Noise of roll and pitch (deg, standard deviation each).
+    pub noise_deg: f64,
+    /// Noise of the deck's height (m).
+    pub heave_noise_m: f64,
+    /// Share of frames without a valid attitude.
+    pub dropout: f64,
+    /// Share of frames with a gross error (5-15 deg on one angle).
+    pub outliers: f64,
+    /// Share of frames whose roll is NaN (a broken estimate that says it is valid).
+    pub nan_share: f64,
+    /// Share of frames that arrive 1 s late.
+    pub stale_share: f64,
+    /// Jitter of the capture stamps (ms, standard deviation).
+    pub jitter_ms: f64,
+    /// Capture to decision (ms).
+    pub latency_ms: f64,
+    /// A frozen camera this often a minute, for `frozen_s` each.
+    pub frozen_per_min: f64,
+    pub frozen_s: f64,
+    /// The vehicle sways (a hovering quadrotor): the compensation's timing error then shows.
+    pub vehicle_sways: bool,
+    /// The autopilot attitude's bias (roll, pitch) and noise (deg).
+    pub vehicle_bias_deg: [f64; 2],
+    pub vehicle_noise_deg: f64,
+    /// Timing error of the autopilot's samples against the frames (ms).
+    pub vehicle_time_error_ms: f64,
+    /// Outages of the autopilot's stream a minute, `vehicle_outage_s` each: not compensated.
+    pub vehicle_outages_per_min: f64,
+    pub vehicle_outage_s: f64,
+}
+
+impl AttitudeStreamModel {
+    pub fn validate(&self) -> Result<(), FaultOptionError> {
+        require(self.rate_hz > 0.0, "--rate", "positive")?;
+        require(
+            matches!(self.vehicle_bias_deg, [r, p] if r.is_finite() && p.is_finite()),
+            "--vehicle-bias-deg",
+            "two finite angles (roll, pitch)",
+        )?;
+        require(
+            self.vehicle_noise_deg >= 0.0
+                && self.vehicle_outages_per_min >= 0.0
+                && self.vehicle_outage_s > 0.0
+                && self.vehicle_time_error_ms.is_finite()
+                && self.heave_noise_m >= 0.0,
+            "--vehicle-*, --heave-noise-m",
+            "noise and outages must not be negative, outages must last",
+        )?;
+        let shares = [self.nan_share, self.stale_share, self.dropout, self.outliers];
+        require(
+            shares.iter().all(|v| (0.0..=1.0).contains(v)),
+            "--nan-share, --stale-share, --dropout, --outliers",
+            "shares in [0, 1]",
+        )?;
+        require(
+            self.frozen_per_min >= 0.0 && self.frozen_s > 0.0 && self.jitter_ms >= 0.0,
+            "--frozen-*, --jitter-ms",
+            "not negative, and frozen spells must last",
+        )
+    }
+
+    /// `frames` attitudes of the deck whose truth (roll, pitch in deg, height in m) `truth`
+    /// gives, from a random stream of `seed` and `sea_state`.
+    pub fn measure(
+        &self,
+        truth: &dyn Fn(f64) -> [f64; 3],
+        frames: usize,
+        seed: u64,
+        sea_state: u32,
+    ) -> Vec<FrameInput> {
+        let bias = self.vehicle_bias_deg;
+        let mut rng = SplitMix64::new(seed.wrapping_mul(0x9E37_79B9) ^ sea_state as u64);
+        // What compensating with the autopilot's attitude leaves in the deck's roll and pitch:
+        // the sway over the timing error, the autopilot's bias and noise.
+        let hover = VehicleSway::hover(seed, 1.0);
+        let dt = self.vehicle_time_error_ms / 1e3;
+        let vehicle_error = |t: f64, rng: &mut SplitMix64| {
+            let [r1, p1, _] = hover.attitude(t).to_degrees();
+            let [r0, p0, _] = hover.attitude(t - dt).to_degrees();
+            let timing = if self.vehicle_sways {
+                [r1 - r0, p1 - p0]
+            } else {
+                [0.0; 2]
+            };
+            [0, 1].map(|i| timing[i] + bias[i] + self.vehicle_noise_deg * rng.next_gaussian())
+        };
+        let mut outages = Episodes::new(self.vehicle_outages_per_min, self.vehicle_outage_s, self.rate_hz);
+        let mut frozen = Episodes::new(self.frozen_per_min, self.frozen_s, self.rate_hz);
+        let (mut frozen_deck, mut repeats) = (None, 0u32);
+        (0..frames)
+            .map(|k| {
+                let t = k as f64 / self.rate_hz;
+                let [r, p, h] = truth(t);
+                let vehicle_missing = outages.at(t, &mut rng);
+                let [er, ep] = vehicle_error(t, &mut rng);
+                let (r, p) = (r + er, p + ep);
+                let frozen_now = frozen.at(t, &mut rng);
+                let deck = if rng.next_f64() < self.dropout {
+                    None
+                } else {
+                    let mut m = [
+                        r + self.noise_deg * rng.next_gaussian(),
+                        p + self.noise_deg * rng.next_gaussian(),
+                    ];
+                    let height = h + self.heave_noise_m * rng.next_gaussian();
+                    if rng.next_f64() < self.outliers {
+                        let i = (rng.next_u64() % 2) as usize;
+                        m[i] += (5.0 + 10.0 * rng.next_f64()) * if rng.next_f64() < 0.5 { -1.0 } else { 1.0 };
+                    }
+                    if rng.next_f64() < self.nan_share {
+                        m[0] = f64::NAN;
+                    }
+                    Some(DeckObservation::new(m[0], m[1], height))
+                };
+                // A frozen camera: the same image again and again. The estimator sees the same
+                // markers and, from the `FROZEN_IMAGE_REPEATS`-th repeat on, says so (no valid
+                // attitude); the repeats before pass as the same measurement.
+                let (deck, frozen_image) = if frozen_now {
+                    let frozen = *frozen_deck.get_or_insert(deck);
+                    let seen = frozen.is_some() && repeats >= FROZEN_IMAGE_REPEATS;
+                    repeats += 1;
+                    (if seen { None } else { frozen }, seen)
+                } else {
+                    frozen_deck = None;
+                    repeats = 0;
+                    (deck, false)
+                };
+                let stamp = t + self.jitter_ms / 1e3 * rng.next_gaussian();
+                let late = if rng.next_f64() < self.stale_share {
+                    1.0
+                } else {
+                    0.0
+                };
+                FrameInput {
+                    t_s: stamp,
+                    deck,
+                    age_s: self.latency_ms / 1e3 + late,
+                    vehicle_missing,
+                    frozen_image,
+                }
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Episodes start at the stated rate and last their stated time: over an hour at 10 Hz,
+    /// 2 a minute of 1.5 s each cover about 3 s a minute (less their overlaps).
+    #[test]
+    fn episodes_start_at_their_rate_and_last_their_time() {
+        let mut rng = SplitMix64::new(7);
+        let mut e = Episodes::new(2.0, 1.5, 10.0);
+        let mut covered = 0;
+        let mut longest_run = 0;
+        let mut run = 0;
+        for k in 0..36_000 {
+            if e.at(k as f64 / 10.0, &mut rng) {
+                covered += 1;
+                run += 1;
+                longest_run = longest_run.max(run);
+            } else {
+                run = 0;
+            }
+        }
+        // Expected share 1 - exp(-rate * duration) = 1 - exp(-0.05) = 4.9 %.
+        let share = covered as f64 / 36_000.0;
+        assert!((0.040..0.058).contains(&share), "{share}");
+        assert!(longest_run >= 15, "{longest_run}");
+        let mut none = Episodes::new(0.0, 1.0, 10.0);
+        assert!((0..1000).all(|k| !none.at(k as f64 / 10.0, &mut rng)));
+    }
+
+    /// A frozen camera repeats its first image bit for bit; a lost frame is lost at its share.
+    #[test]
+    fn frame_faults_freeze_and_lose() {
+        let model = FrameFaultModel {
+            drop_share: 0.1,
+            frozen_per_min: 6.0,
+            frozen_s: 2.0,
+            ..Default::default()
+        };
+        model.validate().unwrap();
+        let mut f = FrameFaults::new(&model, 10.0, 3);
+        let (mut lost, mut frozen_frames) = (0, 0);
+        for k in 0..6000u32 {
+            let mut pixels = [(k % 251) as u8; 16];
+            let kept = f.inject(k as f64 / 10.0, &mut pixels);
+            lost += usize::from(!kept);
+            frozen_frames += usize::from(pixels[0] != (k % 251) as u8);
+        }
+        assert!((450..750).contains(&lost), "{lost}");
+        // 6 a minute of 2 s: about a sixth of the frames show an older image.
+        assert!((600..1400).contains(&frozen_frames), "{frozen_frames}");
+        let bad = FrameFaultModel {
+            drop_share: 1.5,
+            ..model
+        };
+        assert_eq!(bad.validate().unwrap_err().option, "--drop-share");
+    }
+
+    /// The attitude stream: noise of the stated size, frozen frames refused from the repeat the
+    /// estimator notices on, outages marked, the latency as the age.
+    #[test]
+    fn the_attitude_stream_carries_its_faults() {
+        let model = AttitudeStreamModel {
+            rate_hz: 10.0,
+            noise_deg: 0.1,
+            heave_noise_m: 0.0,
+            dropout: 0.0,
+            outliers: 0.0,
+            nan_share: 0.0,
+            stale_share: 0.0,
+            jitter_ms: 0.0,
+            latency_ms: 5.0,
+            frozen_per_min: 3.0,
+            frozen_s: 2.0,
+            vehicle_sways: false,
+            vehicle_bias_deg: [0.0, 0.0],
+            vehicle_noise_deg: 0.0,
+            vehicle_time_error_ms: 0.0,
+            vehicle_outages_per_min: 1.0,
+            vehicle_outage_s: 1.0,
+        };
+        model.validate().unwrap();
+        let truth = |t: f64| [2.0 * (0.5 * t).sin(), 1.0, 0.1 * t];
+        let stream = model.measure(&truth, 12_000, 5, 4);
+        assert_eq!(stream.len(), 12_000);
+        let residuals: Vec<f64> = stream
+            .iter()
+            .filter(|f| !f.frozen_image)
+            .filter_map(|f| f.deck.map(|d| d.pitch_deg - 1.0))
+            .collect();
+        let rms = (residuals.iter().map(|r| r * r).sum::<f64>() / residuals.len() as f64).sqrt();
+        assert!((0.09..0.13).contains(&rms), "{rms}");
+        assert!(stream.iter().all(|f| (f.age_s - 0.005).abs() < 1e-12));
+        let frozen = stream.iter().filter(|f| f.frozen_image).count();
+        assert!(frozen > 0 && stream.iter().filter(|f| f.frozen_image).all(|f| f.deck.is_none()));
+        let missing = stream.iter().filter(|f| f.vehicle_missing).count();
+        assert!((100..400).contains(&missing), "{missing}");
+        let bad = AttitudeStreamModel {
+            dropout: -0.1,
+            ..model
+        };
+        assert!(bad.validate().unwrap_err().option.contains("--dropout"));
+    }
+}

@@ -1,0 +1,408 @@
+//! The closed-loop runner: one approach flown by a rule. The vehicle hovers over the deck; each
+//! frame is rendered from the true deck and the vehicle's own path, goes through the perception
+//! pipeline (a [`ClosedLoopPipeline`]: the stage chain in one process on a simulated clock, in
+//! `deckwatch trials`), and the simulated autopilot acts on the decision state as it arrives:
+//! commit on a fresh clearance, go around on an abort. Contact is judged against the true deck.
+//! Pure: the pipeline is the caller's, this module only drives it.
+
+use crate::faults::FrameFaults;
+use crate::world::{ApproachWorld, TrialSea};
+use crate::{
+    ApproachModel, ApproachOutcome, Command, DecisionFollower, SimulatedAutopilot, TouchdownVerdict,
+};
+use deckwatch_capture::landing::{ClosedLoopScene, FlightPath, SharedFlightPath};
+use deckwatch_common::messages::{AttitudeMessage, LandingDecision, VehicleSample};
+use deckwatch_common::vehicle::Compensation;
+use deckwatch_common::Quaternion;
+use deckwatch_decide::DecisionConfig;
+use std::sync::{Arc, Mutex};
+
+/// The rules a pipeline flies: deckwatch's decision, or the naive rule on its attitudes (the
+/// oracle needs no pipeline: [`crate::oracle_approach`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PipelineRule {
+    Deckwatch,
+    Naive,
+}
+
+/// The approach's clock: frame k is captured at `EPOCH_NS + k / rate_hz` (simulated
+/// `CLOCK_MONOTONIC`), and each of capture, detect and estimate takes `stage_latency_ns`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ApproachTiming {
+    pub rate_hz: f64,
+    pub stage_latency_ns: u64,
+}
+
+/// The simulated monotonic clock's reading at the approach's t = 0.
+pub const EPOCH_NS: u64 = 1_000_000_000;
+
+impl ApproachTiming {
+    /// The simulated clock's reading at the approach's `t_s`.
+    pub fn time_ns(&self, t_s: f64) -> u64 {
+        EPOCH_NS.saturating_add((t_s.max(0.0) * 1e9) as u64)
+    }
+
+    /// Capture to the decision reaching the autopilot: three stages.
+    pub fn reaction_s(&self) -> f64 {
+        3.0 * self.stage_latency_ns as f64 / 1e9
+    }
+}
+
+/// What became of one frame in the pipeline.
+pub enum FrameStep {
+    /// The source has no more frames.
+    SourceEnded,
+    /// The source could not deliver it (counted by the pipeline; nothing reaches the autopilot).
+    Failed,
+    /// Lost on its way (a fault): no decision on it.
+    Lost,
+    /// The decision on it (which carries the frame's attitude: the naive rule's input). Boxed:
+    /// a decision is a few kilobytes, the other outcomes nothing.
+    Decided(Box<LandingDecision>),
+}
+
+/// The perception pipeline an approach is flown through.
+pub trait ClosedLoopPipeline {
+    /// A sample of the autopilot's attitude stream (for the vehicle's compensation).
+    fn observe_vehicle(&mut self, sample: &VehicleSample);
+    /// The next frame, at the approach's `t_s` with the vehicle `vehicle_over_deck_m` over the
+    /// deck (for a log), through every stage; `inject` sees its pixels on the way to detect and
+    /// returns false when the frame is lost.
+    fn next_frame(
+        &mut self,
+        t_s: f64,
+        vehicle_over_deck_m: f64,
+        inject: &mut dyn FnMut(&mut [u8]) -> bool,
+    ) -> FrameStep;
+    /// The decision when no frame came for too long (decide's watchdog), at `now_ns`.
+    fn watchdog(&mut self, now_ns: u64) -> Option<LandingDecision>;
+    /// An event worth a line in a log: a commit, a go-around, the touchdown.
+    fn note(&mut self, _time_ns: u64, _text: &str) {}
+}
+
+/// The command the naive rule gives on an attitude: land when the current angles are within
+/// the limits (and the attitude is compensated), never go around.
+pub fn naive_command(a: &AttitudeMessage, c: &DecisionConfig) -> Command {
+    let [r, p, _] = a.rpy.to_degrees();
+    if a.valid.get() && a.vehicle.compensation != Compensation::Missing && c.naive_within(r, p) {
+        Command::Land
+    } else {
+        Command::Wait
+    }
+}
+
+/// The autopilot's attitude stream: 100 Hz.
+const VEHICLE_PERIOD_S: f64 = 0.01;
+
+/// Flies one approach of `world` by `rule` through the pipeline `pipeline_for` makes of the
+/// approach's scene; `faults` are injected on the way.
+pub fn fly_approach<P: ClosedLoopPipeline, E>(
+    rule: PipelineRule,
+    world: &ApproachWorld,
+    capacity: &DecisionConfig,
+    model: &ApproachModel,
+    timing: ApproachTiming,
+    faults: &mut FrameFaults,
+    pipeline_for: impl FnOnce(ClosedLoopScene<TrialSea>) -> Result<P, E>,
+) -> Result<ApproachOutcome, E> {
+    let path: SharedFlightPath = Arc::new(Mutex::new(FlightPath::hover(model.hover_m)));
+    let mut pipeline = pipeline_for(world.scene(path.clone()))?;
+    let latency_s = timing.stage_latency_ns as f64 / 1e9;
+    let reaction_s = timing.reaction_s();
+    let mut autopilot = SimulatedAutopilot::new(*model, path.clone());
+    let mut follow = DecisionFollower::default();
+    let mut out = ApproachOutcome::default();
+    let mut next_vehicle_s = -0.05;
+    let mut vehicle_seq = 0;
+    let heave = |t: f64| world.truth(t)[2];
+    // The vehicle's height in W and over the deck at t.
+    let path_at = |t: f64| {
+        let path = path.lock().unwrap_or_else(|e| e.into_inner());
+        (path.height_m(t, heave(t)), path.over_deck_m(t, heave(t)))
+    };
+    let judge = |t: f64| {
+        let (r_d, r_v) = world.attitudes(t);
+        TouchdownVerdict::judge(&|t| world.truth(t), &r_d, &r_v, t, capacity, model)
+    };
+    for k in 0u64.. {
+        let t = k as f64 / timing.rate_hz;
+        let t_decided = t + reaction_s;
+        if let Some(contact) = autopilot.contact_s().filter(|&c| c <= t_decided) {
+            out.touchdown = Some(judge(contact));
+            break;
+        }
+        if t > model.max_approach_s {
+            break;
+        }
+        // The autopilot's attitude stream up to when estimate sees the frame.
+        let out_now = faults.vehicle_out(t);
+        while next_vehicle_s <= t + 1.5 * latency_s {
+            let tv = next_vehicle_s;
+            next_vehicle_s += VEHICLE_PERIOD_S;
+            if out_now {
+                continue;
+            }
+            let (_, r_v) = world.attitudes(tv);
+            let (height_m, _) = path_at(tv);
+            pipeline.observe_vehicle(&VehicleSample {
+                seq: vehicle_seq,
+                time_ns: timing.time_ns(tv),
+                received_ns: timing.time_ns(tv),
+                quaternion: Quaternion::from_matrix(&r_v),
+                altitude_m: f64::NAN,
+                height_m,
+                link_up: true.into(),
+                ..Default::default()
+            });
+            vehicle_seq += 1;
+        }
+        let (_, over_deck_m) = path_at(t);
+        let step = pipeline.next_frame(t, over_deck_m, &mut |pixels| faults.inject(t, pixels));
+        out.frames += 1;
+        let mut follow_decision = |out: &mut ApproachOutcome, d: &LandingDecision| {
+            out.count_decision(d);
+            let c = follow.command(d.state.get());
+            if c == Command::GoAround && autopilot.contact_s().is_some() {
+                out.count_go_around(d.reason.get());
+            }
+            c
+        };
+        let command = match step {
+            FrameStep::SourceEnded => break,
+            FrameStep::Failed => Command::Wait,
+            // Lost on the way: decide's watchdog speaks if the silence is long enough.
+            FrameStep::Lost => match pipeline.watchdog(timing.time_ns(t_decided)) {
+                Some(d) if rule == PipelineRule::Deckwatch => {
+                    out.decisions += 1;
+                    follow_decision(&mut out, &d)
+                }
+                _ => Command::Wait,
+            },
+            FrameStep::Decided(decision) => {
+                out.decisions += 1;
+                match rule {
+                    PipelineRule::Deckwatch => follow_decision(&mut out, &decision),
+                    PipelineRule::Naive => naive_command(&decision.attitude, capacity),
+                }
+            }
+        };
+        if autopilot.act(t_decided, heave(t_decided), command) {
+            let what = if command == Command::Land {
+                format!(
+                    "COMMIT at {t_decided:.2} s: descending, contact at {:.2} s",
+                    t_decided + model.touchdown_s
+                )
+            } else {
+                format!(
+                    "GO-AROUND at {t_decided:.2} s: climbing back to {} m",
+                    model.hover_m
+                )
+            };
+            pipeline.note(timing.time_ns(t_decided), &what);
+        }
+    }
+    out.commits = autopilot.commits;
+    out.go_arounds = autopilot.go_arounds;
+    if let Some(v) = &out.touchdown {
+        let verdict = if v.safe() {
+            "SAFE".to_string()
+        } else {
+            format!("UNSAFE ({})", v.violations.join(", "))
+        };
+        pipeline.note(
+            timing.time_ns(v.t_s),
+            &format!("TOUCHDOWN at {:.2} s: {verdict}", v.t_s),
+        );
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::faults::FrameFaultModel;
+    use crate::world::Approach;
+    use deckwatch_capture::motion::MotionProfile;
+    use deckwatch_common::Rpy;
+    use deckwatch_decide::{FrameInput, LandingDecider};
+
+    /// A perfect camera and estimator: the true deck (as the vehicle's compensation leaves it),
+    /// 6 ms after capture, decided on by the decider itself. What the runner does with the
+    /// decisions is then all that is tested.
+    struct TruthPipeline<'a> {
+        scene: ClosedLoopScene<TrialSea>,
+        decider: LandingDecider,
+        timing: ApproachTiming,
+        seq: u64,
+        noted: &'a mut Vec<String>,
+    }
+
+    impl ClosedLoopPipeline for TruthPipeline<'_> {
+        /// The truth needs no compensation.
+        fn observe_vehicle(&mut self, _sample: &VehicleSample) {}
+
+        fn next_frame(
+            &mut self,
+            t_s: f64,
+            _over: f64,
+            inject: &mut dyn FnMut(&mut [u8]) -> bool,
+        ) -> FrameStep {
+            let mut pixels = [(self.seq % 256) as u8; 8];
+            if !inject(&mut pixels) {
+                return FrameStep::Lost;
+            }
+            let deck = self.scene.deck(t_s);
+            let [r, p, _] = deck.attitude.to_degrees();
+            let mut attitude = AttitudeMessage {
+                valid: true.into(),
+                rpy: Rpy::from_degrees(r, p, 0.0),
+                deck_height_m: deck.deck_heave_m,
+                ..Default::default()
+            };
+            attitude.vehicle.compensation = Compensation::Stream.into();
+            attitude.stamp.seq = self.seq;
+            attitude.context.source_timestamp_ns = (t_s * 1e9) as u64;
+            attitude.stamp.times.captured_ns = self.timing.time_ns(t_s);
+            self.seq += 1;
+            let received_ns = attitude.stamp.times.captured_ns + 6_000_000;
+            let d = self
+                .decider
+                .decide_frame(&FrameInput::from_attitude(&attitude, received_ns));
+            self.decider.refit_between_frames();
+            let decision = LandingDecision {
+                attitude,
+                state: d.state.into(),
+                reason: d.reason.into(),
+                ..Default::default()
+            };
+            FrameStep::Decided(Box::new(decision))
+        }
+
+        fn watchdog(&mut self, now_ns: u64) -> Option<LandingDecision> {
+            let now_s = (now_ns - EPOCH_NS) as f64 / 1e9;
+            let d = self.decider.timeout(now_s)?;
+            Some(LandingDecision {
+                state: d.state.into(),
+                reason: d.reason.into(),
+                ..Default::default()
+            })
+        }
+
+        fn note(&mut self, _time_ns: u64, text: &str) {
+            self.noted.push(text.to_string());
+        }
+    }
+
+    fn fly(rule: PipelineRule, sea_state: u32, index: u32, faults: FrameFaultModel) -> ApproachOutcome {
+        let capacity = DecisionConfig::default();
+        let model = ApproachModel {
+            max_approach_s: 90.0,
+            ..ApproachModel::quadrotor(capacity.touchdown_s)
+        };
+        let approach = Approach {
+            sea_state,
+            seed: 101,
+            heading_deg: 40.0,
+            index,
+        };
+        let world = ApproachWorld::new(approach, None, 0.3, model.max_approach_s).unwrap();
+        let timing = ApproachTiming {
+            rate_hz: 10.0,
+            stage_latency_ns: 2_000_000,
+        };
+        let mut faults = FrameFaults::new(&faults, timing.rate_hz, approach.approach_seed());
+        let mut noted = Vec::new();
+        let out = fly_approach(rule, &world, &capacity, &model, timing, &mut faults, |scene| {
+            Ok::<_, ()>(TruthPipeline {
+                scene,
+                decider: LandingDecider::new(capacity.clone()).unwrap(),
+                timing,
+                seq: 0,
+                noted: &mut noted,
+            })
+        })
+        .unwrap();
+        // Every commit and the touchdown were noted for the log.
+        assert_eq!(
+            noted.iter().filter(|n| n.starts_with("COMMIT")).count(),
+            out.commits as usize,
+            "{noted:?}"
+        );
+        assert_eq!(
+            noted.iter().any(|n| n.starts_with("TOUCHDOWN")),
+            out.touchdown.is_some()
+        );
+        out
+    }
+
+    /// On a moderate sea the decision commits, and contact is judged against the true deck: safe.
+    #[test]
+    fn the_decision_lands_safely_on_a_moderate_sea() {
+        let out = fly(PipelineRule::Deckwatch, 3, 0, FrameFaultModel::default());
+        let v = out.touchdown.as_ref().expect("a touchdown within 90 s");
+        assert!(v.safe(), "{v:?}");
+        assert!(
+            out.commits >= 1 && out.frames > 100 && out.decisions == out.frames,
+            "{out:?}"
+        );
+        assert!(out.decisions_by_reason.keys().any(|k| k.starts_with("CLEAR")));
+    }
+
+    /// The naive rule commits on the current angles: on a rough sea some of its touchdowns break
+    /// a limit at contact, which the runner reports.
+    #[test]
+    fn the_naive_rule_lands_unsafely_on_a_rough_sea() {
+        let unsafe_touchdowns = (0..4)
+            .filter(|&i| {
+                let out = fly(PipelineRule::Naive, 6, i, FrameFaultModel::default());
+                out.touchdown.is_some_and(|v| !v.safe())
+            })
+            .count();
+        assert!(unsafe_touchdowns >= 1);
+    }
+
+    /// Every frame lost: nothing to decide on, the watchdog's stale decisions only, no commit.
+    #[test]
+    fn no_frames_no_landing() {
+        let all_lost = FrameFaultModel {
+            drop_share: 1.0,
+            ..Default::default()
+        };
+        let out = fly(PipelineRule::Deckwatch, 3, 0, all_lost);
+        assert!(out.touchdown.is_none() && out.commits == 0, "{out:?}");
+        assert!(
+            out.decisions_by_reason.keys().all(|k| !k.starts_with("CLEAR")),
+            "{out:?}"
+        );
+    }
+
+    #[test]
+    fn the_scene_follows_the_world() {
+        let approach = Approach {
+            sea_state: 5,
+            seed: 3,
+            heading_deg: 0.0,
+            index: 2,
+        };
+        let world = ApproachWorld::new(approach, None, 0.3, 60.0).unwrap();
+        let scene = world.scene(Arc::new(Mutex::new(FlightPath::hover(3.0))));
+        let [r, p, h] = world.truth(12.5);
+        let s = scene.deck(12.5);
+        let [sr, sp, _] = s.attitude.to_degrees();
+        assert_eq!((r, p, h), (sr, sp, s.deck_heave_m));
+        assert_eq!(
+            ApproachWorld::new(
+                Approach {
+                    sea_state: 9,
+                    ..approach
+                },
+                None,
+                0.3,
+                60.0
+            )
+            .err(),
+            Some(crate::WorldError::NoSpectrumSea(9))
+        );
+        let _ = world.sea.sample(0.0);
+    }
+}

@@ -1,0 +1,125 @@
+//! One approach's world: the sea (a spectrum sea or a recorded ship motion), the vehicle's sway,
+//! and where in them the approach starts.
+
+use deckwatch_capture::landing::{ClosedLoopScene, SharedFlightPath};
+use deckwatch_capture::motion::{MotionProfile, MotionSample, SpectrumShipMotion, VehicleSway};
+use deckwatch_capture::motion_file::RecordedShipMotion;
+use deckwatch_common::RotationMatrix;
+use std::sync::Arc;
+
+/// One approach to fly: its sea state (0: a motion file), seed, wave heading and number.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Approach {
+    pub sea_state: u32,
+    pub seed: u64,
+    /// The waves' mean heading off the bow (deg); NaN with a motion file.
+    pub heading_deg: f64,
+    pub index: u32,
+}
+
+impl Approach {
+    /// The seed of the approach's own randomness (its faults).
+    pub fn approach_seed(&self) -> u64 {
+        self.seed.wrapping_mul(0x9E37_79B9) ^ ((self.sea_state as u64) << 32) ^ self.index as u64
+    }
+}
+
+/// The deck's motion in a trial: a spectrum sea, or a recorded one.
+#[derive(Clone)]
+pub enum TrialSea {
+    Spectrum(SpectrumShipMotion),
+    Recorded(Arc<RecordedShipMotion>),
+}
+
+impl MotionProfile for TrialSea {
+    fn sample(&self, t_s: f64) -> MotionSample {
+        match self {
+            Self::Spectrum(s) => s.sample(t_s),
+            Self::Recorded(r) => r.sample(t_s),
+        }
+    }
+}
+
+/// Why an approach's world cannot be made.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum WorldError {
+    #[error("sea state {0} has no spectrum sea (3, 4, 5, 6)")]
+    NoSpectrumSea(u32),
+    #[error("the motion holds {holds_s:.1} s, an approach needs {needs_s:.1} s")]
+    MotionTooShort { holds_s: f64, needs_s: f64 },
+}
+
+/// One approach's world: the sea, the vehicle's sway and where the approach starts in them.
+#[derive(Clone)]
+pub struct ApproachWorld {
+    pub sea: TrialSea,
+    pub sway: VehicleSway,
+    /// The approach's t = 0 in the sea's time (s).
+    pub sea_offset_s: f64,
+}
+
+/// The deck's motion beyond the approach's end the decision may look at (s).
+const LOOK_AHEAD_S: f64 = 10.0;
+
+impl ApproachWorld {
+    /// The world of `approach`: on `recorded` motion when given (approach k starts 421 k s into
+    /// it, wrapped to fit its length), else on the spectrum sea of its sea state, seed and
+    /// heading (approaches 7 min apart: its heading wanders over 10 min). `sway` scales a
+    /// hovering quadrotor's sway.
+    pub fn new(
+        approach: Approach,
+        recorded: Option<&Arc<RecordedShipMotion>>,
+        sway: f64,
+        max_approach_s: f64,
+    ) -> Result<Self, WorldError> {
+        let sway = VehicleSway::hover(approach.seed.wrapping_mul(1000) + approach.index as u64, sway);
+        if let Some(motion) = recorded {
+            // Each approach needs its whole length (and the decision's look ahead) of motion.
+            let needs_s = max_approach_s + LOOK_AHEAD_S;
+            let usable_s = motion.duration_s() - needs_s;
+            if !(usable_s > 0.0) {
+                return Err(WorldError::MotionTooShort {
+                    holds_s: motion.duration_s(),
+                    needs_s,
+                });
+            }
+            return Ok(Self {
+                sea: TrialSea::Recorded(motion.clone()),
+                sway,
+                sea_offset_s: (421.0 * approach.index as f64) % usable_s,
+            });
+        }
+        let sea = SpectrumShipMotion::sea_state_from(approach.sea_state, approach.seed, approach.heading_deg)
+            .ok_or(WorldError::NoSpectrumSea(approach.sea_state))?;
+        Ok(Self {
+            sea: TrialSea::Spectrum(sea),
+            sway,
+            sea_offset_s: 60.0 + 421.0 * approach.index as f64,
+        })
+    }
+
+    /// What the camera sees from the vehicle flying `path`.
+    pub fn scene(&self, path: SharedFlightPath) -> ClosedLoopScene<TrialSea> {
+        ClosedLoopScene {
+            sea: self.sea.clone(),
+            sway: self.sway.clone(),
+            path,
+            sea_offset_s: self.sea_offset_s,
+            // Hovering a little off the centre, as a position hold does.
+            offset_m: [0.08, -0.05],
+        }
+    }
+
+    /// The true deck: roll, pitch (deg) and heave (m) at the approach's t.
+    pub fn truth(&self, t: f64) -> [f64; 3] {
+        let s = self.sea.sample(t + self.sea_offset_s);
+        let [r, p, _] = s.attitude.to_degrees();
+        [r, p, s.deck_heave_m]
+    }
+
+    /// The deck's and the vehicle's attitudes (body to W) at t.
+    pub fn attitudes(&self, t: f64) -> (RotationMatrix, RotationMatrix) {
+        let deck = self.sea.sample(t + self.sea_offset_s).attitude.to_matrix();
+        (deck, self.sway.attitude(t + self.sea_offset_s).to_matrix())
+    }
+}

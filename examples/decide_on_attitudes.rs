@@ -6,10 +6,10 @@
 //!
 //! Without a file it writes and reads a calm swell of its own.
 
-use deckwatch_capture::motion::MotionProfile;
-use deckwatch_capture::motion_file::RecordedShipMotion;
 use deckwatch_common::messages::DecisionState;
 use deckwatch_decide::{DecisionConfig, DeckObservation, FrameInput, LandingDecider};
+use deckwatch_sim::motion::MotionProfile;
+use deckwatch_sim::motion_file::RecordedShipMotion;
 use std::collections::BTreeMap;
 use std::error::Error;
 use std::path::Path;

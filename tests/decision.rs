@@ -100,9 +100,9 @@ fn spectrum_seas_with_faults_no_unsafe_clearance() {
 /// way the decide stage sees them; the pipeline run itself is in tests/pipeline.rs.
 #[test]
 fn lulls_scenario_shows_the_whole_cycle() {
-    use deckwatch_capture::{MotionProfile, Scenario};
     use deckwatch_common::messages::{DecisionReason, DecisionState};
     use deckwatch_decide::{DecisionConfig, DeckObservation, LandingDecider};
+    use deckwatch_sim::{MotionProfile, Scenario};
     let config = DecisionConfig::default();
     for seed in [1, 2, 3] {
         let profile = Scenario::Lulls.profile(seed, 1.0);

@@ -1,13 +1,13 @@
 //! The detector on simulator frames: accuracy against the exact marker centres, attitude through
 //! the paper's estimator, robustness (occlusion, glints, no deck), tracking.
 
-use deckwatch_capture::{FrameSimulator, RenderOptions, Renderer, Scenario};
 use deckwatch_common::markers::DetectionStatus;
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::ErrorStats;
 use deckwatch_common::{CameraModel, DeckLayout, GrayImage};
 use deckwatch_detect::{Detector, DetectorConfig};
 use deckwatch_estimate::{PaperEstimator, PaperVariant};
+use deckwatch_sim::{FrameSimulator, RenderOptions, Renderer, Scenario};
 
 fn simulator(
     scenario: Scenario,

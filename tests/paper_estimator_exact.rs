@@ -1,10 +1,10 @@
 //! The paper's estimator on exact float64 projections of the marker centres: it must be exact to
 //! rounding (the paper's Table I reports RMSE ~1e-13 deg), here max error <= 1e-9 deg.
 
-use deckwatch_capture::motion::sample_series;
-use deckwatch_capture::{Case1Sweep, MotionProfile, ShipMotion, TrackingError};
 use deckwatch_common::{CameraModel, DeckLayout, Euler313};
 use deckwatch_estimate::{PaperEstimator, PaperVariant};
+use deckwatch_sim::motion::sample_series;
+use deckwatch_sim::{Case1Sweep, MotionProfile, ShipMotion, TrackingError};
 use deckwatch_tests::{exact_markers, rpy_errors_deg, ErrorStats};
 
 const EXACT_DEG: f64 = 1e-9;

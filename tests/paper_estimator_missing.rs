@@ -1,11 +1,11 @@
 //! Missing markers and degenerate input: the paper's estimator works with the centre, the bow and
 //! at least 5 ring markers, and otherwise says why it cannot estimate. It never guesses.
 
-use deckwatch_capture::motion::sample_series;
-use deckwatch_capture::{MotionProfile, ShipMotion, TrackingError};
 use deckwatch_common::deck::{BOW, CENTRE};
 use deckwatch_common::{CameraModel, DeckLayout, Distortion, SceneGeometry};
 use deckwatch_estimate::{NotEstimable, PaperEstimator, PaperVariant};
+use deckwatch_sim::motion::sample_series;
+use deckwatch_sim::{MotionProfile, ShipMotion, TrackingError};
 use deckwatch_tests::{exact_markers, rpy_errors_deg};
 
 fn hide(px: &[Option<[f64; 2]>], hidden_mask: u32) -> Vec<Option<[f64; 2]>> {
@@ -162,7 +162,7 @@ fn degenerate_and_invalid_input_is_refused() {
         Err(NotEstimable::Degenerate(_))
     ));
     // Random garbage never panics and never yields a non-finite attitude.
-    let mut rng = deckwatch_capture::rng::SplitMix64::new(3);
+    let mut rng = deckwatch_sim::rng::SplitMix64::new(3);
     for _ in 0..2000 {
         let px: Vec<_> = (0..9)
             .map(|_| (rng.next_f64() > 0.1).then(|| [rng.next_f64() * 3280.0, rng.next_f64() * 2464.0]))

@@ -2,8 +2,8 @@
 //! frames have sized its marker patches). Counted with a global allocator, in a test binary of
 //! its own so that nothing else allocates meanwhile.
 
-use deckwatch_capture::{RenderOptions, Renderer, Scenario};
 use deckwatch_common::{CameraModel, DeckLayout, GrayImage, SceneGeometry};
+use deckwatch_sim::{RenderOptions, Renderer, Scenario};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 

@@ -1,12 +1,12 @@
 //! The simulator through pixels: render frames, find the marker centres with a simple reference
 //! method, run the paper's estimator, compare with the ground truth.
 
-use deckwatch_capture::{FrameSimulator, RenderOptions, Renderer, Scenario};
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::ErrorStats;
 use deckwatch_common::{CameraModel, DeckLayout, GrayImage};
 use deckwatch_detect::{identify, marker_pixels};
 use deckwatch_estimate::{PaperEstimator, PaperVariant};
+use deckwatch_sim::{FrameSimulator, RenderOptions, Renderer, Scenario};
 use deckwatch_tests::reference_blobs;
 
 /// Case 1 frames at full resolution through the reference centroids and the paper's estimator.

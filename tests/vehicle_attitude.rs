@@ -3,10 +3,10 @@
 //! it, the deck's attitude in the world frame is exact to rounding; without it, it is wrong by
 //! about the vehicle's tilt (what deckwatch reported before).
 
-use deckwatch_capture::motion::sample_series;
-use deckwatch_capture::{MotionProfile, ShipMotion, Swaying, VehicleSway};
 use deckwatch_common::{CameraModel, DeckLayout};
 use deckwatch_estimate::{PaperEstimator, PaperVariant, PoseConfig, PoseEstimator};
+use deckwatch_sim::motion::sample_series;
+use deckwatch_sim::{MotionProfile, ShipMotion, Swaying, VehicleSway};
 use deckwatch_tests::{exact_markers, rpy_errors_deg, ErrorStats};
 
 const EXACT_DEG: f64 = 1e-8;

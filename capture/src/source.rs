@@ -4,12 +4,12 @@
 //! caller's buffer (the loaned shared-memory sample), so each frame is written once.
 
 use crate::camera::CameraConfig;
-use crate::scenario::SimulationArgs;
-use crate::sim::ImageArgs;
-use crate::{FrameSimulator, Renderer};
 use deckwatch_common::messages::{FrameSource, VehicleAttitude};
 use deckwatch_common::vehicle::{VehicleConfig, VehicleTrack};
 use deckwatch_common::{CameraModel, DeckLayout, GrayViewMut, GroundTruth, Recording, RecordingError};
+use deckwatch_sim::scenario::SimulationArgs;
+use deckwatch_sim::sim::ImageArgs;
+use deckwatch_sim::{FrameSimulator, Renderer};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 use std::time::Duration;
@@ -143,7 +143,14 @@ impl CaptureConfig {
     /// The simulation and its image as configured.
     fn resolve_sim(
         &self,
-    ) -> Result<(crate::scenario::Simulation, CameraModel, crate::RenderOptions), SourceError> {
+    ) -> Result<
+        (
+            deckwatch_sim::scenario::Simulation,
+            CameraModel,
+            deckwatch_sim::RenderOptions,
+        ),
+        SourceError,
+    > {
         let sim = self
             .sim
             .resolve()
@@ -194,10 +201,10 @@ impl CaptureConfig {
 
     /// The configured simulator (camera, image, rate, seed) rendering `profile` instead of the
     /// configured scenario's motion: a closed-loop landing's scene
-    /// ([`crate::landing::ClosedLoopScene`]).
+    /// ([`deckwatch_sim::landing::ClosedLoopScene`]).
     pub fn open_sim_with(
         &self,
-        profile: Box<dyn crate::motion::MotionProfile + Send + Sync>,
+        profile: Box<dyn deckwatch_sim::motion::MotionProfile + Send + Sync>,
     ) -> Result<CaptureSource, SourceError> {
         let (sim, camera, options) = self.resolve_sim()?;
         let renderer = Renderer::new(camera, sim.deck, options, self.sim.seed)
@@ -362,10 +369,8 @@ fn not_built() -> SourceError {
     ))
 }
 
-/// Frame rates a source accepts (Hz): slower than one frame in 1000 s or faster than 10 kHz is
-/// a mistake, and would overflow the pacing arithmetic at the extremes.
-pub const MIN_RATE_HZ: f64 = 1e-3;
-pub const MAX_RATE_HZ: f64 = 1e4;
+/// Frame rates a source accepts (Hz), the simulator's: defined with the simulation options.
+pub use deckwatch_sim::scenario::{MAX_RATE_HZ, MIN_RATE_HZ};
 
 /// How replay paces frames.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -3,11 +3,11 @@
 //! rule. Measurements are the truth plus Gaussian noise, dropped frames and outliers, as the
 //! estimate stage delivers them.
 
-use deckwatch_capture::motion::{DeckHeave, MotionProfile, ShipMotion, SpectrumShipMotion};
-use deckwatch_capture::motion_file::RecordedShipMotion;
 use deckwatch_decide::decision::DecisionConfig;
 use deckwatch_decide::eval::{evaluate, RuleOutcome};
 use deckwatch_decide::FrameInput;
+use deckwatch_sim::motion::{DeckHeave, MotionProfile, ShipMotion, SpectrumShipMotion};
+use deckwatch_sim::motion_file::RecordedShipMotion;
 use deckwatch_trials::AttitudeStreamModel;
 use std::time::Instant;
 

@@ -5,13 +5,13 @@
 //! profiling and debugging the algorithms without IPC.
 
 use crate::decisions_csv::DecisionsCsv;
-use deckwatch_capture::scenario::SimulationArgs;
-use deckwatch_capture::sim::ImageArgs;
 use deckwatch_common::markers::DetectionStatus;
 use deckwatch_common::messages::{DecisionState, EstimatorKind, FrameSource};
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::{ErrorStats, Percentiles};
 use deckwatch_runtime::chain::StageChain;
+use deckwatch_sim::scenario::SimulationArgs;
+use deckwatch_sim::sim::ImageArgs;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]

@@ -16,14 +16,14 @@
 //! - `deckwatch recording check DIR`: validate a recording (camera.json, frames.csv, every image).
 
 use clap::{Parser, Subcommand};
-use deckwatch_capture::scenario::SimulationArgs;
-use deckwatch_capture::sim::ImageArgs;
 use deckwatch_capture::virtual_camera::VirtualCameraWriter;
-use deckwatch_capture::{FrameSimulator, Renderer};
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::{ErrorStats, Percentiles};
 use deckwatch_common::{GrayImage, Recording, RecordingWriter};
 use deckwatch_estimate::{PaperEstimator, PaperVariant};
+use deckwatch_sim::scenario::SimulationArgs;
+use deckwatch_sim::sim::ImageArgs;
+use deckwatch_sim::{FrameSimulator, Renderer};
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -228,7 +228,7 @@ fn record(a: RecordArgs) -> Result<(), String> {
     bar.finish_and_clear();
     // The autopilot's view of a vehicle that is not level, over the frames' span and a period
     // beyond (interpolation needs a sample after the last frame).
-    if a.sim.vehicle != deckwatch_capture::scenario::VehicleMotion::Level {
+    if a.sim.vehicle != deckwatch_sim::scenario::VehicleMotion::Level {
         let end_s = a.sim.frames as f64 / a.sim.rate + 0.1;
         let samples = a
             .sim

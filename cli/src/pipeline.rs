@@ -27,7 +27,7 @@ pub struct RunArgs {
     /// decision's whole cycle in 60 s), `ship` (sea state 6), `case1`, `offset` or `nodeck`;
     /// sets `[sim] scenario`.
     #[arg(long, value_enum)]
-    scenario: Option<deckwatch_capture::Scenario>,
+    scenario: Option<deckwatch_sim::Scenario>,
     /// iceoryx2 domain (isolates concurrent pipelines).
     #[arg(long)]
     domain: Option<String>,

@@ -3,13 +3,13 @@
 //! estimate-table` runs the paper's estimator on such a table, one attitude row per frame. A bad
 //! row is reported (file, line, column), counted and skipped; the stream goes on.
 
-use deckwatch_capture::scenario::SimulationArgs;
 use deckwatch_common::marker_table::{MarkerTableReader, MarkerTableWriter};
 use deckwatch_common::recording::read_camera_json;
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::Percentiles;
 use deckwatch_common::{CameraModel, DeckLayout};
 use deckwatch_estimate::{PaperEstimator, PaperVariant};
+use deckwatch_sim::scenario::SimulationArgs;
 use std::collections::BTreeMap;
 use std::io::{BufRead, Write};
 use std::time::Instant;

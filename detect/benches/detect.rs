@@ -8,10 +8,10 @@
 //! with a message.
 
 use criterion::Criterion;
-use deckwatch_capture::{FrameSimulator, RenderOptions, Renderer, Scenario};
 use deckwatch_common::stats::Percentiles;
 use deckwatch_common::{CameraModel, DeckLayout, GrayImage};
 use deckwatch_detect::{Detector, DetectorConfig};
+use deckwatch_sim::{FrameSimulator, RenderOptions, Renderer, Scenario};
 use std::time::Instant;
 
 fn frames(n: u64) -> Vec<GrayImage> {

@@ -1081,8 +1081,8 @@ mod tests {
     /// search around the previous pattern, exactly as the whole frame's search finds it.
     #[test]
     fn a_jump_beyond_the_boxes_is_found_around_the_pattern() {
-        use deckwatch_capture::{FrameSimulator, RenderOptions, Renderer, Scenario};
         use deckwatch_common::GrayImage;
+        use deckwatch_sim::{FrameSimulator, RenderOptions, Renderer, Scenario};
         let cam = CameraModel::rpi_v2();
         let deck = DeckLayout::paper();
         let r = Renderer::new(cam, deck, RenderOptions::realistic(), 3).unwrap();

@@ -7,8 +7,6 @@
 
 use crate::bus::{BusConfig, BusError};
 use deckwatch_capture::camera::CameraConfig;
-use deckwatch_capture::scenario::SimulationArgs;
-use deckwatch_capture::sim::ImageArgs;
 use deckwatch_capture::source::{CaptureConfig, ReplayConfig, SourceConfig, SourceError};
 use deckwatch_common::messages::{EstimatorKind, FrameSource};
 use deckwatch_common::vehicle::{VehicleAttitudeSource, VehicleConfig};
@@ -16,6 +14,8 @@ use deckwatch_decide::{DecisionConfig, HeaveUse};
 use deckwatch_estimate::EstimateConfig;
 use deckwatch_flight::RecordConfig;
 use deckwatch_link::LinkConfig;
+use deckwatch_sim::scenario::SimulationArgs;
+use deckwatch_sim::sim::ImageArgs;
 use deckwatch_viz::RerunConfig;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -371,7 +371,7 @@ mod tests {
         assert_eq!(c.estimate.estimator, EstimatorKind::PaperFittedMajorAxis);
         assert_eq!(c.decide.predictor, deckwatch_decide::Predictor::Ar);
         assert_eq!(c.rerun.sink, deckwatch_viz::RerunSink::Save);
-        assert_eq!(c.sim.scenario, deckwatch_capture::Scenario::NoDeck);
+        assert_eq!(c.sim.scenario, deckwatch_sim::Scenario::NoDeck);
         let again = PipelineConfig::from_toml("again", &c.to_toml()).unwrap();
         assert_eq!(again, c);
         assert_eq!(

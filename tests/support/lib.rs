@@ -4,9 +4,9 @@ pub mod guard;
 
 pub use guard::{pipeline_output, PipelineGuard};
 
-use deckwatch_capture::MotionSample;
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::{Attitude, CameraModel, DeckLayout, Rpy, SceneGeometry};
+use deckwatch_sim::MotionSample;
 
 pub use deckwatch_common::stats::ErrorStats;
 

@@ -6,10 +6,10 @@
 //! stamp jitter, the vehicle compensation's errors and outages). Both time their episodes (a
 //! frozen camera, an outage) with [`Episodes`].
 
-use deckwatch_capture::motion::VehicleSway;
-use deckwatch_capture::rng::SplitMix64;
 use deckwatch_common::messages::FROZEN_IMAGE_REPEATS;
 use deckwatch_decide::{DeckObservation, FrameInput};
+use deckwatch_sim::motion::VehicleSway;
+use deckwatch_sim::rng::SplitMix64;
 
 /// Episodes that start at random (a Poisson process, drawn once per frame) and last a fixed
 /// time each: a frozen camera, an outage of a stream. Overlapping episodes merge.

@@ -10,11 +10,11 @@ use crate::world::{ApproachWorld, TrialSea};
 use crate::{
     ApproachModel, ApproachOutcome, Command, DecisionFollower, SimulatedAutopilot, TouchdownVerdict,
 };
-use deckwatch_capture::landing::{ClosedLoopScene, FlightPath, SharedFlightPath};
 use deckwatch_common::messages::{AttitudeMessage, LandingDecision, VehicleSample};
 use deckwatch_common::vehicle::Compensation;
 use deckwatch_common::Quaternion;
 use deckwatch_decide::DecisionConfig;
+use deckwatch_sim::landing::{ClosedLoopScene, FlightPath, SharedFlightPath};
 use std::sync::{Arc, Mutex};
 
 /// The rules a pipeline flies: deckwatch's decision, or the naive rule on its attitudes (the
@@ -222,9 +222,9 @@ mod tests {
     use super::*;
     use crate::faults::FrameFaultModel;
     use crate::world::Approach;
-    use deckwatch_capture::motion::MotionProfile;
     use deckwatch_common::Rpy;
     use deckwatch_decide::{FrameInput, LandingDecider};
+    use deckwatch_sim::motion::MotionProfile;
 
     /// A perfect camera and estimator: the true deck (as the vehicle's compensation leaves it),
     /// 6 ms after capture, decided on by the decider itself. What the runner does with the

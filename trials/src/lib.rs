@@ -15,11 +15,11 @@ pub use faults::{AttitudeStreamModel, Episodes, FaultOptionError, FrameFaultMode
 pub use fly::{fly_approach, naive_command, ApproachTiming, ClosedLoopPipeline, FrameStep, PipelineRule};
 pub use world::{Approach, ApproachWorld, TrialSea, WorldError};
 
-use deckwatch_capture::landing::SharedFlightPath;
 use deckwatch_common::messages::DecisionState;
 use deckwatch_common::RotationMatrix;
 use deckwatch_decide::eval::{TrueDeck, TrueDeckState};
 use deckwatch_decide::DecisionConfig;
+use deckwatch_sim::landing::SharedFlightPath;
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -116,7 +116,7 @@ pub enum Phase {
     },
 }
 
-/// The simulated autopilot: flies the shared [`deckwatch_capture::landing::FlightPath`] as the
+/// The simulated autopilot: flies the shared [`deckwatch_sim::landing::FlightPath`] as the
 /// commands come.
 pub struct SimulatedAutopilot {
     pub model: ApproachModel,
@@ -384,8 +384,8 @@ pub fn oracle_approach(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use deckwatch_capture::landing::FlightPath;
     use deckwatch_common::Rpy;
+    use deckwatch_sim::landing::FlightPath;
     use std::sync::{Arc, Mutex};
 
     #[test]

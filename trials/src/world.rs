@@ -1,10 +1,10 @@
 //! One approach's world: the sea (a spectrum sea or a recorded ship motion), the vehicle's sway,
 //! and where in them the approach starts.
 
-use deckwatch_capture::landing::{ClosedLoopScene, SharedFlightPath};
-use deckwatch_capture::motion::{MotionProfile, MotionSample, SpectrumShipMotion, VehicleSway};
-use deckwatch_capture::motion_file::RecordedShipMotion;
 use deckwatch_common::RotationMatrix;
+use deckwatch_sim::landing::{ClosedLoopScene, SharedFlightPath};
+use deckwatch_sim::motion::{MotionProfile, MotionSample, SpectrumShipMotion, VehicleSway};
+use deckwatch_sim::motion_file::RecordedShipMotion;
 use std::sync::Arc;
 
 /// One approach to fly: its sea state (0: a motion file), seed, wave heading and number.

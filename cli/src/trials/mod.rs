@@ -7,13 +7,13 @@
 //! approaches are flown by the naive rule (current angles within the limits) and by an oracle
 //! that knows the future motion.
 
-use deckwatch_capture::motion::SpectrumShipMotion;
-use deckwatch_capture::motion_file::RecordedShipMotion;
 use deckwatch_common::messages::{FrameSource, LandingDecision, VehicleSample};
 use deckwatch_common::vehicle::VehicleAttitudeSource;
 use deckwatch_decide::DecisionConfig;
 use deckwatch_runtime::chain::{ChainOutput, SimulatedClock, StageChain};
 use deckwatch_runtime::config::PipelineConfig;
+use deckwatch_sim::motion::SpectrumShipMotion;
+use deckwatch_sim::motion_file::RecordedShipMotion;
 use deckwatch_trials::{
     fly_approach, oracle_approach, Approach, ApproachModel, ApproachOutcome, ApproachTiming, ApproachWorld,
     ClosedLoopPipeline, FrameFaultModel, FrameFaults, FrameStep, PipelineRule, RuleSummary, WorldError,

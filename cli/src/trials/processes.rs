@@ -7,7 +7,6 @@
 
 use super::{fault_model, world_of, Setup, TrialsArgs};
 use crate::launch::{launch, LaunchOptions};
-use deckwatch_capture::landing::{FlightPath, SharedFlightPath};
 use deckwatch_common::messages::{monotonic_ns, DecisionReason, DecisionState};
 use deckwatch_common::wire::WireCode;
 use deckwatch_link::frames::ned_quaternion_of_vehicle;
@@ -16,6 +15,7 @@ use deckwatch_link::outgoing::names;
 use deckwatch_link::{MavHeader, MavMessage};
 use deckwatch_runtime::bus::{services, Bus};
 use deckwatch_runtime::stages::capture::{complete_header, new_header};
+use deckwatch_sim::landing::{FlightPath, SharedFlightPath};
 use deckwatch_trials::{
     Approach, ApproachOutcome, ApproachWorld, DecisionFollower, FrameFaults, SimulatedAutopilot,
     TouchdownVerdict,

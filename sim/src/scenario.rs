@@ -193,6 +193,11 @@ pub struct Simulation {
     pub deck: DeckLayout,
 }
 
+/// Frame rates a source accepts (Hz): slower than one frame in 1000 s or faster than 10 kHz is
+/// a mistake, and would overflow the pacing arithmetic at the extremes.
+pub const MIN_RATE_HZ: f64 = 1e-3;
+pub const MAX_RATE_HZ: f64 = 1e4;
+
 impl SimulationArgs {
     /// Checks the choice; errors name the option.
     pub fn resolve(&self) -> Result<Simulation, String> {
@@ -204,7 +209,6 @@ impl SimulationArgs {
             .to_string();
         let camera = CameraModel::preset(&camera_name)
             .ok_or_else(|| format!("--camera: unknown `{camera_name}` (paper, rpi-v2)"))?;
-        use crate::source::{MAX_RATE_HZ, MIN_RATE_HZ};
         if !(MIN_RATE_HZ..=MAX_RATE_HZ).contains(&self.rate) {
             return Err(format!(
                 "--rate: must be within [{MIN_RATE_HZ}, {MAX_RATE_HZ}] Hz, got {}",

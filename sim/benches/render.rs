@@ -1,8 +1,8 @@
-//! Full-frame rendering speed, one thread: `cargo bench -p deckwatch-capture --bench render`.
+//! Full-frame rendering speed, one thread: `cargo bench -p deckwatch-sim --bench render`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use deckwatch_capture::{RenderOptions, Renderer};
 use deckwatch_common::{CameraModel, DeckLayout, GrayImage, Rpy, SceneGeometry, Viewpoint};
+use deckwatch_sim::{RenderOptions, Renderer};
 
 fn bench(c: &mut Criterion) {
     let cam = CameraModel::rpi_v2();

@@ -1,0 +1,376 @@
+//! The decision's configuration (`[decide]`): the vehicle's capacity, the touchdown, the
+//! accepted risk, the predictor and its settings, and their checks.
+
+use serde::{Deserialize, Serialize};
+
+/// What the decision needs to know (the `[decide]` section of the pipeline configuration).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DecisionConfig {
+    /// The quadrotor's capacity at touchdown: deck tilt...
+    pub max_abs_roll_deg: f64,
+    pub max_abs_pitch_deg: f64,
+    /// ... the deck's whole tilt from level (roll and pitch together, deg): what the gear takes
+    /// against a level deck less what the vehicle itself leans at contact. 5.5: a gear that
+    /// takes 8 deg against the deck, a vehicle leaning up to 2.5 deg in wind (a deck at 4.3 deg
+    /// roll and 3.9 deg pitch, each within its limit, is tilted 5.8 deg: with the vehicle's lean
+    /// it broke the 8 deg, BENCHMARKS.md "Deck-motion prediction") ...
+    pub max_tilt_deg: f64,
+    /// ... and tilt rates.
+    pub max_abs_roll_rate_dps: f64,
+    pub max_abs_pitch_rate_dps: f64,
+    /// Whether the deck's heave is part of the capacity: `required` (a frame without a deck
+    /// height is refused, `no-deck-heave`) or `off` (roll and pitch only: a camera with no
+    /// vehicle height, or the paper's method alone).
+    pub heave: HeaveUse,
+    /// ... and the deck's vertical speed (m/s): a small quadrotor's gear; ship-helicopter
+    /// operating limits are about 1 m/s.
+    pub max_abs_heave_rate_mps: f64,
+    /// Time from commit to contact (s): the deck must stay within capacity all that time.
+    pub touchdown_s: f64,
+    /// An attitude older than this when decided on is stale (capture -> decision).
+    pub max_age_ms: f64,
+    /// A longer interval between valid attitudes is a gap.
+    pub max_gap_ms: f64,
+    /// After a gap, no clearance for this long.
+    pub gap_recovery_s: f64,
+    /// A change between consecutive attitudes faster than this is a jump (a bad estimate).
+    pub max_plausible_rate_dps: f64,
+    /// This many bit-identical inputs in a row (roll, pitch and deck height) are a frozen input:
+    /// refused (`frozen-input`), and the history is learnt afresh once it moves again.
+    pub frozen_input_count: u32,
+    /// History used for the prediction (the autoregressive fit estimates its coefficients on
+    /// all of it; the sinusoid fit wants about 40 s, a few periods).
+    pub window_s: f64,
+    /// No clearance before this much history: the wait after the deck comes into view. The
+    /// autoregressive predictor fits a lower order on a short history and states the larger
+    /// uncertainty that comes with it (the sinusoid fit wants about 20 s).
+    pub min_history_s: f64,
+    /// Refit the motion model this often (s).
+    pub refit_interval_s: f64,
+    /// `ar` (autoregressive, with the uncertainty it states: the default) or `sinusoids`
+    /// (dominant sinusoids of the window with a held-out error bound: exact for a regular sea;
+    /// use it with `window_s = 40`, `min_history_s = 20` and the margins 0.5 / 0.5 / 0.1).
+    pub predictor: Predictor,
+    /// Order of the autoregressive predictor (on a 5 Hz grid: 48 spans 9.6 s, most of a roll
+    /// period); a shorter history fits a lower one.
+    pub ar_order: usize,
+    /// With a predictor that states its uncertainty (`ar`): the accepted probability that the
+    /// deck leaves the capacity during one touchdown, bounded from above: for each of the six
+    /// limits (roll, pitch, the tilt, the two rates, the heave rate) the largest probability,
+    /// over the touchdown, that the forecast (mean and stated standard deviation) is beyond
+    /// it, summed over the limits.
+    pub risk_per_touchdown: f64,
+    /// ... and once committed: the touchdown goes on while that probability, by the newest
+    /// forecast, stays at or below this; above it, a go-around. Larger
+    /// than `risk_per_touchdown`, so a commitment is not given up for a forecast that moved by
+    /// a hair (a go-around has its own risks). 0.2: at 0.05, 7.5 % of the development trials'
+    /// commits went around, at 0.2 2.6 %, with no unsafe touchdown either way (BENCHMARKS.md,
+    /// "Deck-motion prediction").
+    pub go_around_risk: f64,
+    /// Sinusoids per angle.
+    pub components: usize,
+    /// Samples weigh `exp(-age / fit_memory_s)` in the fit: the newest motion counts most.
+    pub fit_memory_s: f64,
+    /// Safety margin on the predicted angles to enter `ClearToLand` (deg), added to the
+    /// prediction's error (its band, or the sinusoid fit's held-out bound). 0 by default: the
+    /// band is the margin; a fixed one is for what the band does not know (an estimator bias).
+    pub margin_deg: f64,
+    /// The same for rates (deg/s).
+    pub rate_margin_dps: f64,
+    /// The same for the heave rate (m/s).
+    pub heave_rate_margin_mps: f64,
+    /// The prediction is unreliable if it misses the newest seconds of history by more.
+    pub max_holdout_error_deg: f64,
+    /// ... or the heave by more (m).
+    pub max_holdout_error_m: f64,
+    /// Seconds of history held out to measure the prediction error.
+    pub holdout_s: f64,
+    /// The prediction error bound is this factor times the largest held-out error of the last
+    /// `error_memory_s` (the error of an irregular sea varies from minute to minute). 1.3: with
+    /// 1.2, one clearance in 12 x 30 min of irregular sea overshot the roll limit by 0.05 deg at
+    /// the end of its touchdown (BENCHMARKS.md, "Seas that are not the model").
+    pub error_factor: f64,
+    pub error_memory_s: f64,
+    /// ... or if a new attitude is further than this from the model's value.
+    pub max_innovation_deg: f64,
+    /// ... or a new deck height (m).
+    pub max_heave_innovation_m: f64,
+    /// ... or if the model's rate differs from the measured rate by more than this (deg/s).
+    pub max_rate_innovation_dps: f64,
+    /// How far ahead calm windows are searched (s).
+    pub horizon_s: f64,
+    /// How long `Abort` is held.
+    pub abort_hold_s: f64,
+    /// A committed touchdown goes on through missing attitudes (no deck seen, no vehicle
+    /// attitude to compensate with, no deck height, the gap they leave) for this long in a
+    /// row (ms; 0: abort on the first), on the prediction the last good attitude confirmed,
+    /// while that prediction keeps the deck within the capacity to the touchdown's end
+    /// (`ride-through`). The final metres of a descent are blind: the ring leaves a camera's
+    /// view about 1 m over the deck (BENCHMARKS.md, "Closed-loop trials"). Never entered on
+    /// such data, and never through a stale, frozen, jumping or unpredictable input.
+    pub ride_through_ms: f64,
+}
+
+impl Default for DecisionConfig {
+    fn default() -> Self {
+        Self {
+            max_abs_roll_deg: 5.0,
+            max_abs_pitch_deg: 5.0,
+            max_tilt_deg: 5.5,
+            max_abs_roll_rate_dps: 5.0,
+            max_abs_pitch_rate_dps: 5.0,
+            heave: HeaveUse::Required,
+            max_abs_heave_rate_mps: 0.6,
+            touchdown_s: 2.0,
+            max_age_ms: 300.0,
+            max_gap_ms: 500.0,
+            gap_recovery_s: 1.0,
+            max_plausible_rate_dps: 40.0,
+            frozen_input_count: 3,
+            // The predictor's own (`with_predictor_defaults`, below).
+            window_s: f64::NAN,
+            min_history_s: f64::NAN,
+            refit_interval_s: 1.0,
+            predictor: Predictor::Ar,
+            ar_order: 48,
+            risk_per_touchdown: 1e-3,
+            go_around_risk: 0.2,
+            components: 4,
+            fit_memory_s: 10.0,
+            margin_deg: f64::NAN,
+            rate_margin_dps: f64::NAN,
+            heave_rate_margin_mps: f64::NAN,
+            max_holdout_error_deg: 2.0,
+            max_holdout_error_m: 0.3,
+            holdout_s: 2.0,
+            error_factor: 1.3,
+            error_memory_s: 30.0,
+            max_innovation_deg: 1.0,
+            max_heave_innovation_m: 0.2,
+            max_rate_innovation_dps: 1.0,
+            horizon_s: 20.0,
+            abort_hold_s: 2.0,
+            ride_through_ms: 1000.0,
+        }
+        .with_predictor_defaults(|_| false)
+    }
+}
+
+/// The deck-motion predictor (`[decide] predictor`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Predictor {
+    /// Autoregressive: follows an irregular sea, and states its uncertainty (a band that
+    /// widens with the horizon, scaled by how well it held of late).
+    Ar,
+    /// Dominant sinusoids of the window: exact for a regular sea.
+    Sinusoids,
+}
+
+/// Whether the deck's heave is part of the capacity (`[decide] heave`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum HeaveUse {
+    /// Every frame needs a deck height; its predicted vertical speed must stay within
+    /// `max_abs_heave_rate_mps`.
+    Required,
+    /// Roll and pitch only.
+    Off,
+}
+
+/// A `[decide]` value out of range: the key and what is wrong.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{key}: {problem}")]
+pub struct DecisionConfigError {
+    pub key: &'static str,
+    pub problem: String,
+}
+
+fn invalid(key: &'static str, problem: impl Into<String>) -> DecisionConfigError {
+    DecisionConfigError {
+        key,
+        problem: problem.into(),
+    }
+}
+
+impl DecisionConfig {
+    /// The naive baseline the state machine is measured against: the deck's current roll and
+    /// pitch are within the capacity. It looks at one instant only; it is not a clearance.
+    /// Non-finite angles are never within.
+    pub fn naive_within(&self, roll_deg: f64, pitch_deg: f64) -> bool {
+        roll_deg.abs() <= self.max_abs_roll_deg && pitch_deg.abs() <= self.max_abs_pitch_deg
+    }
+
+    /// The sinusoid predictor with the settings it was measured with: a 40 s window, 20 s of
+    /// warm-up, fixed margins on top of its held-out error bound.
+    pub fn sinusoid_defaults() -> Self {
+        Self {
+            predictor: Predictor::Sinusoids,
+            ..Self::default()
+        }
+        .with_predictor_defaults(|_| false)
+    }
+
+    /// The autoregressive predictor with the settings it was developed and measured with
+    /// (BENCHMARKS.md, "Deck-motion prediction"): the defaults.
+    pub fn ar_defaults() -> Self {
+        Self::default()
+    }
+
+    /// This configuration with each key whose default depends on the predictor, unless `given`
+    /// says it was set explicitly, at its own predictor's default: `predictor = "sinusoids"`
+    /// alone in a file gives the sinusoid fit as it was measured. Those keys: an autoregressive
+    /// fit wants a longer window and states its own band (no fixed margins); the sinusoid fit a
+    /// shorter window, a longer warm-up and margins on its held-out error bound.
+    pub fn with_predictor_defaults(mut self, given: impl Fn(&str) -> bool) -> Self {
+        let (window_s, min_history_s, margin_deg, rate_margin_dps, heave_rate_margin_mps) =
+            match self.predictor {
+                Predictor::Ar => (120.0, 8.0, 0.0, 0.0, 0.0),
+                Predictor::Sinusoids => (40.0, 20.0, 0.5, 0.5, 0.1),
+            };
+        for (key, field, value) in [
+            ("window_s", &mut self.window_s, window_s),
+            ("min_history_s", &mut self.min_history_s, min_history_s),
+            ("margin_deg", &mut self.margin_deg, margin_deg),
+            ("rate_margin_dps", &mut self.rate_margin_dps, rate_margin_dps),
+            (
+                "heave_rate_margin_mps",
+                &mut self.heave_rate_margin_mps,
+                heave_rate_margin_mps,
+            ),
+        ] {
+            if !given(key) {
+                *field = value;
+            }
+        }
+        self
+    }
+
+    /// Checks every field; the error names it.
+    pub fn validate(&self) -> Result<(), DecisionConfigError> {
+        let positive = [
+            ("max_abs_roll_deg", self.max_abs_roll_deg),
+            ("max_abs_pitch_deg", self.max_abs_pitch_deg),
+            ("max_tilt_deg", self.max_tilt_deg),
+            ("max_abs_roll_rate_dps", self.max_abs_roll_rate_dps),
+            ("max_abs_pitch_rate_dps", self.max_abs_pitch_rate_dps),
+            ("max_abs_heave_rate_mps", self.max_abs_heave_rate_mps),
+            ("max_holdout_error_m", self.max_holdout_error_m),
+            ("max_heave_innovation_m", self.max_heave_innovation_m),
+            ("touchdown_s", self.touchdown_s),
+            ("max_age_ms", self.max_age_ms),
+            ("max_gap_ms", self.max_gap_ms),
+            ("max_plausible_rate_dps", self.max_plausible_rate_dps),
+            ("window_s", self.window_s),
+            ("min_history_s", self.min_history_s),
+            ("refit_interval_s", self.refit_interval_s),
+            ("max_holdout_error_deg", self.max_holdout_error_deg),
+            ("holdout_s", self.holdout_s),
+            ("error_factor", self.error_factor),
+            ("fit_memory_s", self.fit_memory_s),
+            ("error_memory_s", self.error_memory_s),
+            ("max_innovation_deg", self.max_innovation_deg),
+            ("horizon_s", self.horizon_s),
+            ("max_rate_innovation_dps", self.max_rate_innovation_dps),
+        ];
+        for (k, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(invalid(k, format!("must be positive, got {v}")));
+            }
+        }
+        for (k, v) in [
+            ("margin_deg", self.margin_deg),
+            ("rate_margin_dps", self.rate_margin_dps),
+            ("heave_rate_margin_mps", self.heave_rate_margin_mps),
+            ("gap_recovery_s", self.gap_recovery_s),
+            ("abort_hold_s", self.abort_hold_s),
+            ("ride_through_ms", self.ride_through_ms),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(invalid(k, format!("must be >= 0, got {v}")));
+            }
+        }
+        // Upper bounds: every duration sizes a loop, a buffer or a timer; beyond these they are
+        // mistakes, and at the extremes they would overflow or never end.
+        for (k, v, max) in [
+            ("touchdown_s", self.touchdown_s, 60.0),
+            ("max_age_ms", self.max_age_ms, 60_000.0),
+            ("max_gap_ms", self.max_gap_ms, 60_000.0),
+            ("gap_recovery_s", self.gap_recovery_s, 600.0),
+            ("window_s", self.window_s, 600.0),
+            ("min_history_s", self.min_history_s, 600.0),
+            ("refit_interval_s", self.refit_interval_s, 60.0),
+            ("fit_memory_s", self.fit_memory_s, 3600.0),
+            ("holdout_s", self.holdout_s, 300.0),
+            ("error_memory_s", self.error_memory_s, 3600.0),
+            ("horizon_s", self.horizon_s, 600.0),
+            ("abort_hold_s", self.abort_hold_s, 600.0),
+            ("error_factor", self.error_factor, 100.0),
+            ("max_plausible_rate_dps", self.max_plausible_rate_dps, 1e4),
+            ("max_abs_roll_rate_dps", self.max_abs_roll_rate_dps, 1e4),
+            ("max_abs_pitch_rate_dps", self.max_abs_pitch_rate_dps, 1e4),
+            ("max_abs_heave_rate_mps", self.max_abs_heave_rate_mps, 100.0),
+        ] {
+            if v > max {
+                return Err(invalid(k, format!("must be at most {max}, got {v}")));
+            }
+        }
+        if !(2..=1000).contains(&self.frozen_input_count) {
+            return Err(invalid(
+                "frozen_input_count",
+                format!("must be 2..=1000, got {}", self.frozen_input_count),
+            ));
+        }
+        if self.max_abs_roll_deg >= 90.0 || self.max_abs_pitch_deg >= 90.0 || self.max_tilt_deg >= 90.0 {
+            return Err(invalid(
+                "max_abs_roll_deg",
+                "roll and pitch limits must be below 90",
+            ));
+        }
+        if !(self.risk_per_touchdown > 1e-9 && self.risk_per_touchdown <= 0.5) {
+            return Err(invalid(
+                "risk_per_touchdown",
+                format!("must be in (1e-9, 0.5], got {}", self.risk_per_touchdown),
+            ));
+        }
+        if !(self.go_around_risk >= self.risk_per_touchdown && self.go_around_risk <= 0.5) {
+            return Err(invalid(
+                "go_around_risk",
+                format!(
+                    "must be in [risk_per_touchdown, 0.5] ([{}, 0.5]), got {}",
+                    self.risk_per_touchdown, self.go_around_risk
+                ),
+            ));
+        }
+        if !(2..=100).contains(&self.ar_order) {
+            return Err(invalid(
+                "ar_order",
+                format!("must be 2..=100, got {}", self.ar_order),
+            ));
+        }
+        if !(1..=8).contains(&self.components) {
+            return Err(invalid(
+                "components",
+                format!("must be 1..=8, got {}", self.components),
+            ));
+        }
+        if self.ride_through_ms > 1e3 * self.touchdown_s {
+            return Err(invalid(
+                "ride_through_ms",
+                format!(
+                    "must not exceed the touchdown ({} ms), got {}",
+                    1e3 * self.touchdown_s,
+                    self.ride_through_ms
+                ),
+            ));
+        }
+        if self.min_history_s > self.window_s {
+            return Err(invalid("min_history_s", "must not exceed window_s"));
+        }
+        if self.holdout_s * 2.0 > self.min_history_s {
+            return Err(invalid("holdout_s", "must be at most half of min_history_s"));
+        }
+        Ok(())
+    }
+}

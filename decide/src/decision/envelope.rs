@@ -1,0 +1,176 @@
+//! The predicted envelope against the capacity: whether the deck stays within it over a
+//! touchdown at the accepted risk (a union bound of normal tails per limit), and the next calm
+//! window.
+
+use super::*;
+
+impl LandingDecider {
+    /// Whether the model keeps the deck within capacity (less the margins) over [from, to]:
+    /// with a stated uncertainty, at the accepted risk; else its mean.
+    pub(super) fn predicted_within(&self, m: &Models, from: f64, to: f64, margins: Margins) -> bool {
+        let c = &self.config;
+        let steps = ((to - from) / STEP_S).ceil().max(0.0) as usize;
+        let (roll, pitch) = (&m.tracks[ROLL], &m.tracks[PITCH]);
+        let heave = m.tracks.get(HEAVE);
+        let limits = [
+            c.max_abs_roll_deg - margins.angle_deg,
+            c.max_abs_pitch_deg - margins.angle_deg,
+            c.max_tilt_deg - margins.angle_deg,
+            c.max_abs_roll_rate_dps - margins.rate_dps,
+            c.max_abs_pitch_rate_dps - margins.rate_dps,
+            c.max_abs_heave_rate_mps - margins.heave_rate_mps,
+        ];
+        let times = (0..=steps).map(|k| (from + k as f64 * STEP_S).min(to));
+        if let Some(risk) = margins.risk {
+            return self.exceedance_risk(m, times, &limits) <= risk;
+        }
+        times.into_iter().all(|t| {
+            let (r, p) = (roll.value(t).abs(), pitch.value(t).abs());
+            r <= limits[0]
+                && p <= limits[1]
+                && tilt_deg(r, p) <= limits[2]
+                && roll.rate(t).abs() <= limits[3]
+                && pitch.rate(t).abs() <= limits[4]
+                && heave.is_none_or(|h| h.rate(t).abs() <= limits[5])
+        })
+    }
+
+    /// An upper bound of the probability that the deck leaves the capacity (`limits`: roll,
+    /// pitch, tilt, roll rate, pitch rate, heave rate) at one of `times`, as the model states it
+    /// (mean and standard deviation, scaled by how honest it has been): for each limit the
+    /// largest probability over the times that it is exceeded, summed over the limits. A
+    /// limit far from the forecast costs nothing, so the one that binds gets nearly all the
+    /// risk (a fixed share each would give it a sixth).
+    pub(super) fn exceedance_risk(
+        &self,
+        m: &Models,
+        times: impl Iterator<Item = f64>,
+        limits: &[f64; 6],
+    ) -> f64 {
+        let (roll, pitch) = (&m.tracks[ROLL], &m.tracks[PITCH]);
+        let heave = m.tracks.get(HEAVE);
+        let [sr, sp, _] = m.band_scale;
+        let [rr, rp, rh] = m.rate_band_scale;
+        let mut worst = [0.0f64; 6];
+        for t in times {
+            let (rm, rs) = (roll.value(t), sr * roll.std(t));
+            let (pm, ps) = (pitch.value(t), sp * pitch.std(t));
+            let tails = [
+                outside_probability(rm, rs, limits[0]),
+                outside_probability(pm, ps, limits[1]),
+                tilt_outside_probability((rm, rs), (pm, ps), limits[2]),
+                outside_probability(roll.rate(t), rr * roll.rate_std(t), limits[3]),
+                outside_probability(pitch.rate(t), rp * pitch.rate_std(t), limits[4]),
+                heave.map_or(0.0, |h| {
+                    outside_probability(h.rate(t), rh * h.rate_std(t), limits[5])
+                }),
+            ];
+            for (w, p) in worst.iter_mut().zip(tails) {
+                *w = w.max(p);
+            }
+        }
+        worst.iter().sum()
+    }
+
+    /// The first window within the horizon in which a commit would be safe.
+    pub(super) fn calm_window(&self, m: &Models, now: f64, margins: Margins) -> Option<(f64, f64)> {
+        let c = &self.config;
+        let steps = (c.horizon_s / STEP_S) as usize;
+        let ok: Vec<bool> = (0..=steps)
+            .map(|k| {
+                let t = now + k as f64 * STEP_S;
+                self.predicted_within(m, t, t, margins)
+            })
+            .collect();
+        let need = (c.touchdown_s / STEP_S).ceil() as usize;
+        let mut k = 0;
+        while k < ok.len() {
+            if ok[k] {
+                let len = ok[k..].iter().take_while(|&&v| v).count();
+                if len > need {
+                    return Some((k as f64 * STEP_S, len as f64 * STEP_S));
+                }
+                k += len;
+            } else {
+                k += 1;
+            }
+        }
+        None
+    }
+
+    /// The calm window, searched once per model (the search walks the whole horizon).
+    pub(super) fn cached_calm_window(
+        &mut self,
+        m: &Models,
+        now: f64,
+        margins: Margins,
+    ) -> Option<(f64, f64)> {
+        let fresh = match self.calm_cache {
+            Some((fit, Some((start, len)))) => {
+                fit == self.last_fit && now <= start + len - self.config.touchdown_s
+            }
+            Some((fit, None)) => fit == self.last_fit,
+            None => false,
+        };
+        if !fresh {
+            let w = self.calm_window(m, now, margins).map(|(s, l)| (now + s, l));
+            self.calm_cache = Some((self.last_fit, w));
+        }
+        let (start, len) = self.calm_cache?.1?;
+        let passed = (now - start).max(0.0);
+        Some(((start - now).max(0.0), len - passed))
+    }
+}
+
+/// The probability that a normal value of `mean` and `std` is beyond `limit` either way (`std`
+/// 0: whether the mean is).
+pub(super) fn outside_probability(mean: f64, std: f64, limit: f64) -> f64 {
+    if !(std > 0.0) {
+        return if mean.abs() <= limit { 0.0 } else { 1.0 };
+    }
+    // Beyond 9 standard deviations the tail is below 1e-18: not worth an erfc (most of the
+    // calm-window search is there).
+    if mean.abs() + NEGLIGIBLE_Z * std <= limit {
+        return 0.0;
+    }
+    let tail = |x: f64| 0.5 * libm::erfc(x / (std * std::f64::consts::SQRT_2));
+    (tail(limit - mean) + tail(limit + mean)).min(1.0)
+}
+
+/// Standard deviations beyond which a tail probability counts as 0.
+pub(super) const NEGLIGIBLE_Z: f64 = 9.0;
+
+/// Splits of the tilt limit between roll and pitch tried by [`tilt_outside_probability`].
+pub(super) const TILT_SPLITS: usize = 12;
+
+/// An upper bound of the probability that roll and pitch (each `(mean, std)`, independent or
+/// not) tilt the deck beyond `limit_deg`: within `a` of roll and `b` of pitch with
+/// `tilt(a, b) = limit`, the tilt is within the limit, so the probability is at most that of
+/// roll beyond `a` plus that of pitch beyond `b`; the least over a few splits.
+pub(super) fn tilt_outside_probability(roll: (f64, f64), pitch: (f64, f64), limit_deg: f64) -> f64 {
+    let far = |(mean, std): (f64, f64)| mean.abs() + NEGLIGIBLE_Z * std;
+    if tilt_deg(far(roll), far(pitch)) <= limit_deg {
+        return 0.0;
+    }
+    let cos_limit = limit_deg.to_radians().cos();
+    (0..=TILT_SPLITS)
+        .map(|i| {
+            let a_deg = limit_deg * i as f64 / TILT_SPLITS as f64;
+            // cos(tilt) = cos(roll) cos(pitch)
+            let b_deg = (cos_limit / a_deg.to_radians().cos())
+                .clamp(-1.0, 1.0)
+                .acos()
+                .to_degrees();
+            outside_probability(roll.0, roll.1, a_deg) + outside_probability(pitch.0, pitch.1, b_deg)
+        })
+        .fold(1.0, f64::min)
+}
+
+/// The tilt from level (deg) of a deck at `roll_deg` and `pitch_deg` (X-Y order: the angle of
+/// its normal from the vertical, `acos(cos roll cos pitch)`).
+pub fn tilt_deg(roll_deg: f64, pitch_deg: f64) -> f64 {
+    (roll_deg.to_radians().cos() * pitch_deg.to_radians().cos())
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees()
+}

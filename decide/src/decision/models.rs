@@ -1,0 +1,398 @@
+//! The deck-motion models the decision predicts with: their fit on the recent history (a
+//! sinusoid fit or an autoregressive model per channel), how far each is advanced, and the
+//! calibration of their stated bands by their own held-out misses.
+
+use super::*;
+
+#[derive(Debug, Clone)]
+pub(super) struct Models {
+    /// One per channel in use.
+    pub(super) tracks: Vec<Track>,
+    /// Bound on the prediction error of the angles (deg): `error_factor` times the largest
+    /// error, over the last `error_memory_s`, of a model fitted `holdout_s` earlier on the
+    /// samples since.
+    pub(super) holdout_error: f64,
+    /// The same for the heave (m; 0 without heave).
+    pub(super) heave_error: f64,
+    /// Per channel: what the predictor's stated standard deviation is multiplied by so that
+    /// its band held what happened (1 or more; see [`LandingDecider::band_scale`]).
+    pub(super) band_scale: [f64; 3],
+    /// The same for each channel's rate (see [`LandingDecider::band_scale`]).
+    pub(super) rate_band_scale: [f64; 3],
+    /// Every channel's band has been checked against what followed (`MIN_BAND_EVIDENCE`).
+    pub(super) band_checked: bool,
+}
+
+/// One channel's predictor.
+#[derive(Debug, Clone)]
+pub(super) enum Track {
+    Sinusoids(SinusoidModel),
+    Autoregressive(ArModel),
+}
+
+impl Track {
+    pub(super) fn t0(&self) -> f64 {
+        match self {
+            Self::Sinusoids(m) => m.t0,
+            Self::Autoregressive(m) => m.t0,
+        }
+    }
+    pub(super) fn value(&self, t: f64) -> f64 {
+        match self {
+            Self::Sinusoids(m) => m.value(t),
+            Self::Autoregressive(m) => m.value(t),
+        }
+    }
+    pub(super) fn rate(&self, t: f64) -> f64 {
+        match self {
+            Self::Sinusoids(m) => m.rate(t),
+            Self::Autoregressive(m) => m.rate(t),
+        }
+    }
+    /// The same model run forward from the newest samples (the sinusoid fit has no state to
+    /// run forward: None).
+    pub(super) fn advanced(&self, t: &[f64], y: &[f64]) -> Option<Self> {
+        match self {
+            Self::Sinusoids(_) => None,
+            Self::Autoregressive(m) => m.advance(t, y).map(Self::Autoregressive),
+        }
+    }
+    /// The model's own standard deviation of its value at `t` (0: it states none; the
+    /// sinusoid fit's error is bounded by the held-out error instead).
+    pub(super) fn std(&self, t: f64) -> f64 {
+        match self {
+            Self::Sinusoids(_) => 0.0,
+            Self::Autoregressive(m) => m.std(t),
+        }
+    }
+    pub(super) fn rate_std(&self, t: f64) -> f64 {
+        match self {
+            Self::Sinusoids(_) => 0.0,
+            Self::Autoregressive(m) => m.rate_std(t),
+        }
+    }
+}
+
+/// What a prediction must keep clear of the capacity's limits: fixed margins, plus `z` times
+/// the model's own standard deviation at each instant (a predictor that states one).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Margins {
+    pub(super) angle_deg: f64,
+    pub(super) rate_dps: f64,
+    pub(super) heave_rate_mps: f64,
+    /// With a stated uncertainty: the accepted probability of leaving the capacity (see
+    /// `LandingDecider::exceedance_risk`); None: the forecast's mean is judged as it is.
+    pub(super) risk: Option<f64>,
+}
+
+impl Margins {
+    pub(super) const NONE: Self = Self {
+        angle_deg: 0.0,
+        rate_dps: 0.0,
+        heave_rate_mps: 0.0,
+        risk: None,
+    };
+}
+
+impl LandingDecider {
+    pub(super) fn fit(&mut self) -> Option<Models> {
+        let c = self.config.clone();
+        let channels = self.channels;
+        let mut t = Vec::new();
+        let mut y: Vec<Vec<f64>> = vec![Vec::new(); channels];
+        // Newest sample always in; older ones thinned to the fit spacing.
+        for &(ti, v) in self.history.iter().rev() {
+            if t.last().is_none_or(|&last: &f64| last - ti >= FIT_SPACING_S) {
+                t.push(ti);
+                for (k, yk) in y.iter_mut().enumerate() {
+                    yk.push(v[k]);
+                }
+            }
+        }
+        t.reverse();
+        for yk in &mut y {
+            yk.reverse();
+        }
+        let end = *t.last()?;
+        let tracks: Vec<Track> = if c.predictor == Predictor::Sinusoids {
+            let warm: Option<Vec<SinusoidModel>> = match self.past.back() {
+                Some(prev) if end - self.last_grid < REGRID_INTERVAL_S => prev
+                    .iter()
+                    .zip(&y)
+                    .map(|(p, yk)| match p {
+                        Track::Sinusoids(m0) => m0.refit(&t, yk, F_MIN_HZ, F_MAX_HZ, c.fit_memory_s),
+                        Track::Autoregressive(_) => None,
+                    })
+                    .collect(),
+                _ => None,
+            };
+            let models = match warm {
+                Some(m) => m,
+                None => {
+                    self.last_grid = end;
+                    y.iter()
+                        .map(|yk| {
+                            SinusoidModel::fit(&t, yk, c.components, F_MIN_HZ, F_MAX_HZ, c.fit_memory_s)
+                        })
+                        .collect::<Option<Vec<_>>>()?
+                }
+            };
+            models.into_iter().map(Track::Sinusoids).collect()
+        } else {
+            let horizon = c.horizon_s + c.touchdown_s + c.holdout_s;
+            y.iter()
+                .map(|yk| ArModel::fit(&t, yk, c.ar_order, FIT_SPACING_S, horizon).map(Track::Autoregressive))
+                .collect::<Option<Vec<_>>>()?
+        };
+        // How well did the fit of `holdout_s` ago predict the samples since? (angles, heave)
+        let old = self.past.iter().rev().find(|m| end - m[0].t0() >= c.holdout_s);
+        let misses = old.map(|old| {
+            let t0 = old[0].t0();
+            self.history
+                .iter()
+                .filter(|h| h.0 > t0 && h.0 <= t0 + c.holdout_s)
+                .map(|&(ti, v)| channel_misses(old, ti, &v))
+                .fold((0.0, 0.0), |(a, b), (x, y)| (f64::max(a, x), f64::max(b, y)))
+        });
+        // Only a measured miss is remembered: a fit with no track record yet (the first
+        // `holdout_s` after warm-up) is unreliable itself, but remembering that as an infinite
+        // error would hold every decision for `error_memory_s` after each warm-up.
+        if let Some((angle_miss, heave_miss)) = misses {
+            self.errors.push_back((end, angle_miss, heave_miss));
+        }
+        // The same held-out samples in the old fit's own standard deviations (a predictor that
+        // states one): how honest its band has been.
+        if let Some(old) = old.filter(|old| old[0].std(old[0].t0()) > 0.0) {
+            let t0 = old[0].t0();
+            // The last half of the held-out span: the band matters most at the touchdown's
+            // far end, and a model's error outgrows its stated one with the horizon (the last
+            // quarter alone took two fits more to gather the evidence a clearance needs).
+            let from = t0 + 0.5 * c.holdout_s;
+            for &(ti, v) in self
+                .history
+                .iter()
+                .filter(|h| h.0 > from && h.0 <= t0 + c.holdout_s)
+            {
+                // Values, then rates against the deck's rate measured around `ti` (a line
+                // through the samples of a second centred on it: unbiased by the deck's
+                // acceleration; its noise only makes the misses look larger).
+                let mut z = [f64::NAN; 6];
+                // The rates from the last quarter alone: scaled on the whole last half, the
+                // rate bands held 92-94 % 2 s ahead and a held-out sea cleared into 0.61 m/s
+                // of heave rate (BENCHMARKS.md, "Deck-motion prediction").
+                let far_end = ti >= t0 + 0.75 * c.holdout_s;
+                let measured_rate = far_end
+                    .then(|| self.centred_rate(ti, RATE_CHECK_HALF_WINDOW_S))
+                    .flatten();
+                for (k, track) in old.iter().enumerate() {
+                    z[k] = (v[k] - track.value(ti)).abs() / track.std(ti);
+                    if let Some(rates) = measured_rate {
+                        z[3 + k] = (rates[k] - track.rate(ti)).abs() / track.rate_std(ti);
+                    }
+                }
+                self.band_misses.push_back((ti, z));
+            }
+        }
+        while self
+            .band_misses
+            .front()
+            .is_some_and(|&(tm, _)| end - tm > BAND_MEMORY_S)
+        {
+            self.band_misses.pop_front();
+        }
+        let (band_scale, rate_band_scale, band_checked) = self.band_scale();
+        while self
+            .errors
+            .front()
+            .is_some_and(|&(te, _, _)| end - te > c.error_memory_s)
+        {
+            self.errors.pop_front();
+        }
+        // Consecutive fits must agree on the coming touchdown; a disagreement is an error of one
+        // of them and widens the bound like one.
+        let disagreement = match self.past.back() {
+            Some(prev) => (0..=20)
+                .map(|k| end + c.touchdown_s * k as f64 / 20.0)
+                .map(|ti| {
+                    let now: Vec<f64> = tracks.iter().map(|m| m.value(ti)).collect();
+                    let mut v = [f64::NAN; 3];
+                    v[..now.len()].copy_from_slice(&now);
+                    channel_misses(prev, ti, &v)
+                })
+                .fold((0.0, 0.0), |(a, b), (x, y)| (f64::max(a, x), f64::max(b, y))),
+            None => (f64::INFINITY, f64::INFINITY),
+        };
+        let (recent_angle, recent_heave) = match misses {
+            Some(_) => self
+                .errors
+                .iter()
+                .fold((0.0, 0.0), |(a, b), e| (f64::max(a, e.1), f64::max(b, e.2))),
+            None => (f64::INFINITY, f64::INFINITY), // no track record yet
+        };
+        let holdout_error = c.error_factor * recent_angle.max(disagreement.0);
+        let heave_error = c.error_factor * recent_heave.max(disagreement.1);
+        self.past.push_back(tracks.clone());
+        while self
+            .past
+            .front()
+            .is_some_and(|m| end - m[0].t0() > c.holdout_s + 2.0 * c.refit_interval_s)
+        {
+            self.past.pop_front();
+        }
+        Some(Models {
+            tracks,
+            holdout_error,
+            heave_error,
+            band_scale,
+            rate_band_scale,
+            band_checked,
+        })
+    }
+
+    /// Per channel, the factor on the predictor's stated standard deviation that makes its 95 %
+    /// band hold `BAND_EVIDENCE_QUANTILE` of the held-out misses of the last `BAND_MEMORY_S`
+    /// (never below 1), and the same for its rate (never below `MIN_RATE_BAND_SCALE`); and
+    /// whether every channel's value has that evidence (no clearance before). With fewer than
+    /// `MIN_BAND_EVIDENCE` misses (the first seconds after a warm-up) there is no track record
+    /// yet: `PRIOR_BAND_SCALE`.
+    pub(super) fn band_scale(&self) -> ([f64; 3], [f64; 3], bool) {
+        let mut scale = [PRIOR_BAND_SCALE; 6];
+        let mut checked = true;
+        for (k, s) in scale.iter_mut().enumerate() {
+            if k % 3 >= self.channels {
+                continue;
+            }
+            let mut z: Vec<f64> = self
+                .band_misses
+                .iter()
+                .map(|m| m.1[k])
+                .filter(|z| z.is_finite())
+                .collect();
+            if z.len() < MIN_BAND_EVIDENCE {
+                // The rates' evidence comes later (each needs a second of samples around it):
+                // their prior scale stands until then.
+                checked &= k >= 3;
+                continue;
+            }
+            let i = ((z.len() as f64 * BAND_EVIDENCE_QUANTILE).ceil() as usize).min(z.len()) - 1;
+            let (_, q95, _) = z.select_nth_unstable_by(i, f64::total_cmp);
+            let least = if k < 3 { 1.0 } else { MIN_RATE_BAND_SCALE };
+            *s = (*q95 / Z95).max(least);
+        }
+        (
+            [scale[0], scale[1], scale[2]],
+            [scale[3], scale[4], scale[5]],
+            checked,
+        )
+    }
+
+    /// Whether the rates measured through the newest samples (`RATE_WINDOW_S`) are beyond the
+    /// capacity.
+    pub(super) fn measured_rate_outside(&self) -> bool {
+        let c = &self.config;
+        let Some(&(t, _)) = self.history.back() else {
+            return false;
+        };
+        self.measured_rate(t, RATE_WINDOW_S).is_some_and(|(rates, _)| {
+            rates[ROLL].abs() > c.max_abs_roll_rate_dps
+                || rates[PITCH].abs() > c.max_abs_pitch_rate_dps
+                || (self.channels > HEAVE && rates[HEAVE].abs() > c.max_abs_heave_rate_mps)
+        })
+    }
+
+    /// Each channel's rate at `t` from a least-squares line through the samples within
+    /// `half_s` of it, on both sides (None without samples that far on each side).
+    pub(super) fn centred_rate(&self, t: f64, half_s: f64) -> Option<[f64; 3]> {
+        let near = self
+            .history
+            .iter()
+            .rev()
+            .skip_while(|h| h.0 > t + half_s)
+            .take_while(|h| h.0 >= t - half_s);
+        let line = fit_line(near)?;
+        let both_sides = line.first_t <= t - 0.8 * half_s && line.last_t >= t + 0.8 * half_s;
+        (line.count >= 5 && both_sides).then_some(line.slopes)
+    }
+
+    /// The margins to enter `ClearToLand`: the configured ones plus the prediction's error
+    /// (its stated band for a predictor that states one, else the held-out error bound).
+    pub(super) fn entry_margins(&self, m: &Models) -> Margins {
+        let c = &self.config;
+        let banded = c.predictor == Predictor::Ar;
+        Margins {
+            angle_deg: c.margin_deg + if banded { 0.0 } else { m.holdout_error },
+            rate_dps: c.rate_margin_dps,
+            heave_rate_mps: c.heave_rate_margin_mps,
+            risk: banded.then_some(c.risk_per_touchdown),
+        }
+    }
+
+    /// The margins to stay committed: the prediction's own error (band or bound) only. A
+    /// committed touchdown is given up when the newest model puts the deck outside the capacity
+    /// within that band, not because it differs from the one that committed.
+    pub(super) fn stay_margins(&self, m: &Models) -> Margins {
+        if self.config.predictor == Predictor::Ar {
+            Margins {
+                risk: Some(self.config.go_around_risk),
+                ..Margins::NONE
+            }
+        } else {
+            Margins {
+                angle_deg: m.holdout_error,
+                ..Margins::NONE
+            }
+        }
+    }
+}
+
+/// A least-squares line through samples (time s, roll, pitch, height) per channel.
+pub(super) struct LineFit {
+    pub(super) slopes: [f64; 3],
+    /// The samples' mean time: where a line's slope is the rate.
+    pub(super) mean_t: f64,
+    pub(super) count: usize,
+    pub(super) first_t: f64,
+    pub(super) last_t: f64,
+}
+
+/// The line through `samples` (in any order); None without two distinct times. Two passes over
+/// the iterator and no allocation: the decision fits one on every frame.
+pub(super) fn fit_line<'a>(samples: impl Iterator<Item = &'a (f64, [f64; 3])> + Clone) -> Option<LineFit> {
+    let (mut count, mut sum_t, mut sum_v) = (0usize, 0.0, [0.0; 3]);
+    let (mut first_t, mut last_t) = (f64::INFINITY, f64::NEG_INFINITY);
+    for &(t, v) in samples.clone() {
+        count += 1;
+        sum_t += t;
+        for k in 0..3 {
+            sum_v[k] += v[k];
+        }
+        first_t = first_t.min(t);
+        last_t = last_t.max(t);
+    }
+    let n = count as f64;
+    let mean_t = sum_t / n;
+    let mean_v = sum_v.map(|s| s / n);
+    let (mut stt, mut stv) = (0.0, [0.0; 3]);
+    for &(t, v) in samples {
+        let dt = t - mean_t;
+        stt += dt * dt;
+        for k in 0..3 {
+            stv[k] += dt * (v[k] - mean_v[k]);
+        }
+    }
+    (stt > 0.0).then(|| LineFit {
+        slopes: stv.map(|s| s / stt),
+        mean_t,
+        count,
+        first_t,
+        last_t,
+    })
+}
+
+/// How far `tracks` are from the values `v` at `ti`: the largest angle miss (deg) and the heave
+/// miss (m; 0 without a heave track).
+pub(super) fn channel_misses(tracks: &[Track], ti: f64, v: &[f64; 3]) -> (f64, f64) {
+    let miss = |k: usize| (tracks[k].value(ti) - v[k]).abs();
+    let heave = if tracks.len() > HEAVE { miss(HEAVE) } else { 0.0 };
+    (miss(ROLL).max(miss(PITCH)), heave)
+}

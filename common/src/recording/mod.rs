@@ -28,6 +28,12 @@ use std::fs::File;
 use std::io::{BufReader, BufWriter, Write};
 use std::path::{Component, Path, PathBuf};
 
+mod images;
+mod writer;
+
+pub use images::{decode_gray_png, encode_gray_png};
+pub use writer::RecordingWriter;
+
 pub const CAMERA_FILE: &str = "camera.json";
 pub const FRAMES_FILE: &str = "frames.csv";
 pub const VEHICLE_FILE: &str = "vehicle.csv";
@@ -696,197 +702,8 @@ pub fn parse_frames_csv(
 // ---------------------------------------------------------------------------------------------
 // PNG
 
-/// Decodes an 8-bit grayscale PNG into `out` (tightly packed). With `expect`, the image must have
-/// that size. Any other PNG kind is an error: recordings are 8-bit grayscale by definition.
-pub fn decode_gray_png(
-    path: &Path,
-    expect: Option<(usize, usize)>,
-    out: &mut [u8],
-) -> Result<(usize, usize), RecordingError> {
-    let file = File::open(path).map_err(|e| RecordingError::new(path, format!("cannot read image: {e}")))?;
-    let mut decoder = png::Decoder::new(BufReader::new(file));
-    decoder.set_transformations(png::Transformations::IDENTITY);
-    let mut reader = decoder
-        .read_info()
-        .map_err(|e| RecordingError::new(path, format!("not a readable PNG: {e}")))?;
-    let info = reader.info();
-    let (w, h) = (info.width as usize, info.height as usize);
-    if info.color_type != png::ColorType::Grayscale || info.bit_depth != png::BitDepth::Eight {
-        return Err(RecordingError::new(
-            path,
-            format!(
-                "PNG is {:?} {:?}; recordings hold 8-bit grayscale",
-                info.bit_depth, info.color_type
-            ),
-        ));
-    }
-    if let Some((ew, eh)) = expect {
-        if (w, h) != (ew, eh) {
-            return Err(RecordingError::new(
-                path,
-                format!("image is {w}x{h}, camera.json says {ew}x{eh}"),
-            ));
-        }
-    }
-    if out.len() < w * h {
-        return Err(RecordingError::new(
-            path,
-            format!("output buffer has {} bytes, the image needs {}", out.len(), w * h),
-        ));
-    }
-    reader
-        .next_frame(&mut out[..w * h])
-        .map_err(|e| RecordingError::new(path, format!("corrupt PNG data: {e}")))?;
-    Ok((w, h))
-}
-
-/// Encodes an 8-bit grayscale image as PNG (fast compression: recordings are written live).
-pub fn encode_gray_png(path: &Path, image: GrayView<'_>) -> Result<(), RecordingError> {
-    let err = |e: &dyn fmt::Display| RecordingError::new(path, format!("cannot write image: {e}"));
-    let file = File::create(path).map_err(|e| err(&e))?;
-    let mut enc = png::Encoder::new(BufWriter::new(file), image.width() as u32, image.height() as u32);
-    enc.set_color(png::ColorType::Grayscale);
-    enc.set_depth(png::BitDepth::Eight);
-    enc.set_compression(png::Compression::Fast);
-    let mut writer = enc.write_header().map_err(|e| err(&e))?;
-    {
-        // Row by row, so a strided view (e.g. shared memory) needs no packed copy.
-        let mut stream = writer.stream_writer().map_err(|e| err(&e))?;
-        for y in 0..image.height() {
-            stream.write_all(image.row(y)).map_err(|e| err(&e))?;
-        }
-        stream.finish().map_err(|e| err(&e))?;
-    }
-    writer.finish().map_err(|e| err(&e))
-}
-
 // ---------------------------------------------------------------------------------------------
 // Writer
-
-/// Writes a recording: `camera.json` at creation, then one PNG and one `frames.csv` row per frame.
-/// Each row is flushed after its image is complete, so an interrupted recording stays readable.
-pub struct RecordingWriter {
-    dir: PathBuf,
-    camera: CameraModel,
-    csv: csv::Writer<BufWriter<File>>,
-    truth_columns: TruthColumns,
-    last: Option<(u64, u64)>,
-    frames_written: u64,
-}
-
-impl RecordingWriter {
-    /// Creates the folder (it must not hold a recording already) and writes `camera.json` and
-    /// the header of `frames.csv` with the chosen ground-truth columns.
-    pub fn create(
-        dir: impl AsRef<Path>,
-        camera: &CameraModel,
-        deck: &DeckLayout,
-        truth_columns: TruthColumns,
-    ) -> Result<Self, RecordingError> {
-        let dir = dir.as_ref().to_path_buf();
-        camera
-            .validate()
-            .map_err(|m| RecordingError::new(&dir, m.to_string()))?;
-        deck.validate()
-            .map_err(|m| RecordingError::new(&dir, m.to_string()))?;
-        if dir.join(FRAMES_FILE).exists() {
-            return Err(RecordingError::new(
-                &dir,
-                "already holds a recording (frames.csv exists); choose a new folder",
-            ));
-        }
-        std::fs::create_dir_all(dir.join(IMAGES_DIR))
-            .map_err(|e| RecordingError::new(&dir, format!("cannot create: {e}")))?;
-        write_camera_json(&dir, camera, deck)?;
-        let path = dir.join(FRAMES_FILE);
-        let file =
-            File::create(&path).map_err(|e| RecordingError::new(&path, format!("cannot create: {e}")))?;
-        let mut csv = csv::Writer::from_writer(BufWriter::new(file));
-        let mut header = vec!["index", "timestamp_ns", "file"];
-        header.extend(
-            TRUTH_COLUMNS
-                .iter()
-                .zip(truth_columns)
-                .filter(|(_, on)| *on)
-                .map(|(n, _)| *n),
-        );
-        csv.write_record(&header)
-            .and_then(|_| csv.flush().map_err(csv::Error::from))
-            .map_err(|e| RecordingError::new(&path, format!("cannot write: {e}")))?;
-        Ok(Self {
-            dir,
-            camera: *camera,
-            csv,
-            truth_columns,
-            last: None,
-            frames_written: 0,
-        })
-    }
-
-    pub fn dir(&self) -> &Path {
-        &self.dir
-    }
-
-    pub fn frames_written(&self) -> u64 {
-        self.frames_written
-    }
-
-    /// Writes one frame: its PNG, then its row (indices must increase, timestamps not decrease).
-    pub fn write_frame(
-        &mut self,
-        index: u64,
-        timestamp_ns: u64,
-        image: GrayView<'_>,
-        truth: &GroundTruth,
-    ) -> Result<(), RecordingError> {
-        let csv_path = self.dir.join(FRAMES_FILE);
-        if (image.width(), image.height()) != (self.camera.width as usize, self.camera.height as usize) {
-            return Err(RecordingError::new(
-                &csv_path,
-                format!(
-                    "frame {index} is {}x{}, the recording's camera is {}x{}",
-                    image.width(),
-                    image.height(),
-                    self.camera.width,
-                    self.camera.height
-                ),
-            ));
-        }
-        if let Some((pi, pt)) = self.last {
-            if index <= pi || timestamp_ns < pt {
-                return Err(RecordingError::new(
-                    &csv_path,
-                    format!("frame {index} at {timestamp_ns} ns does not follow frame {pi} at {pt} ns"),
-                ));
-            }
-        }
-        let file = format!("{IMAGES_DIR}/{index:06}.png");
-        encode_gray_png(&self.dir.join(&file), image)?;
-        let mut row = vec![index.to_string(), timestamp_ns.to_string(), file];
-        for (v, on) in truth.values().iter().zip(self.truth_columns) {
-            if on {
-                // Shortest representation that round-trips exactly.
-                row.push(v.map_or_else(|| "nan".to_string(), |x| format!("{x:?}")));
-            }
-        }
-        self.csv
-            .write_record(&row)
-            .and_then(|_| self.csv.flush().map_err(csv::Error::from))
-            .map_err(|e| RecordingError::new(&csv_path, format!("cannot write: {e}")))?;
-        self.last = Some((index, timestamp_ns));
-        self.frames_written += 1;
-        Ok(())
-    }
-
-    /// Flushes and closes the recording.
-    pub fn finish(mut self) -> Result<u64, RecordingError> {
-        let path = self.dir.join(FRAMES_FILE);
-        self.csv
-            .flush()
-            .map_err(|e| RecordingError::new(&path, format!("cannot write: {e}")))?;
-        Ok(self.frames_written)
-    }
-}
 
 #[cfg(test)]
 mod tests {

@@ -384,7 +384,7 @@ impl LandingDecider {
                 return Err(DecisionReason::ClockJump);
             }
             if dt > c.max_gap_ms / 1e3 {
-                self.gap_until = t + c.gap_recovery_s;
+                self.gap_until = t + self.gap_recovery_s();
             }
             let rate = (sample[ROLL] - prev[ROLL])
                 .abs()
@@ -494,15 +494,35 @@ impl LandingDecider {
         Ok(())
     }
 
+    /// The span of samples the autoregressive forecast starts from: its lags (and a few more for
+    /// the interpolation onto its grid).
+    fn ar_lag_span_s(&self) -> f64 {
+        (self.config.ar_order as f64 + 3.0) * FIT_SPACING_S
+    }
+
+    /// No clearance for this long after a gap: `gap_recovery_s`, and with the autoregressive
+    /// predictor until its lags no longer bridge the gap. Its forecast starts from the samples
+    /// of the last `ar_lag_span_s`, put on its grid by interpolation; across a gap that
+    /// interpolation is not the deck's motion, and the forecast from it is not either (held-out
+    /// seed 21, sea state 4, a 2 s frozen camera: cleared 1.3 s after it on a roll-rate forecast
+    /// of -3.3 deg/s while the deck's went to -5.0).
+    fn gap_recovery_s(&self) -> f64 {
+        let c = &self.config;
+        match c.predictor {
+            Predictor::Ar => c.gap_recovery_s.max(self.ar_lag_span_s()),
+            Predictor::Sinusoids => c.gap_recovery_s,
+        }
+    }
+
     /// Runs the autoregressive models forward from the newest samples (the coefficients and
     /// the stated variance stay those of the last fit): the forecast starts from the deck as
     /// just measured, not as it was at the last refit.
     fn advance_models(&mut self) {
+        let span_s = self.ar_lag_span_s();
         let Some(m) = self.models.as_mut() else { return };
         let Some(&(newest, _)) = self.history.back() else {
             return;
         };
-        let span_s = (self.config.ar_order as f64 + 3.0) * FIT_SPACING_S;
         let recent = self
             .history
             .iter()
@@ -991,6 +1011,38 @@ mod tests {
         let r = d.timeout(33.0).unwrap();
         assert_eq!(r.reason, DecisionReason::StaleData);
         assert_ne!(r.state, DecisionState::ClearToLand);
+    }
+
+    /// After a gap the autoregressive forecast starts from interpolated lags: no clearance until
+    /// they are all measured again, then the sea clears as before.
+    #[test]
+    fn no_clearance_until_the_lags_no_longer_bridge_a_gap() {
+        let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
+        let before = run(&mut d, 0.0, 80.0, |t| Some(sea(t, 0.3)));
+        assert!(before.iter().any(|(_, r)| r.state == DecisionState::ClearToLand));
+        // 2 s without a valid attitude (a frozen camera refused upstream), then the sea again.
+        let after = run(&mut d, 82.0, 140.0, |t| Some(sea(t, 0.3)));
+        let lag_span_s = (d.config().ar_order as f64 + 3.0) * 0.2;
+        let first_clear = after
+            .iter()
+            .find(|(_, r)| r.state == DecisionState::ClearToLand)
+            .map(|(t, _)| *t)
+            .expect("the sea clears again");
+        assert!(
+            first_clear >= 82.0 + lag_span_s - 1e-9,
+            "cleared at {first_clear}"
+        );
+        assert!(after
+            .iter()
+            .take_while(|(t, _)| *t < 82.0 + lag_span_s - 1e-9)
+            .all(|(_, r)| r.reason == DecisionReason::Gap));
+        // The sinusoid fit has no lags: its recovery is `gap_recovery_s`.
+        let mut d = LandingDecider::new(sinusoid_config()).unwrap();
+        run(&mut d, 0.0, 80.0, |t| Some(sea(t, 0.3)));
+        let after = run(&mut d, 82.0, 90.0, |t| Some(sea(t, 0.3)));
+        assert!(after
+            .iter()
+            .any(|(t, r)| *t > 83.5 && r.reason != DecisionReason::Gap));
     }
 
     #[test]

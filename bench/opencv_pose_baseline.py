@@ -5,7 +5,7 @@ identified geometrically (bow = largest blob, centre = nearest the others' mean,
 and cv2.solvePnP with SOLVEPNP_IPPE gives the deck's pose; the disc-centroid bias (the centre of an
 imaged disc is not the image of its centre) is removed by projecting each disc's rim with the
 pose, taking the centre of the ellipse OpenCV fits to it, and solving again (twice). No rolling
-shutter correction. The deck's attitude follows deckwatch's conventions (NOTES.md): camera from
+shutter correction. The deck's attitude follows deckwatch's conventions (docs/CONVENTIONS.md): camera from
 world R_CW0 R_V^T, R = Rx(roll) Ry(pitch) Rz(yaw).
 
 Usage: python3 opencv_pose_baseline.py RECORDING... [--csv FILE]

@@ -63,15 +63,16 @@ fn write_calm_swell(path: &Path) -> std::io::Result<()> {
 }
 
 fn main() -> Result<(), Box<dyn Error>> {
-    let path = match std::env::args().nth(1) {
-        Some(p) => p.into(),
+    let (first_clear_s, counts) = match std::env::args().nth(1) {
+        Some(p) => decide_on(Path::new(&p))?,
         None => {
             let p = std::env::temp_dir().join(format!("deckwatch-calm-swell-{}.csv", std::process::id()));
             write_calm_swell(&p)?;
-            p
+            let decided = decide_on(&p);
+            std::fs::remove_file(&p)?;
+            decided?
         }
     };
-    let (first_clear_s, counts) = decide_on(&path)?;
     match first_clear_s {
         Some(t) => println!("first CLEAR at {t:.1} s"),
         None => println!("never CLEAR"),

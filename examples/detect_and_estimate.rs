@@ -1,5 +1,7 @@
 //! Detect the deck's markers in one image and estimate the deck's attitude with both estimator
 //! families, beside the recording's truth. The libraries alone: no processes, no configuration.
+//! A recording of a camera on a tilting vehicle carries the vehicle's attitude per frame
+//! (CONVENTIONS.md §5, §9); both estimators take it out, so the attitude is the deck's in W.
 //!
 //!     cargo run --example detect_and_estimate -- [RECORDING_FOLDER [FRAME_INDEX]]
 //!
@@ -7,6 +9,7 @@
 
 use deckwatch_common::recording::Recording;
 use deckwatch_common::rotation::rpy_error_deg;
+use deckwatch_common::RotationMatrix;
 use deckwatch_detect::{Detector, DetectorConfig};
 use deckwatch_estimate::{PaperEstimator, PaperVariant, PoseConfig, PoseEstimator};
 use std::error::Error;
@@ -18,7 +21,9 @@ struct FrameResult {
     markers_found: u32,
     full_pose_deg: [f64; 3],
     camera_height_m: f64,
-    paper_deg: [f64; 3],
+    /// None when the paper's method cannot estimate this frame (it needs the centre, the bow
+    /// and five ring markers).
+    paper_deg: Option<[f64; 3]>,
     full_pose_error_deg: Option<[f64; 3]>,
 }
 
@@ -33,14 +38,24 @@ fn detect_and_estimate(dir: &Path, index: usize) -> Result<FrameResult, Box<dyn 
     let markers = detector.detect(image.view());
     let pixels = markers.pixels(deck.marker_count());
 
-    let pose = PoseEstimator::new(camera, deck, PoseConfig::default())
-        .estimate(&pixels, markers.perspective_corrected.get())?;
-    let paper = PaperEstimator::new(camera, deck, PaperVariant::Atan2).estimate(&pixels, None)?;
+    // The vehicle's attitude at the frame (body to W); none: a level camera.
+    let vehicle = frame
+        .truth
+        .vehicle_attitude()
+        .map_or(RotationMatrix::identity(), |r| r.to_matrix());
+    let pose = PoseEstimator::new(camera, deck, PoseConfig::default()).estimate_with_vehicle(
+        &pixels,
+        markers.perspective_corrected.get(),
+        &vehicle,
+    )?;
+    let paper = PaperEstimator::new(camera, deck, PaperVariant::Atan2)
+        .estimate_with_vehicle(&pixels, None, &vehicle)
+        .ok();
     Ok(FrameResult {
         markers_found: markers.count,
         full_pose_deg: pose.attitude.rpy.to_degrees(),
         camera_height_m: pose.viewpoint.altitude_m,
-        paper_deg: paper.attitude.rpy.to_degrees(),
+        paper_deg: paper.map(|p| p.attitude.rpy.to_degrees()),
         full_pose_error_deg: frame
             .truth
             .attitude()
@@ -61,8 +76,12 @@ fn main() -> Result<(), Box<dyn Error>> {
         "full pose:     roll {roll:7.3}  pitch {pitch:7.3}  yaw {yaw:7.3} deg, camera {:.3} m over the deck",
         r.camera_height_m
     );
-    let [roll, pitch, yaw] = r.paper_deg;
-    println!("paper (atan2): roll {roll:7.3}  pitch {pitch:7.3}  yaw {yaw:7.3} deg");
+    match r.paper_deg {
+        Some([roll, pitch, yaw]) => {
+            println!("paper (atan2): roll {roll:7.3}  pitch {pitch:7.3}  yaw {yaw:7.3} deg")
+        }
+        None => println!("paper (atan2): too few markers for the paper's method"),
+    }
     if let Some([roll, pitch, yaw]) = r.full_pose_error_deg {
         println!("full pose against the truth: {roll:.4} {pitch:.4} {yaw:.4} deg");
     }
@@ -76,7 +95,7 @@ fn one_ship_frame_within_a_few_tenths_of_a_degree() {
     assert_eq!(r.markers_found, 9);
     let error = r.full_pose_error_deg.unwrap();
     assert!(error.iter().all(|e| e.abs() < 0.5), "{error:?}");
-    let (full, paper) = (r.full_pose_deg, r.paper_deg);
+    let (full, paper) = (r.full_pose_deg, r.paper_deg.unwrap());
     assert!(
         (full[0] - paper[0]).abs() < 1.0 && (full[1] - paper[1]).abs() < 1.0,
         "{full:?} {paper:?}"

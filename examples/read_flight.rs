@@ -17,8 +17,9 @@ use std::path::Path;
 struct FlightSummary {
     messages_per_channel: BTreeMap<String, u64>,
     decisions_per_state: BTreeMap<&'static str, u64>,
-    /// The deck's roll and pitch (deg) on the first CLEAR, and its capture time (ns).
-    first_clear: Option<([f64; 2], u64)>,
+    /// The deck's roll and pitch (deg) on the first CLEAR, and when its frame was taken on the
+    /// frames' own timeline (s; CONVENTIONS.md §8).
+    first_clear: Option<([f64; 2], f64)>,
 }
 
 fn summarise(path: &Path) -> Result<FlightSummary, Box<dyn Error>> {
@@ -37,7 +38,7 @@ fn summarise(path: &Path) -> Result<FlightSummary, Box<dyn Error>> {
             .or_insert(0) += 1;
         if d.state == DecisionState::ClearToLand && summary.first_clear.is_none() {
             let [roll, pitch, _] = d.attitude.rpy.to_degrees();
-            summary.first_clear = Some(([roll, pitch], d.stamp.times.captured_ns));
+            summary.first_clear = Some(([roll, pitch], d.context.source_timestamp_ns as f64 / 1e9));
         }
     }
     Ok(summary)
@@ -53,8 +54,8 @@ fn main() -> Result<(), Box<dyn Error>> {
         println!("{n:8}  decisions {state}");
     }
     match s.first_clear {
-        Some(([roll, pitch], t_ns)) => {
-            println!("first CLEAR at {t_ns} ns: deck roll {roll:.2}, pitch {pitch:.2} deg")
+        Some(([roll, pitch], t_s)) => {
+            println!("first CLEAR at {t_s:.2} s: deck roll {roll:.2}, pitch {pitch:.2} deg")
         }
         None => println!("never CLEAR"),
     }
@@ -73,6 +74,7 @@ fn a_written_recording_reads_back() {
     for k in 0..30u64 {
         let mut d = LandingDecision::default();
         d.stamp.seq = k;
+        d.context.source_timestamp_ns = k * 100_000_000;
         d.stamp.times.captured_ns = 1_000_000_000 + k * 100_000_000;
         d.state = if k >= 20 {
             DecisionState::ClearToLand
@@ -87,9 +89,9 @@ fn a_written_recording_reads_back() {
     let s = summarise(&path).unwrap();
     assert_eq!(s.decisions_per_state.get("CLEAR"), Some(&10), "{s:?}");
     assert_eq!(s.decisions_per_state.get("HOLD"), Some(&20), "{s:?}");
-    let ([roll, pitch], t_ns) = s.first_clear.unwrap();
+    let ([roll, pitch], t_s) = s.first_clear.unwrap();
     assert!((roll - 2.0).abs() < 1e-9 && (pitch + 0.5).abs() < 1e-9);
-    assert_eq!(t_ns, 3_000_000_000);
+    assert!((t_s - 2.0).abs() < 1e-12);
     assert_eq!(s.messages_per_channel.values().sum::<u64>(), 30);
     std::fs::remove_dir_all(&dir).unwrap();
 }

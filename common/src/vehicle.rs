@@ -37,7 +37,7 @@ pub struct VehicleConfig {
     /// roll, pitch, yaw in degrees (`R_M = Rx Ry Rz`).
     pub mount_rpy_deg: [f64; 3],
     /// Autopilot attitude only (north-referenced heading): the time constant (s) of the ship's
-    /// mean heading, which becomes W's x (CONVENTIONS.md §5).
+    /// mean heading, which becomes W's x (CONVENTIONS.md §6).
     pub heading_time_constant_s: f64,
 }
 
@@ -338,7 +338,7 @@ impl VehicleTrack {
 
 /// The ship's mean heading from north (rad, counter-clockwise seen from above), a circular
 /// exponential average: with an autopilot's north-referenced attitude, W's x is this heading, so
-/// deck roll and pitch are about the ship's own axes whatever its course (CONVENTIONS.md §5).
+/// deck roll and pitch are about the ship's own axes whatever its course (CONVENTIONS.md §6).
 #[derive(Debug, Clone, Default)]
 pub struct MeanHeading {
     /// Unit vector of the mean and the time of the last update (s).

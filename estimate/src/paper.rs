@@ -22,7 +22,8 @@ use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum PaperVariant {
     /// As printed: `beta = s acos(q / r)`, gamma by the law of cosines with the known ring
-    /// radius r. Needs an accurate altimeter (0.1 % altitude error gives up to 1.75 deg); loses
+    /// radius r. Needs an accurate altimeter (0.1 % altitude error: up to 2.5 deg in
+    /// `deckwatch sweep --altimeter-error 0.001`; CONVENTIONS.md C5); loses
     /// half the digits near a level deck and near gamma = 0 (acos of ~1).
     Printed,
     /// CONVENTIONS.md C5: the fitted semi-major axis p in place of r in both formulas. Insensitive to

@@ -1,4 +1,4 @@
-//! MAVLink's frames against deckwatch's (CONVENTIONS.md §5), defined once.
+//! MAVLink's frames against deckwatch's (CONVENTIONS.md §7), defined once.
 //!
 //! MAVLink: body FRD (x forward, y right, z down) to NED (north, east, down). deckwatch: body FLU
 //! (x forward, y left, z up) to a world with z up; with an autopilot that world is

@@ -2,7 +2,7 @@
 //! link process (`deckwatch-link`, in the runtime crate) does with each message, without the
 //! socket or shared memory.
 //!
-//! - [`frames`]: MAVLink's NED/FRD frames against deckwatch's (CONVENTIONS.md §5), one place.
+//! - [`frames`]: MAVLink's NED/FRD frames against deckwatch's (CONVENTIONS.md §7), one place.
 //! - [`clock`]: the autopilot's clock on this machine's `CLOCK_MONOTONIC` (TIMESYNC, or arrival
 //!   times when the autopilot does not answer).
 //! - [`incoming`]: HEARTBEAT, ATTITUDE_QUATERNION/ATTITUDE, TIMESYNC, DISTANCE_SENSOR and

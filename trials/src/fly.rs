@@ -107,7 +107,6 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
 ) -> Result<ApproachOutcome, E> {
     let path: SharedFlightPath = Arc::new(Mutex::new(FlightPath::hover(model.hover_m)));
     let mut pipeline = pipeline_for(world.scene(path.clone()))?;
-    let latency_s = timing.stage_latency_ns as f64 / 1e9;
     let reaction_s = timing.reaction_s();
     let mut autopilot = SimulatedAutopilot::new(*model, path.clone());
     let mut follow = DecisionFollower::default();
@@ -136,7 +135,7 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
         }
         // The autopilot's attitude stream up to when estimate sees the frame.
         let out_now = faults.vehicle_out(t);
-        while next_vehicle_s <= t + 1.5 * latency_s {
+        while next_vehicle_s <= t + 1.5 * timing.stage_latency_ns as f64 / 1e9 {
             let tv = next_vehicle_s;
             next_vehicle_s += VEHICLE_PERIOD_S;
             if out_now {
@@ -160,7 +159,7 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
         let step = pipeline.next_frame(t, over_deck_m, &mut |pixels| faults.inject(t, pixels));
         out.frames += 1;
         let mut follow_decision = |out: &mut ApproachOutcome, d: &LandingDecision| {
-            out.count_decision(d);
+            out.count_decision(d.state.get(), d.reason.get());
             let c = follow.command(d.state.get());
             if c == Command::GoAround && autopilot.contact_s().is_some() {
                 out.count_go_around(d.reason.get());
@@ -224,7 +223,6 @@ mod tests {
     use crate::world::Approach;
     use deckwatch_common::Rpy;
     use deckwatch_decide::{FrameInput, LandingDecider};
-    use deckwatch_sim::motion::MotionProfile;
 
     /// A perfect camera and estimator: the true deck (as the vehicle's compensation leaves it),
     /// 6 ms after capture, decided on by the decider itself. What the runner does with the
@@ -403,6 +401,5 @@ mod tests {
             .err(),
             Some(crate::WorldError::NoSpectrumSea(9))
         );
-        let _ = world.sea.sample(0.0);
     }
 }

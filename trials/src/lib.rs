@@ -251,8 +251,12 @@ pub struct ApproachOutcome {
 
 impl ApproachOutcome {
     /// A decision the autopilot received, counted by state and reason.
-    pub fn count_decision(&mut self, d: &deckwatch_common::messages::LandingDecision) {
-        let key = format!("{} {}", d.state.get().name(), d.reason.get().name());
+    pub fn count_decision(
+        &mut self,
+        state: DecisionState,
+        reason: deckwatch_common::messages::DecisionReason,
+    ) {
+        let key = format!("{} {}", state.name(), reason.name());
         *self.decisions_by_reason.entry(key).or_default() += 1;
     }
 

@@ -52,10 +52,10 @@ pub enum WorldError {
 /// One approach's world: the sea, the vehicle's sway and where the approach starts in them.
 #[derive(Clone)]
 pub struct ApproachWorld {
-    pub sea: TrialSea,
-    pub sway: VehicleSway,
+    sea: TrialSea,
+    sway: VehicleSway,
     /// The approach's t = 0 in the sea's time (s).
-    pub sea_offset_s: f64,
+    sea_offset_s: f64,
 }
 
 /// The deck's motion beyond the approach's end the decision may look at (s).

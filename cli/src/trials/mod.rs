@@ -121,6 +121,15 @@ impl Rule {
         }
     }
 
+    /// The rule a pipeline flies; None for the oracle, which needs no frames.
+    fn flown(self) -> Option<PipelineRule> {
+        match self {
+            Self::Deckwatch => Some(PipelineRule::Deckwatch),
+            Self::Naive => Some(PipelineRule::Naive),
+            Self::Oracle => None,
+        }
+    }
+
     fn name(&self) -> &'static str {
         match self {
             Self::Deckwatch => "deckwatch",
@@ -403,8 +412,8 @@ fn fly_job(job: Approach, setup: &Setup, a: &TrialsArgs, log: Option<&mut Option
     let mut log = log;
     let mut out = Vec::with_capacity(setup.rules.len());
     for &rule in &setup.rules {
-        let o = match rule {
-            Rule::Oracle => oracle_approach(
+        let o = match rule.flown() {
+            None => oracle_approach(
                 &|t| world.truth(t),
                 &|t| world.attitudes(t),
                 capacity,
@@ -412,15 +421,10 @@ fn fly_job(job: Approach, setup: &Setup, a: &TrialsArgs, log: Option<&mut Option
                 1.0 / a.rate,
                 3.0 * a.stage_latency_ms / 1e3,
             ),
-            _ => {
+            Some(flown) => {
                 let logged = match (rule, log.as_deref_mut()) {
                     (Rule::Deckwatch, Some(l)) => l.as_mut(),
                     _ => None,
-                };
-                let flown = if rule == Rule::Deckwatch {
-                    PipelineRule::Deckwatch
-                } else {
-                    PipelineRule::Naive
                 };
                 let o = fly(flown, &world, &setup.pipeline, model, a, approach_seed, logged)?;
                 if rule == Rule::Deckwatch {

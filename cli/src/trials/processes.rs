@@ -216,9 +216,7 @@ fn fly_with(
         while let Ok((at, state, reason)) = heard.try_recv() {
             let t_heard = t_of(at);
             out.decisions += 1;
-            *out.decisions_by_reason
-                .entry(format!("{} {}", state.name(), reason.name()))
-                .or_default() += 1;
+            out.count_decision(state, reason);
             let command = follow.command(state);
             let descending = autopilot.contact_s().is_some();
             if autopilot.act(t_heard.max(0.0), heave(t_heard), command)

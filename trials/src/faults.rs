@@ -135,12 +135,12 @@ impl FrameFaults {
     }
 
     /// Whether the next frame is lost on its way.
-    pub fn lost(&mut self) -> bool {
+    fn lost(&mut self) -> bool {
         self.rng.next_f64() < self.drop_share
     }
 
     /// A frozen camera delivers its last image again and again, with new timestamps.
-    pub fn freeze(&mut self, t_s: f64, pixels: &mut [u8]) {
+    fn freeze(&mut self, t_s: f64, pixels: &mut [u8]) {
         if self.frozen.at(t_s, &mut self.rng) {
             match &self.frozen_pixels {
                 Some(p) if p.len() == pixels.len() => pixels.copy_from_slice(p),

@@ -183,6 +183,7 @@ fn fly_with(
         std::thread::spawn(move || stream(&conn, &stop, &out, &path, &world, start))
     };
     let width = source.camera().width as usize;
+    let mut frame = vec![0; source.frame_bytes()];
     let mut autopilot = SimulatedAutopilot::new(model, path.clone());
     let mut follow = DecisionFollower::default();
     let mut faults = FrameFaults::new(&fault_model(a), a.rate, job.approach_seed());
@@ -231,27 +232,35 @@ fn fly_with(
         if now >= due {
             let tk = k as f64 / a.rate;
             vehicle_out.store(faults.vehicle_out(tk), Ordering::Relaxed);
-            if faults.lost() {
-                // Lost on the way: the stages never see it (the next one says so in its drops).
-                let mut scratch = vec![0; source.frame_bytes()];
-                let _ = source.capture(k, &mut scratch, width);
-                drops.capture += 1;
-            } else {
-                let mut header = new_header(&source, seq, drops);
-                header.stamp.times.captured_ns = due;
-                let published = publisher.publish(header, |h, pixels| {
-                    let f = source.capture(k, pixels, width)?;
-                    complete_header(h, &f);
-                    // Mid-exposure: when the frame was due (rendering took some of that time).
-                    h.stamp.times.captured_ns = due;
-                    faults.freeze(tk, pixels);
-                    Ok::<(), deckwatch_capture::source::SourceError>(())
-                });
-                if published.is_err() {
-                    drops.capture += 1;
-                } else {
-                    seq += 1;
+            // The frame as the camera took it, then the faults on its way: the same draws in the
+            // same order as in one process (`FrameFaults::inject`, as the stage chain calls it).
+            // Lost on the way, the stages never see it (the next one says so in its drops).
+            let captured = source.capture(k, &mut frame, width);
+            let kept = captured.is_ok() && faults.inject(tk, &mut frame);
+            match captured {
+                Ok(f) if kept => {
+                    let header = new_header(&source, seq, drops);
+                    let published = publisher.publish(header, |h, pixels| {
+                        if pixels.len() != frame.len() {
+                            return Err(format!(
+                                "a frame of {} bytes for a sample of {}",
+                                frame.len(),
+                                pixels.len()
+                            ));
+                        }
+                        pixels.copy_from_slice(&frame);
+                        complete_header(h, &f);
+                        // Mid-exposure: when the frame was due (rendering took some of that time).
+                        h.stamp.times.captured_ns = due;
+                        Ok(())
+                    });
+                    if published.is_err() {
+                        drops.capture += 1;
+                    } else {
+                        seq += 1;
+                    }
                 }
+                _ => drops.capture += 1,
             }
             out.frames += 1;
             k += 1;

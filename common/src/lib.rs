@@ -24,7 +24,7 @@ pub mod wire;
 
 pub use camera::{CameraModel, Distortion};
 pub use deck::DeckLayout;
-pub use error::InvalidField;
+pub use error::{InvalidField, InvalidOption};
 pub use image::{GrayImage, GrayView, GrayViewMut};
 pub use markers::{DetectionStatus, Marker, MarkerSet};
 pub use recording::{GroundTruth, Recording, RecordingError, RecordingWriter};

@@ -8,6 +8,7 @@
 use crate::motion::MotionProfile;
 use crate::rng::SplitMix64;
 use deckwatch_common::vehicle::VehicleStateSample;
+use deckwatch_common::InvalidOption;
 use deckwatch_common::{Quaternion, Rpy};
 use serde::{Deserialize, Serialize};
 
@@ -53,29 +54,29 @@ impl Default for AutopilotArgs {
 
 impl AutopilotArgs {
     /// Checks the values; errors name the option.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvalidOption> {
         if !(self.rate_hz >= 0.0 && self.rate_hz <= 1000.0) {
-            return Err(format!(
-                "--autopilot-rate-hz: must be in [0, 1000], got {}",
-                self.rate_hz
+            return Err(InvalidOption::new(
+                "--autopilot-rate-hz",
+                format!("must be in [0, 1000], got {}", self.rate_hz),
             ));
         }
         if !(self.noise_deg >= 0.0 && self.noise_deg <= 10.0) {
-            return Err(format!(
-                "--autopilot-noise-deg: must be in [0, 10], got {}",
-                self.noise_deg
+            return Err(InvalidOption::new(
+                "--autopilot-noise-deg",
+                format!("must be in [0, 10], got {}", self.noise_deg),
             ));
         }
         if self.bias_deg.len() != 3 || !self.bias_deg.iter().all(|b| b.is_finite() && b.abs() <= 10.0) {
-            return Err(format!(
-                "--autopilot-bias-deg: three angles within +-10 deg, got {:?}",
-                self.bias_deg
+            return Err(InvalidOption::new(
+                "--autopilot-bias-deg",
+                format!("three angles within +-10 deg, got {:?}", self.bias_deg),
             ));
         }
         if !(self.time_error_ms.abs() <= 1000.0) {
-            return Err(format!(
-                "--autopilot-time-error-ms: must be within +-1000, got {}",
-                self.time_error_ms
+            return Err(InvalidOption::new(
+                "--autopilot-time-error-ms",
+                format!("must be within +-1000, got {}", self.time_error_ms),
             ));
         }
         Ok(())

@@ -7,6 +7,7 @@ use crate::motion::{
 };
 use crate::rng::SplitMix64;
 use deckwatch_common::marker_table::MarkerRow;
+use deckwatch_common::InvalidOption;
 use deckwatch_common::{CameraModel, DeckLayout, GroundTruth, SceneGeometry};
 
 /// A named motion scenario (`--scenario`, `[sim] scenario`).
@@ -200,28 +201,32 @@ pub const MAX_RATE_HZ: f64 = 1e4;
 
 impl SimulationArgs {
     /// Checks the choice; errors name the option.
-    pub fn resolve(&self) -> Result<Simulation, String> {
+    pub fn resolve(&self) -> Result<Simulation, InvalidOption> {
         let scenario = self.scenario;
         let camera_name = self
             .camera
             .as_deref()
             .unwrap_or(scenario.default_camera())
             .to_string();
-        let camera = CameraModel::preset(&camera_name)
-            .ok_or_else(|| format!("--camera: unknown `{camera_name}` (paper, rpi-v2)"))?;
+        let camera = CameraModel::preset(&camera_name).ok_or_else(|| {
+            InvalidOption::new("--camera", format!("unknown `{camera_name}` (paper, rpi-v2)"))
+        })?;
         if !(MIN_RATE_HZ..=MAX_RATE_HZ).contains(&self.rate) {
-            return Err(format!(
-                "--rate: must be within [{MIN_RATE_HZ}, {MAX_RATE_HZ}] Hz, got {}",
-                self.rate
+            return Err(InvalidOption::new(
+                "--rate",
+                format!(
+                    "must be within [{MIN_RATE_HZ}, {MAX_RATE_HZ}] Hz, got {}",
+                    self.rate
+                ),
             ));
         }
         if self.frames == 0 {
-            return Err("--frames: must be at least 1".into());
+            return Err(InvalidOption::new("--frames", "must be at least 1"));
         }
         if !(0.0..=2.0).contains(&self.sea_scale) {
-            return Err(format!(
-                "--sea-scale: must be within [0, 2], got {}",
-                self.sea_scale
+            return Err(InvalidOption::new(
+                "--sea-scale",
+                format!("must be within [0, 2], got {}", self.sea_scale),
             ));
         }
         self.autopilot.validate()?;
@@ -231,9 +236,12 @@ impl SimulationArgs {
                 .iter()
                 .all(|a| a.is_finite() && a.abs() <= 45.0);
         if !tilt_ok {
-            return Err(format!(
-                "--vehicle-tilt-deg: three angles (roll, pitch, yaw) within +-45 deg, got {:?}",
-                self.vehicle_tilt_deg
+            return Err(InvalidOption::new(
+                "--vehicle-tilt-deg",
+                format!(
+                    "three angles (roll, pitch, yaw) within +-45 deg, got {:?}",
+                    self.vehicle_tilt_deg
+                ),
             ));
         }
         Ok(Simulation {
@@ -279,9 +287,12 @@ impl SimulationArgs {
 
     /// The simulated marker rows (with ground truth) of the whole run, with Gaussian pixel noise
     /// of `noise_px` (standard deviation per axis) on the marker centres.
-    pub fn marker_rows(&self, sim: &Simulation, noise_px: f64) -> Result<Vec<MarkerRow>, String> {
+    pub fn marker_rows(&self, sim: &Simulation, noise_px: f64) -> Result<Vec<MarkerRow>, InvalidOption> {
         if !(noise_px.is_finite() && noise_px >= 0.0) {
-            return Err(format!("--noise-px: must be >= 0, got {noise_px}"));
+            return Err(InvalidOption::new(
+                "--noise-px",
+                format!("must be >= 0, got {noise_px}"),
+            ));
         }
         let mut markers = MarkerSimulator::new(sim.camera, sim.deck, noise_px, self.seed);
         let profile = sim.scenario.profile(self.seed, self.sea_scale);

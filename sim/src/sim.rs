@@ -6,7 +6,7 @@ use crate::render::{Exposure, RenderError, RenderOptions, Renderer};
 use crate::scenario::Simulation;
 use deckwatch_common::image::GrayViewMut;
 use deckwatch_common::messages::VehicleAttitude;
-use deckwatch_common::{CameraModel, DeckLayout, Distortion, GroundTruth, SceneGeometry};
+use deckwatch_common::{CameraModel, DeckLayout, Distortion, GroundTruth, InvalidOption, SceneGeometry};
 
 /// One rendered frame's truth.
 #[derive(Debug, Clone, PartialEq)]
@@ -85,19 +85,28 @@ impl FrameSimulator {
         exposure_s: f64,
         exposure_steps: usize,
         seed: u64,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, InvalidOption> {
         if !(rate_hz.is_finite() && rate_hz > 0.0) {
-            return Err(format!("frame rate must be positive, got {rate_hz}"));
+            return Err(InvalidOption::new(
+                "frame rate",
+                format!("must be positive, got {rate_hz}"),
+            ));
         }
         if !(exposure_s.is_finite() && exposure_s >= 0.0 && exposure_s <= 1.0 / rate_hz) {
-            return Err(format!("exposure must be within [0, 1/rate] s, got {exposure_s}"));
+            return Err(InvalidOption::new(
+                "exposure",
+                format!("must be within [0, 1/rate] s, got {exposure_s}"),
+            ));
         }
         let readout_s = renderer.camera().readout_s;
         if readout_s > 1.0 / rate_hz {
-            return Err(format!(
-                "the rolling shutter's readout ({} ms) must fit in a frame time ({} ms)",
-                readout_s * 1e3,
-                1e3 / rate_hz
+            return Err(InvalidOption::new(
+                "readout",
+                format!(
+                    "the rolling shutter's readout ({} ms) must fit in a frame time ({} ms)",
+                    readout_s * 1e3,
+                    1e3 / rate_hz
+                ),
             ));
         }
         let steps = if exposure_s > 0.0 {
@@ -349,14 +358,17 @@ impl ImageArgs {
     }
 
     /// The camera (preset scaled to the resolution, with the lens) and the render options.
-    pub fn resolve(&self, sim: &Simulation) -> Result<(CameraModel, RenderOptions), String> {
+    pub fn resolve(&self, sim: &Simulation) -> Result<(CameraModel, RenderOptions), InvalidOption> {
         let mut camera = sim.camera;
         let (w, h) = (
             self.width.unwrap_or(camera.width),
             self.height.unwrap_or(camera.height),
         );
         if w == 0 || h == 0 || w > 16384 || h > 16384 {
-            return Err(format!("--width/--height: {w}x{h} is not a usable image size"));
+            return Err(InvalidOption::new(
+                "--width/--height",
+                format!("{w}x{h} is not a usable image size"),
+            ));
         }
         if (w, h) != (camera.width, camera.height) {
             camera = camera.scaled_to(w, h);
@@ -365,20 +377,22 @@ impl ImageArgs {
             let a: [f64; 5] = d
                 .as_slice()
                 .try_into()
-                .map_err(|_| "--distortion: give k1,k2,p1,p2,k3")?;
+                .map_err(|_| InvalidOption::new("--distortion", "give k1,k2,p1,p2,k3"))?;
             camera.distortion = Distortion::from_array(a);
         }
         camera.readout_s = self.readout_ms / 1e3;
         if !(self.calibration_error.is_finite() && self.calibration_error.abs() <= 10.0) {
-            return Err(format!(
-                "--calibration-error: must be within [-10, 10], got {}",
-                self.calibration_error
+            return Err(InvalidOption::new(
+                "--calibration-error",
+                format!("must be within [-10, 10], got {}", self.calibration_error),
             ));
         }
         self.calibrated(&camera)
             .validate()
-            .map_err(|e| format!("--calibration-error: the calibration told: {e}"))?;
-        camera.validate().map_err(|e| format!("camera: {e}"))?;
+            .map_err(|e| InvalidOption::new("--calibration-error", format!("the calibration told: {e}")))?;
+        camera
+            .validate()
+            .map_err(|e| InvalidOption::new("camera", e.to_string()))?;
         let mut o = match self.look {
             Look::Clean => RenderOptions::default(),
             Look::Realistic => RenderOptions::realistic(),
@@ -400,21 +414,25 @@ impl ImageArgs {
         set(&mut o.halo, self.halo);
         if let Some(c) = self.contrast {
             if !(c.is_finite() && c > 0.0 && c <= 2.0) {
-                return Err(format!("--contrast: must be within (0, 2], got {c}"));
+                return Err(InvalidOption::new(
+                    "--contrast",
+                    format!("must be within (0, 2], got {c}"),
+                ));
             }
             o.marker_dn = (o.deck_dn + c * (o.marker_dn - o.deck_dn)).min(255.0);
         }
         if let Some(m) = self.occlude {
             if m >= sim.deck.marker_count() {
-                return Err(format!(
-                    "--occlude: marker {m} does not exist (0..{})",
-                    sim.deck.marker_count()
+                return Err(InvalidOption::new(
+                    "--occlude",
+                    format!("marker {m} does not exist (0..{})", sim.deck.marker_count()),
                 ));
             }
             o.occluded_marker = Some(m);
         }
         o.glints = self.glints.unwrap_or(0);
-        o.validate().map_err(|e| format!("render options: {e}"))?;
+        o.validate()
+            .map_err(|e| InvalidOption::new("render options", e.to_string()))?;
         Ok((camera, o))
     }
 }
@@ -481,6 +499,6 @@ mod tests {
         );
         assert_eq!(o.read_noise_dn, 0.0);
         a.vignetting = Some(3.0);
-        assert!(a.resolve(&sim).unwrap_err().contains("`vignetting`"));
+        assert!(a.resolve(&sim).unwrap_err().to_string().contains("`vignetting`"));
     }
 }

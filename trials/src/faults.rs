@@ -7,6 +7,7 @@
 //! frozen camera, an outage) with [`Episodes`].
 
 use deckwatch_common::messages::FROZEN_IMAGE_REPEATS;
+use deckwatch_common::InvalidOption;
 use deckwatch_decide::{DeckObservation, FrameInput};
 use deckwatch_sim::motion::VehicleSway;
 use deckwatch_sim::rng::SplitMix64;
@@ -39,19 +40,11 @@ impl Episodes {
     }
 }
 
-/// An invalid fault option: which, and what it must be.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{option}: {must}")]
-pub struct FaultOptionError {
-    pub option: &'static str,
-    pub must: &'static str,
-}
-
-fn require(ok: bool, option: &'static str, must: &'static str) -> Result<(), FaultOptionError> {
+fn require(ok: bool, option: &str, must: &str) -> Result<(), InvalidOption> {
     if ok {
         Ok(())
     } else {
-        Err(FaultOptionError { option, must })
+        Err(InvalidOption::new(option, must))
     }
 }
 
@@ -84,7 +77,7 @@ impl Default for FrameFaultModel {
 }
 
 impl FrameFaultModel {
-    pub fn validate(&self) -> Result<(), FaultOptionError> {
+    pub fn validate(&self) -> Result<(), InvalidOption> {
         require(
             (0.0..=1.0).contains(&self.drop_share),
             "--drop-share",
@@ -190,7 +183,7 @@ pub struct AttitudeStreamModel {
 }
 
 impl AttitudeStreamModel {
-    pub fn validate(&self) -> Result<(), FaultOptionError> {
+    pub fn validate(&self) -> Result<(), InvalidOption> {
         require(self.rate_hz > 0.0, "--rate", "positive")?;
         require(
             matches!(self.vehicle_bias_deg, [r, p] if r.is_finite() && p.is_finite()),

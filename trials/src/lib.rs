@@ -11,7 +11,7 @@ pub mod faults;
 pub mod fly;
 pub mod world;
 
-pub use faults::{AttitudeStreamModel, Episodes, FaultOptionError, FrameFaultModel, FrameFaults};
+pub use faults::{AttitudeStreamModel, Episodes, FrameFaultModel, FrameFaults};
 pub use fly::{fly_approach, naive_command, ApproachTiming, ClosedLoopPipeline, FrameStep, PipelineRule};
 pub use world::{Approach, ApproachWorld, TrialSea, WorldError};
 
@@ -55,7 +55,7 @@ impl ApproachModel {
         }
     }
 
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), deckwatch_common::InvalidOption> {
         let ok = self.hover_m > self.contact_m
             && self.contact_m > 0.0
             && self.touchdown_s > 0.0
@@ -65,8 +65,9 @@ impl ApproachModel {
         if ok {
             Ok(())
         } else {
-            Err(format!(
-                "approach: hover height over contact height over 0, positive touchdown time, climb rate and tilt limit, an approach longer than a touchdown; got {self:?}"
+            Err(deckwatch_common::InvalidOption::new(
+                "approach",
+                format!("hover height over contact height over 0, positive touchdown time, climb rate and tilt limit, an approach longer than a touchdown; got {self:?}"),
             ))
         }
     }

@@ -15,7 +15,7 @@
 
 use crate::rng::SplitMix64;
 use deckwatch_common::image::{GrayViewMut, ImageError};
-use deckwatch_common::{CameraModel, DeckLayout, SceneGeometry};
+use deckwatch_common::{CameraModel, DeckLayout, InvalidField, SceneGeometry};
 use nalgebra::{Matrix3, Vector3};
 
 mod optics;
@@ -120,11 +120,11 @@ impl RenderOptions {
     }
 
     /// Checks the options; the error names the field.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvalidField> {
         if !(1..=64).contains(&self.supersample) {
-            return Err(format!(
-                "field `supersample`: must be within 1..=64, got {}",
-                self.supersample
+            return Err(InvalidField::new(
+                "supersample",
+                format!("must be within 1..=64, got {}", self.supersample),
             ));
         }
         let fields = [
@@ -144,11 +144,14 @@ impl RenderOptions {
         ];
         for (name, v, lo, hi) in fields {
             if !(v >= lo && v <= hi) {
-                return Err(format!("field `{name}`: must be within [{lo}, {hi}], got {v}"));
+                return Err(InvalidField::new(
+                    name,
+                    format!("must be within [{lo}, {hi}], got {v}"),
+                ));
             }
         }
         if !self.illumination_direction.is_finite() {
-            return Err("field `illumination_direction`: must be finite".into());
+            return Err(InvalidField::new("illumination_direction", "must be finite"));
         }
         Ok(())
     }
@@ -288,9 +291,9 @@ impl Renderer {
         deck: DeckLayout,
         options: RenderOptions,
         seed: u64,
-    ) -> Result<Self, String> {
-        camera.validate().map_err(|e| e.to_string())?;
-        deck.validate().map_err(|e| e.to_string())?;
+    ) -> Result<Self, InvalidField> {
+        camera.validate()?;
+        deck.validate()?;
         options.validate()?;
         let deck_tex = value_noise(TEX, seed, &[(8, 0.5), (32, 0.3), (128, 0.15), (512, 0.05)]);
         let sea_tex = value_noise(TEX, seed ^ 0x5ea, &[(4, 0.45), (16, 0.35), (64, 0.2)]);
@@ -999,13 +1002,13 @@ mod tests {
         }
         .validate()
         .unwrap_err();
-        assert!(e.contains("`supersample`"));
+        assert_eq!(e.field, "supersample");
         let e = RenderOptions {
             vignetting: 2.0,
             ..RenderOptions::default()
         }
         .validate()
         .unwrap_err();
-        assert!(e.contains("`vignetting`"));
+        assert_eq!(e.field, "vignetting");
     }
 }

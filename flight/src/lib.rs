@@ -73,6 +73,23 @@ pub enum FlightError {
     },
 }
 
+/// An image that cannot be encoded or decoded: which codec (`png`, `jpeg`), and why.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{codec}: {problem}")]
+pub struct ImageCodecError {
+    pub codec: &'static str,
+    pub problem: String,
+}
+
+impl ImageCodecError {
+    pub(crate) fn new(codec: &'static str, problem: impl std::fmt::Display) -> Self {
+        Self {
+            codec,
+            problem: problem.to_string(),
+        }
+    }
+}
+
 impl FlightError {
     pub(crate) fn file(path: &Path, problem: impl std::fmt::Display) -> Self {
         Self::File {

@@ -2,7 +2,7 @@
 //! need no more memory than their largest chunk), and tolerant of a file whose writer was killed:
 //! everything up to the last complete chunk is read, then the reader says where it ended.
 
-use crate::{topics, FlightError, FlightMessage};
+use crate::{topics, FlightError, FlightMessage, ImageCodecError};
 use deckwatch_common::messages::FrameHeader;
 use foxglove::schemas::{CompressedImage, RawImage};
 use foxglove::Decode;
@@ -270,34 +270,41 @@ impl RecordedMessage {
     }
 }
 
-fn decode_png(data: &[u8]) -> Result<(u32, u32, Vec<u8>), String> {
+fn decode_png(data: &[u8]) -> Result<(u32, u32, Vec<u8>), ImageCodecError> {
     let mut decoder = png::Decoder::new(std::io::Cursor::new(data));
     decoder.set_transformations(png::Transformations::STRIP_16);
-    let mut reader = decoder.read_info().map_err(|e| format!("png: {e}"))?;
+    let mut reader = decoder.read_info().map_err(|e| ImageCodecError::new("png", e))?;
     let (w, h) = (reader.info().width, reader.info().height);
     let size = reader
         .output_buffer_size()
-        .ok_or_else(|| "png: the image is too large".to_string())?;
+        .ok_or_else(|| ImageCodecError::new("png", "the image is too large"))?;
     let mut buf = vec![0; size];
-    let info = reader.next_frame(&mut buf).map_err(|e| format!("png: {e}"))?;
+    let info = reader
+        .next_frame(&mut buf)
+        .map_err(|e| ImageCodecError::new("png", e))?;
     if info.color_type != png::ColorType::Grayscale || info.bit_depth != png::BitDepth::Eight {
-        return Err(format!(
-            "png: {:?} {:?} (deckwatch reads 8-bit grayscale)",
-            info.color_type, info.bit_depth
+        return Err(ImageCodecError::new(
+            "png",
+            format!(
+                "{:?} {:?} (deckwatch reads 8-bit grayscale)",
+                info.color_type, info.bit_depth
+            ),
         ));
     }
     buf.truncate(w as usize * h as usize);
     Ok((w, h, buf))
 }
 
-fn decode_jpeg(data: &[u8]) -> Result<(u32, u32, Vec<u8>), String> {
+fn decode_jpeg(data: &[u8]) -> Result<(u32, u32, Vec<u8>), ImageCodecError> {
     let mut decoder = jpeg_decoder::Decoder::new(data);
-    let pixels = decoder.decode().map_err(|e| format!("jpeg: {e}"))?;
-    let info = decoder.info().ok_or("jpeg: no header")?;
+    let pixels = decoder.decode().map_err(|e| ImageCodecError::new("jpeg", e))?;
+    let info = decoder
+        .info()
+        .ok_or_else(|| ImageCodecError::new("jpeg", "no header"))?;
     if info.pixel_format != jpeg_decoder::PixelFormat::L8 {
-        return Err(format!(
-            "jpeg: {:?} (deckwatch reads 8-bit grayscale)",
-            info.pixel_format
+        return Err(ImageCodecError::new(
+            "jpeg",
+            format!("{:?} (deckwatch reads 8-bit grayscale)", info.pixel_format),
         ));
     }
     Ok((info.width as u32, info.height as u32, pixels))

@@ -1,7 +1,7 @@
 //! Writing a flight recording.
 
 use crate::config::{FrameEncoding, RecordCompression};
-use crate::{topics, FlightError, FlightMessage, RecorderStats, TimeBase};
+use crate::{topics, FlightError, FlightMessage, ImageCodecError, RecorderStats, TimeBase};
 use deckwatch_common::camera::CameraModel;
 use deckwatch_common::messages::FrameHeader;
 use foxglove::schemas::{CameraCalibration, CompressedImage, Log, RawImage, Timestamp};
@@ -445,29 +445,37 @@ fn timestamp(unix_ns: u64) -> Timestamp {
 }
 
 /// An 8-bit grayscale PNG of packed rows.
-pub fn encode_png(packed: &[u8], width: usize, height: usize) -> Result<Vec<u8>, String> {
+pub fn encode_png(packed: &[u8], width: usize, height: usize) -> Result<Vec<u8>, ImageCodecError> {
     let mut out = Vec::with_capacity(packed.len() / 4);
     {
         let mut e = png::Encoder::new(&mut out, width as u32, height as u32);
         e.set_color(png::ColorType::Grayscale);
         e.set_depth(png::BitDepth::Eight);
         e.set_compression(png::Compression::Fast);
-        let mut w = e.write_header().map_err(|e| format!("png: {e}"))?;
-        w.write_image_data(packed).map_err(|e| format!("png: {e}"))?;
+        let mut w = e.write_header().map_err(|e| ImageCodecError::new("png", e))?;
+        w.write_image_data(packed)
+            .map_err(|e| ImageCodecError::new("png", e))?;
     }
     Ok(out)
 }
 
 /// A grayscale JPEG of packed rows.
-pub fn encode_jpeg(packed: &[u8], width: usize, height: usize, quality: u8) -> Result<Vec<u8>, String> {
+pub fn encode_jpeg(
+    packed: &[u8],
+    width: usize,
+    height: usize,
+    quality: u8,
+) -> Result<Vec<u8>, ImageCodecError> {
     let (w, h) = (
-        u16::try_from(width).map_err(|_| format!("jpeg: width {width} exceeds 65535"))?,
-        u16::try_from(height).map_err(|_| format!("jpeg: height {height} exceeds 65535"))?,
+        u16::try_from(width)
+            .map_err(|_| ImageCodecError::new("jpeg", format!("width {width} exceeds 65535")))?,
+        u16::try_from(height)
+            .map_err(|_| ImageCodecError::new("jpeg", format!("height {height} exceeds 65535")))?,
     );
     let mut out = Vec::with_capacity(packed.len() / 8);
     jpeg_encoder::Encoder::new(&mut out, quality)
         .encode(packed, w, h, jpeg_encoder::ColorType::Luma)
-        .map_err(|e| format!("jpeg: {e}"))?;
+        .map_err(|e| ImageCodecError::new("jpeg", e))?;
     Ok(out)
 }
 

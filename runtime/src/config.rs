@@ -191,7 +191,7 @@ impl PipelineConfig {
         self.bus
             .settings(1)
             .validate()
-            .map_err(|e| invalid("bus".into(), e))?;
+            .map_err(|e| invalid(format!("bus.{}", e.field), e.problem))?;
         self.capture().check().map_err(|source| ConfigError::Source {
             file: file.to_string(),
             source,

@@ -23,6 +23,7 @@ use deckwatch_common::messages::{
     StageLog, VehicleSample,
 };
 use deckwatch_common::wire::{BadWireValue, WireCheck};
+use deckwatch_common::InvalidField;
 use iceoryx2::config::Config;
 use iceoryx2::node::{NodeState, NodeView, NodeWaitFailure};
 use iceoryx2::port::notifier::Notifier;
@@ -107,8 +108,8 @@ pub enum BusError {
     #[error("iceoryx2: {what}: {detail}")]
     Iceoryx2 { what: String, detail: String },
     /// Settings that no pipeline can run with (the key and the problem).
-    #[error("bus.{0}")]
-    Settings(String),
+    #[error("bus.{}: {}", .0.field, .0.problem)]
+    Settings(InvalidField),
     #[error("unknown service `{0}`")]
     UnknownService(String),
 }
@@ -135,19 +136,22 @@ pub struct BusSettings {
 }
 
 impl BusSettings {
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvalidField> {
         validate_domain(&self.domain)?;
         if self.max_frame_bytes == 0 {
-            return Err("max_frame_bytes: must be positive".into());
+            return Err(InvalidField::new("max_frame_bytes", "must be positive"));
         }
         if !(1..=8).contains(&self.frame_subscribers) {
-            return Err(format!(
-                "frame_subscribers: must be 1..=8, got {}",
-                self.frame_subscribers
+            return Err(InvalidField::new(
+                "frame_subscribers",
+                format!("must be 1..=8, got {}", self.frame_subscribers),
             ));
         }
         if !(1..=16).contains(&self.frame_queue) {
-            return Err(format!("frame_queue: must be 1..=16, got {}", self.frame_queue));
+            return Err(InvalidField::new(
+                "frame_queue",
+                format!("must be 1..=16, got {}", self.frame_queue),
+            ));
         }
         Ok(())
     }
@@ -166,7 +170,7 @@ impl BusSettings {
 }
 
 /// Checks a domain name; the error says what is allowed.
-pub fn validate_domain(domain: &str) -> Result<(), String> {
+pub fn validate_domain(domain: &str) -> Result<(), InvalidField> {
     let ok = !domain.is_empty()
         && domain.len() <= 32
         && domain
@@ -175,8 +179,9 @@ pub fn validate_domain(domain: &str) -> Result<(), String> {
     if ok {
         Ok(())
     } else {
-        Err(format!(
-            "domain `{domain}`: must be 1..=32 characters of a-z, 0-9, _ and -"
+        Err(InvalidField::new(
+            "domain",
+            format!("`{domain}` must be 1..=32 characters of a-z, 0-9, _ and -"),
         ))
     }
 }

@@ -8,17 +8,35 @@ use deckwatch_common::GrayView;
 use jpeg_encoder::{ColorType, Encoder};
 use std::path::{Path, PathBuf};
 
+/// Why a virtual camera's frames cannot be written.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum VirtualCameraError {
+    /// A file or folder that cannot be written, and why.
+    #[error("{}: {problem}", path.display())]
+    File { path: PathBuf, problem: String },
+    /// An id, a frame size or an empty run that no virtual camera can be made of.
+    #[error("virtual camera: {0}")]
+    Invalid(String),
+}
+
+fn file_error(path: &Path, problem: impl std::fmt::Display) -> VirtualCameraError {
+    VirtualCameraError::File {
+        path: path.to_path_buf(),
+        problem: problem.to_string(),
+    }
+}
+
 /// JPEG quality of the frames: high enough that compression moves a marker's centroid far less
 /// than the renderer's own noise does.
 pub const JPEG_QUALITY: u8 = 100;
 
 /// Writes a gray image as a JPEG (YCbCr with neutral chroma: libcamera's decoder gives back the
 /// gray levels, up to compression, as the Y plane).
-pub fn write_gray_jpeg(path: &Path, image: GrayView<'_>) -> Result<(), String> {
+pub fn write_gray_jpeg(path: &Path, image: GrayView<'_>) -> Result<(), VirtualCameraError> {
     let (w, h) = (image.width(), image.height());
     let (w16, h16) = (
-        u16::try_from(w).map_err(|_| format!("{}: width {w} is too large for JPEG", path.display()))?,
-        u16::try_from(h).map_err(|_| format!("{}: height {h} is too large for JPEG", path.display()))?,
+        u16::try_from(w).map_err(|_| file_error(path, format!("width {w} is too large for JPEG")))?,
+        u16::try_from(h).map_err(|_| file_error(path, format!("height {h} is too large for JPEG")))?,
     );
     let mut ycbcr = Vec::with_capacity(3 * w * h);
     for y in 0..h {
@@ -26,10 +44,10 @@ pub fn write_gray_jpeg(path: &Path, image: GrayView<'_>) -> Result<(), String> {
             ycbcr.extend_from_slice(&[v, 128, 128]);
         }
     }
-    let encoder = Encoder::new_file(path, JPEG_QUALITY).map_err(|e| format!("{}: {e}", path.display()))?;
+    let encoder = Encoder::new_file(path, JPEG_QUALITY).map_err(|e| file_error(path, e))?;
     encoder
         .encode(&ycbcr, w16, h16, ColorType::Ycbcr)
-        .map_err(|e| format!("{}: {e}", path.display()))
+        .map_err(|e| file_error(path, e))
 }
 
 /// The `virtual.yaml` entry of one camera `id` playing the JPEGs in `frames_dir` (which must
@@ -60,13 +78,15 @@ pub struct VirtualCameraWriter {
 
 impl VirtualCameraWriter {
     /// Creates `dir` (absolute paths only: libcamera resolves the yaml's path on its own).
-    pub fn create(dir: &Path, id: &str) -> Result<Self, String> {
-        let dir = std::path::absolute(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    pub fn create(dir: &Path, id: &str) -> Result<Self, VirtualCameraError> {
+        let dir = std::path::absolute(dir).map_err(|e| file_error(dir, e))?;
         if id.is_empty() || id.contains(['"', '\n']) {
-            return Err(format!("virtual camera id `{id}`: give a plain name"));
+            return Err(VirtualCameraError::Invalid(format!(
+                "id `{id}`: give a plain name"
+            )));
         }
         let frames = dir.join("frames");
-        std::fs::create_dir_all(&frames).map_err(|e| format!("{}: cannot create: {e}", frames.display()))?;
+        std::fs::create_dir_all(&frames).map_err(|e| file_error(&frames, format!("cannot create: {e}")))?;
         Ok(Self {
             dir,
             frames,
@@ -77,13 +97,13 @@ impl VirtualCameraWriter {
     }
 
     /// Appends the next frame (all frames must have one size).
-    pub fn write_frame(&mut self, image: GrayView<'_>) -> Result<(), String> {
+    pub fn write_frame(&mut self, image: GrayView<'_>) -> Result<(), VirtualCameraError> {
         let size = (image.width() as u32, image.height() as u32);
         if *self.size.get_or_insert(size) != size {
-            return Err(format!(
-                "virtual camera frames must all be {:?}, got {size:?}",
+            return Err(VirtualCameraError::Invalid(format!(
+                "frames must all be {:?}, got {size:?}",
                 self.size
-            ));
+            )));
         }
         write_gray_jpeg(&self.frames.join(format!("{}.jpg", self.written)), image)?;
         self.written += 1;
@@ -91,12 +111,14 @@ impl VirtualCameraWriter {
     }
 
     /// Writes `virtual.yaml` beside the frames and returns its path.
-    pub fn finish(self, frame_rate: f64) -> Result<PathBuf, String> {
-        let (w, h) = self.size.ok_or("virtual camera: no frames written")?;
+    pub fn finish(self, frame_rate: f64) -> Result<PathBuf, VirtualCameraError> {
+        let (w, h) = self
+            .size
+            .ok_or_else(|| VirtualCameraError::Invalid("no frames written".into()))?;
         let path = self.dir.join("virtual.yaml");
         let rate = frame_rate.round().clamp(1.0, 1000.0) as u32;
         std::fs::write(&path, virtual_camera_yaml(&self.id, w, h, rate, &self.frames))
-            .map_err(|e| format!("{}: {e}", path.display()))?;
+            .map_err(|e| file_error(&path, e))?;
         Ok(path)
     }
 }

@@ -200,7 +200,8 @@ fn record(a: RecordArgs) -> Result<(), String> {
         .virtual_camera
         .as_deref()
         .map(|id| VirtualCameraWriter::create(&a.out.join("virtual"), id))
-        .transpose()?;
+        .transpose()
+        .map_err(|e| e.to_string())?;
     let mut img = GrayImage::new(camera.width as usize, camera.height as usize);
     let bar = indicatif::ProgressBar::new(a.sim.frames as u64).with_style(
         indicatif::ProgressStyle::with_template("{msg} {bar:40} {pos}/{len} frames, {per_sec}, eta {eta}")
@@ -257,7 +258,7 @@ fn record(a: RecordArgs) -> Result<(), String> {
         1e3 * render_s / n.max(1) as f64
     );
     if let Some(v) = virtual_camera {
-        let yaml = v.finish(a.sim.rate)?;
+        let yaml = v.finish(a.sim.rate).map_err(|e| e.to_string())?;
         eprintln!(
             "virtual camera: {} (with {n} JPEG frames beside it)",
             yaml.display()

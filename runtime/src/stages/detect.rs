@@ -7,6 +7,7 @@ use crate::stage::{Frame, Frames, Stage};
 use deckwatch_common::markers::{DetectionStatus, MarkerSet};
 use deckwatch_common::messages::{monotonic_ns, FrameHeader, GapCounter, MarkerMessage, PixelFormat};
 use deckwatch_common::GrayView;
+use deckwatch_common::InvalidField;
 use deckwatch_detect::{Detector, DetectorConfig};
 use deckwatch_viz::entities::{crop_image_item, DeckCrop};
 use deckwatch_viz::{Item, RerunConfig};
@@ -128,22 +129,33 @@ impl DetectStage {
         (message, problem)
     }
 
-    fn detect(&mut self, h: &FrameHeader, pixels: &[u8]) -> Result<MarkerSet, String> {
+    /// The markers of a frame whose header checks out; else the header's field that does not
+    /// (the frame is counted and reported as a bad frame).
+    fn detect(&mut self, h: &FrameHeader, pixels: &[u8]) -> Result<MarkerSet, InvalidField> {
         let camera = h.context.camera;
         let deck = h.context.deck;
         if h.pixel_format != PixelFormat::Gray8 {
-            return Err(format!("pixel format {:?} is not supported", h.pixel_format));
-        }
-        if (h.width, h.height) != (camera.width, camera.height) {
-            return Err(format!(
-                "frame is {}x{} but its camera is {}x{}",
-                h.width, h.height, camera.width, camera.height
+            return Err(InvalidField::new(
+                "pixel_format",
+                format!("{:?} is not supported", h.pixel_format),
             ));
         }
-        camera.validate().map_err(|e| format!("camera: {e}"))?;
-        deck.validate().map_err(|e| format!("deck: {e}"))?;
+        if (h.width, h.height) != (camera.width, camera.height) {
+            return Err(InvalidField::new(
+                "width/height",
+                format!(
+                    "the frame is {}x{} but its camera is {}x{}",
+                    h.width, h.height, camera.width, camera.height
+                ),
+            ));
+        }
+        camera
+            .validate()
+            .map_err(|e| InvalidField::new(format!("camera.{}", e.field), e.problem))?;
+        deck.validate()
+            .map_err(|e| InvalidField::new(format!("deck.{}", e.field), e.problem))?;
         let view = GrayView::new(pixels, h.width as usize, h.height as usize, h.stride as usize)
-            .map_err(|e| format!("pixels: {e}"))?;
+            .map_err(|e| InvalidField::new("pixels", e.to_string()))?;
         let fresh = match &self.detector {
             Some(d) => d.camera() != &camera || d.deck() != &deck,
             None => true,

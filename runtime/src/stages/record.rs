@@ -259,7 +259,7 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
     let result = writer_thread
         .join()
         .map_err(|_| RunError::Record("the writer thread panicked".into()))?;
-    let bytes = result.map_err(RunError::Record)?;
+    let bytes = result.map_err(|e| RunError::Record(e.to_string()))?;
     let rejected: u64 = [
         markers.rejections().count(),
         attitudes.rejections().count(),
@@ -335,7 +335,7 @@ fn write_items(
     rc: &RecordConfig,
     metadata: BTreeMap<String, BTreeMap<String, String>>,
     toml: String,
-) -> Result<u64, String> {
+) -> Result<u64, deckwatch_flight::FlightError> {
     // The writer (encoding, compression, the file) runs only when no stage wants the CPU: when it
     // falls behind, its queue fills and the recorder drops frames, counted; nothing else waits.
     // SAFETY: sched_setscheduler on this thread (pid 0) with a zeroed parameter, which SCHED_IDLE
@@ -344,18 +344,15 @@ fn write_items(
         let param: libc::sched_param = std::mem::zeroed();
         libc::sched_setscheduler(0, libc::SCHED_IDLE, &param);
     }
-    let e = |e: deckwatch_flight::FlightError| e.to_string();
     for (name, entries) in metadata {
-        writer.write_metadata(&name, entries).map_err(e)?;
+        writer.write_metadata(&name, entries)?;
     }
-    writer
-        .attach(
-            "pipeline.toml",
-            "application/toml",
-            toml.as_bytes(),
-            monotonic_ns(),
-        )
-        .map_err(e)?;
+    writer.attach(
+        "pipeline.toml",
+        "application/toml",
+        toml.as_bytes(),
+        monotonic_ns(),
+    )?;
     let flush_every = Duration::from_millis(rc.flush_interval_ms);
     let mut last_flush = std::time::Instant::now();
     let mut camera_written = false;
@@ -376,11 +373,11 @@ fn write_items(
                 .store(writer.bytes_written(), Ordering::Relaxed);
         }
         if last_flush.elapsed() >= flush_every {
-            writer.flush().map_err(e)?;
+            writer.flush()?;
             last_flush = std::time::Instant::now();
         }
     }
-    writer.finish().map_err(e)
+    writer.finish()
 }
 
 fn write_item(
@@ -390,46 +387,39 @@ fn write_item(
     spare: &Sender<Vec<u8>>,
     counts: &Counts,
     camera_written: &mut bool,
-) -> Result<(), String> {
-    let e = |e: deckwatch_flight::FlightError| e.to_string();
+) -> Result<(), deckwatch_flight::FlightError> {
     match item {
         Item::Frame(header, pixels) => {
             if !*camera_written {
                 *camera_written = true;
-                writer
-                    .write_calibration(&header.context.camera, header.stamp.times.captured_ns)
-                    .map_err(e)?;
+                writer.write_calibration(&header.context.camera, header.stamp.times.captured_ns)?;
                 let camera = deckwatch_flight::JsonField::to_json(&header.context.camera).to_string();
                 let deck = deckwatch_flight::JsonField::to_json(&header.context.deck).to_string();
-                writer
-                    .write_metadata(
-                        "deckwatch.camera",
-                        BTreeMap::from([("camera".to_string(), camera), ("deck".to_string(), deck)]),
-                    )
-                    .map_err(e)?;
+                writer.write_metadata(
+                    "deckwatch.camera",
+                    BTreeMap::from([("camera".to_string(), camera), ("deck".to_string(), deck)]),
+                )?;
             }
-            writer.write(&header).map_err(e)?;
+            writer.write(&header)?;
             if let Some(px) = pixels {
                 let written = writer.write_frame(&header, &px, rc.frames, rc.jpeg_quality);
                 counts.frames_queued.fetch_sub(1, Ordering::Relaxed);
                 let _ = spare.try_send(px);
-                written.map_err(e)?;
+                written?;
                 counts.frames_written.fetch_add(1, Ordering::Relaxed);
             }
         }
-        Item::Markers(m) => writer.write(&m).map_err(e)?,
-        Item::Attitude(m) => writer.write(&m).map_err(e)?,
-        Item::Decision(m) => writer.write(&m).map_err(e)?,
-        Item::Vehicle(m) => writer.write(&m).map_err(e)?,
-        Item::Link(m) => writer.write(&m).map_err(e)?,
-        Item::Log(l) => writer
-            .write_log(l.time_ns, l.level.get() as i32, &l.name(), &l.text())
-            .map_err(e)?,
+        Item::Markers(m) => writer.write(&m)?,
+        Item::Attitude(m) => writer.write(&m)?,
+        Item::Decision(m) => writer.write(&m)?,
+        Item::Vehicle(m) => writer.write(&m)?,
+        Item::Link(m) => writer.write(&m)?,
+        Item::Log(l) => writer.write_log(l.time_ns, l.level.get() as i32, &l.name(), &l.text())?,
         Item::Stats(mut s) => {
             s.frames_written = counts.frames_written.load(Ordering::Relaxed);
             s.messages_written = counts.messages_written.load(Ordering::Relaxed);
             s.bytes_written = writer.bytes_written();
-            writer.write_stats(&s).map_err(e)?;
+            writer.write_stats(&s)?;
         }
     }
     Ok(())

@@ -65,15 +65,9 @@ pub enum FrameStep {
 pub trait ClosedLoopPipeline {
     /// A sample of the autopilot's attitude stream (for the vehicle's compensation).
     fn observe_vehicle(&mut self, sample: &VehicleSample);
-    /// The next frame, at the approach's `t_s` with the vehicle `vehicle_over_deck_m` over the
-    /// deck (for a log), through every stage; `inject` sees its pixels on the way to detect and
-    /// returns false when the frame is lost.
-    fn next_frame(
-        &mut self,
-        t_s: f64,
-        vehicle_over_deck_m: f64,
-        inject: &mut dyn FnMut(&mut [u8]) -> bool,
-    ) -> FrameStep;
+    /// The next frame, at the approach's `t_s`, through every stage; `inject` sees its pixels
+    /// on the way to detect and returns false when the frame is lost.
+    fn next_frame(&mut self, t_s: f64, inject: &mut dyn FnMut(&mut [u8]) -> bool) -> FrameStep;
     /// The decision when no frame came for too long (decide's watchdog), at `now_ns`.
     fn watchdog(&mut self, now_ns: u64) -> Option<LandingDecision>;
     /// An event worth a line in a log: a commit, a go-around, the touchdown.
@@ -114,11 +108,6 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
     let mut next_vehicle_s = -0.05;
     let mut vehicle_seq = 0;
     let heave = |t: f64| world.truth(t)[2];
-    // The vehicle's height in W and over the deck at t.
-    let path_at = |t: f64| {
-        let path = path.lock().unwrap_or_else(|e| e.into_inner());
-        (path.height_m(t, heave(t)), path.over_deck_m(t, heave(t)))
-    };
     let judge = |t: f64| {
         let (r_d, r_v) = world.attitudes(t);
         TouchdownVerdict::judge(&|t| world.truth(t), &r_d, &r_v, t, capacity, model)
@@ -142,7 +131,10 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
                 continue;
             }
             let (_, r_v) = world.attitudes(tv);
-            let (height_m, _) = path_at(tv);
+            let height_m = path
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .height_m(tv, heave(tv));
             pipeline.observe_vehicle(&VehicleSample {
                 seq: vehicle_seq,
                 time_ns: timing.time_ns(tv),
@@ -155,8 +147,7 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
             });
             vehicle_seq += 1;
         }
-        let (_, over_deck_m) = path_at(t);
-        let step = pipeline.next_frame(t, over_deck_m, &mut |pixels| faults.inject(t, pixels));
+        let step = pipeline.next_frame(t, &mut |pixels| faults.inject(t, pixels));
         out.frames += 1;
         let mut follow_decision = |out: &mut ApproachOutcome, d: &LandingDecision| {
             out.count_decision(d.state.get(), d.reason.get());
@@ -239,12 +230,7 @@ mod tests {
         /// The truth needs no compensation.
         fn observe_vehicle(&mut self, _sample: &VehicleSample) {}
 
-        fn next_frame(
-            &mut self,
-            t_s: f64,
-            _over: f64,
-            inject: &mut dyn FnMut(&mut [u8]) -> bool,
-        ) -> FrameStep {
+        fn next_frame(&mut self, t_s: f64, inject: &mut dyn FnMut(&mut [u8]) -> bool) -> FrameStep {
             let mut pixels = [(self.seq % 256) as u8; 8];
             if !inject(&mut pixels) {
                 return FrameStep::Lost;

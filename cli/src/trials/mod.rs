@@ -12,6 +12,7 @@ use deckwatch_common::vehicle::VehicleAttitudeSource;
 use deckwatch_decide::DecisionConfig;
 use deckwatch_runtime::chain::{ChainOutput, SimulatedClock, StageChain};
 use deckwatch_runtime::config::PipelineConfig;
+use deckwatch_sim::landing::SharedFlightPath;
 use deckwatch_sim::motion::SpectrumShipMotion;
 use deckwatch_sim::motion_file::RecordedShipMotion;
 use deckwatch_trials::{
@@ -251,6 +252,10 @@ struct ChainPipeline<'a> {
     chain: StageChain,
     clock: SimulatedClock,
     log: Option<&'a mut TrialLog>,
+    /// The vehicle's flight path and the approach's world: the vehicle's height over the deck,
+    /// for the log.
+    path: SharedFlightPath,
+    world: &'a ApproachWorld,
 }
 
 impl ClosedLoopPipeline for ChainPipeline<'_> {
@@ -258,12 +263,7 @@ impl ClosedLoopPipeline for ChainPipeline<'_> {
         self.chain.estimate.observe_vehicle(sample);
     }
 
-    fn next_frame(
-        &mut self,
-        _t_s: f64,
-        vehicle_over_deck_m: f64,
-        inject: &mut dyn FnMut(&mut [u8]) -> bool,
-    ) -> FrameStep {
+    fn next_frame(&mut self, t_s: f64, inject: &mut dyn FnMut(&mut [u8]) -> bool) -> FrameStep {
         match self
             .chain
             .next_frame(Some(self.clock), |_, pixels| inject(pixels))
@@ -273,7 +273,12 @@ impl ClosedLoopPipeline for ChainPipeline<'_> {
             Some(Ok(None)) => FrameStep::Lost,
             Some(Ok(Some(o))) => {
                 if let Some(log) = self.log.as_deref_mut() {
-                    log.frame(&o, self.chain.pixels(), vehicle_over_deck_m);
+                    let over_deck_m = self
+                        .path
+                        .lock()
+                        .unwrap_or_else(|e| e.into_inner())
+                        .over_deck_m(t_s, self.world.truth(t_s)[2]);
+                    log.frame(&o, self.chain.pixels(), over_deck_m);
                 }
                 FrameStep::Decided(Box::new(o.decision))
             }
@@ -312,6 +317,7 @@ fn fly(
         timing,
         &mut faults,
         |scene| {
+            let path = scene.path.clone();
             let source = pipeline
                 .capture()
                 .open_sim_with(Box::new(scene))
@@ -323,6 +329,8 @@ fn fly(
                     stage_latency_ns: timing.stage_latency_ns,
                 },
                 log,
+                path,
+                world,
             })
         },
     )

@@ -52,12 +52,20 @@ impl Default for VehicleConfig {
     }
 }
 
+/// The farthest a frame may be from the attitude samples it is compensated with (ms): five
+/// periods of a 50 Hz autopilot stream. A quadrotor changes its attitude by degrees within a
+/// tenth of a second; interpolated across a longer hole, the compensation is a guess.
+pub const MAX_VEHICLE_GAP_MS: f64 = 100.0;
+
 impl VehicleConfig {
     pub fn validate(&self) -> Result<(), InvalidField> {
-        if !(self.max_gap_ms > 0.0 && self.max_gap_ms <= 1000.0) {
+        if !(self.max_gap_ms > 0.0 && self.max_gap_ms <= MAX_VEHICLE_GAP_MS) {
             return Err(InvalidField::new(
                 "max_gap_ms",
-                format!("must be in (0, 1000], got {}", self.max_gap_ms),
+                format!(
+                    "must be in (0, {MAX_VEHICLE_GAP_MS}] (a quadrotor's attitude is not a straight line over longer), got {}",
+                    self.max_gap_ms
+                ),
             ));
         }
         if !self
@@ -511,11 +519,13 @@ mod tests {
             c.camera_attitude(&RotationMatrix::identity()),
             RotationMatrix::identity()
         );
-        let bad = VehicleConfig {
-            max_gap_ms: 0.0,
-            ..VehicleConfig::default()
-        };
-        assert_eq!(bad.validate().unwrap_err().field, "max_gap_ms");
+        for gap_ms in [0.0, MAX_VEHICLE_GAP_MS + 1.0, f64::NAN] {
+            let bad = VehicleConfig {
+                max_gap_ms: gap_ms,
+                ..VehicleConfig::default()
+            };
+            assert_eq!(bad.validate().unwrap_err().field, "max_gap_ms");
+        }
         let bad = VehicleConfig {
             mount_rpy_deg: [0.0, f64::NAN, 0.0],
             ..VehicleConfig::default()

@@ -58,6 +58,21 @@ pub fn stale_decision(last: Option<&LandingDecision>) -> LandingDecision {
     d
 }
 
+/// The decision as the link may forward it at `now_ns` (`CLOCK_MONOTONIC`, the clock of its
+/// capture stamp): one whose frame was captured more than `max_age_ns` ago, or at an unknown
+/// time, is stale whatever it said (`stale_decision`). Judged by the capture's age, not by
+/// when the decision arrived: a clearance that reached the link late is a clearance on an old
+/// deck. decide's own stale decisions (`watchdog`) pass as they are.
+pub fn forwardable(d: &LandingDecision, now_ns: u64, max_age_ns: u64) -> LandingDecision {
+    let captured = d.stamp.times.captured_ns;
+    let old = captured == 0 || now_ns.saturating_sub(captured) > max_age_ns;
+    if old && !d.watchdog.get() {
+        stale_decision(Some(d))
+    } else {
+        *d
+    }
+}
+
 fn link_number(l: LinkState) -> i32 {
     match l {
         LinkState::Waiting => 0,
@@ -270,6 +285,24 @@ mod tests {
         d.attitude.vehicle.compensation = Compensation::Frame.into();
         d.stamp.times.captured_ns = 1_000_000;
         d
+    }
+
+    #[test]
+    fn a_clearance_on_an_old_capture_is_forwarded_as_stale() {
+        let d = decision(DecisionState::ClearToLand);
+        let max_age_ns = 300_000_000;
+        // 0.2 s after capture: as it is.
+        let fresh = forwardable(&d, 1_000_000 + 200_000_000, max_age_ns);
+        assert_eq!(fresh.state.get(), DecisionState::ClearToLand);
+        // 0.4 s after capture (however recently it arrived), or captured at an unknown time:
+        // stale, never a clearance.
+        let mut unknown = d;
+        unknown.stamp.times.captured_ns = 0;
+        for (d, now) in [(d, 1_000_000 + 400_000_000), (unknown, 2_000_000)] {
+            let f = forwardable(&d, now, max_age_ns);
+            assert_eq!(f.state.get(), DecisionState::NoDeck);
+            assert_eq!(f.reason.get(), DecisionReason::StaleData);
+        }
     }
 
     fn kinds(m: &[MavMessage]) -> Vec<&'static str> {

@@ -292,47 +292,57 @@ impl DecisionConfig {
                 return Err(invalid(k, format!("must be >= 0, got {v}")));
             }
         }
-        // Upper bounds: every duration sizes a loop, a buffer or a timer; beyond these they are
-        // mistakes, and at the extremes they would overflow or never end.
-        for (k, v, max) in [
-            ("touchdown_s", self.touchdown_s, 60.0),
-            ("max_age_ms", self.max_age_ms, 60_000.0),
-            ("max_gap_ms", self.max_gap_ms, 60_000.0),
-            ("gap_recovery_s", self.gap_recovery_s, 600.0),
-            ("window_s", self.window_s, 600.0),
-            ("min_history_s", self.min_history_s, 600.0),
-            ("refit_interval_s", self.refit_interval_s, 60.0),
-            ("fit_memory_s", self.fit_memory_s, 3600.0),
-            ("holdout_s", self.holdout_s, 300.0),
-            ("error_memory_s", self.error_memory_s, 3600.0),
-            ("horizon_s", self.horizon_s, 600.0),
-            ("abort_hold_s", self.abort_hold_s, 600.0),
-            ("error_factor", self.error_factor, 100.0),
-            ("max_plausible_rate_dps", self.max_plausible_rate_dps, 1e4),
-            ("max_abs_roll_rate_dps", self.max_abs_roll_rate_dps, 1e4),
-            ("max_abs_pitch_rate_dps", self.max_abs_pitch_rate_dps, 1e4),
-            ("max_abs_heave_rate_mps", self.max_abs_heave_rate_mps, 100.0),
-        ] {
-            if v > max {
-                return Err(invalid(k, format!("must be at most {max}, got {v}")));
+        // Upper bounds. Durations size loops, buffers and timers: beyond these they are
+        // mistakes. Capacities and check thresholds are bounded by what a small quadrotor's
+        // gear and a ship's deck can physically be: a larger value does not describe a
+        // vehicle, it switches a check off (`SAFETY_BOUNDS`).
+        let mut fields = self.clone();
+        for &(k, max, why) in SAFETY_BOUNDS {
+            let v = fields.field_mut(k).map_or(f64::NAN, |v| *v);
+            if !(v <= max) {
+                return Err(invalid(k, format!("must be at most {max} ({why}), got {v}")));
             }
         }
-        if !(2..=1000).contains(&self.frozen_input_count) {
+        if self.error_factor < 1.0 {
+            return Err(invalid(
+                "error_factor",
+                format!(
+                    "must be at least 1 (below, the bound is smaller than the error it measured), got {}",
+                    self.error_factor
+                ),
+            ));
+        }
+        if self.max_plausible_rate_dps <= self.max_abs_roll_rate_dps.max(self.max_abs_pitch_rate_dps) {
+            return Err(invalid(
+                "max_plausible_rate_dps",
+                format!(
+                    "must exceed max_abs_roll_rate_dps and max_abs_pitch_rate_dps ({}): a deck within capacity would read as a jump",
+                    self.max_abs_roll_rate_dps.max(self.max_abs_pitch_rate_dps)
+                ),
+            ));
+        }
+        if self.horizon_s < self.touchdown_s {
+            return Err(invalid(
+                "horizon_s",
+                format!(
+                    "must be at least touchdown_s ({}): a calm window is a touchdown long",
+                    self.touchdown_s
+                ),
+            ));
+        }
+        if !(2..=MAX_FROZEN_INPUT_COUNT).contains(&self.frozen_input_count) {
             return Err(invalid(
                 "frozen_input_count",
-                format!("must be 2..=1000, got {}", self.frozen_input_count),
+                format!(
+                    "must be 2..={MAX_FROZEN_INPUT_COUNT} (more repeats of a frozen camera pass unnoticed), got {}",
+                    self.frozen_input_count
+                ),
             ));
         }
-        if self.max_abs_roll_deg >= 90.0 || self.max_abs_pitch_deg >= 90.0 || self.max_tilt_deg >= 90.0 {
-            return Err(invalid(
-                "max_abs_roll_deg",
-                "roll and pitch limits must be below 90",
-            ));
-        }
-        if !(self.risk_per_touchdown > 1e-9 && self.risk_per_touchdown <= 0.5) {
+        if !(self.risk_per_touchdown > 1e-9) {
             return Err(invalid(
                 "risk_per_touchdown",
-                format!("must be in (1e-9, 0.5], got {}", self.risk_per_touchdown),
+                format!("must be above 1e-9, got {}", self.risk_per_touchdown),
             ));
         }
         if !(self.go_around_risk >= self.risk_per_touchdown && self.go_around_risk <= 0.5) {
@@ -374,4 +384,123 @@ impl DecisionConfig {
         }
         Ok(())
     }
+
+    /// A numeric key of [`SAFETY_BOUNDS`] (None for any other).
+    pub fn field_mut(&mut self, key: &str) -> Option<&mut f64> {
+        Some(match key {
+            "max_abs_roll_deg" => &mut self.max_abs_roll_deg,
+            "max_abs_pitch_deg" => &mut self.max_abs_pitch_deg,
+            "max_tilt_deg" => &mut self.max_tilt_deg,
+            "max_abs_roll_rate_dps" => &mut self.max_abs_roll_rate_dps,
+            "max_abs_pitch_rate_dps" => &mut self.max_abs_pitch_rate_dps,
+            "max_abs_heave_rate_mps" => &mut self.max_abs_heave_rate_mps,
+            "touchdown_s" => &mut self.touchdown_s,
+            "max_age_ms" => &mut self.max_age_ms,
+            "max_gap_ms" => &mut self.max_gap_ms,
+            "gap_recovery_s" => &mut self.gap_recovery_s,
+            "max_plausible_rate_dps" => &mut self.max_plausible_rate_dps,
+            "window_s" => &mut self.window_s,
+            "min_history_s" => &mut self.min_history_s,
+            "refit_interval_s" => &mut self.refit_interval_s,
+            "risk_per_touchdown" => &mut self.risk_per_touchdown,
+            "fit_memory_s" => &mut self.fit_memory_s,
+            "max_holdout_error_deg" => &mut self.max_holdout_error_deg,
+            "max_holdout_error_m" => &mut self.max_holdout_error_m,
+            "holdout_s" => &mut self.holdout_s,
+            "error_factor" => &mut self.error_factor,
+            "error_memory_s" => &mut self.error_memory_s,
+            "max_innovation_deg" => &mut self.max_innovation_deg,
+            "max_heave_innovation_m" => &mut self.max_heave_innovation_m,
+            "max_rate_innovation_dps" => &mut self.max_rate_innovation_dps,
+            "horizon_s" => &mut self.horizon_s,
+            "abort_hold_s" => &mut self.abort_hold_s,
+            "ride_through_ms" => &mut self.ride_through_ms,
+            _ => return None,
+        })
+    }
 }
+
+/// The largest value each key may take, and why: no configuration may switch a safety check off
+/// by making it unreachable. Capacities: what a small quadrotor's gear could take at most (a
+/// ship helicopter's deck limits are 3-8 deg and about 1 m/s); check thresholds: a few times
+/// their defaults, far beyond which they no longer catch what they are for.
+pub const SAFETY_BOUNDS: &[(&str, f64, &str)] = &[
+    ("max_abs_roll_deg", 15.0, "no landing gear takes a steeper deck"),
+    ("max_abs_pitch_deg", 15.0, "no landing gear takes a steeper deck"),
+    ("max_tilt_deg", 20.0, "no landing gear takes a steeper deck"),
+    (
+        "max_abs_roll_rate_dps",
+        30.0,
+        "a deck rolling faster throws the vehicle off",
+    ),
+    (
+        "max_abs_pitch_rate_dps",
+        30.0,
+        "a deck pitching faster throws the vehicle off",
+    ),
+    (
+        "max_abs_heave_rate_mps",
+        3.0,
+        "a deck rising faster strikes the gear",
+    ),
+    ("touchdown_s", 30.0, "a touchdown is seconds long"),
+    ("max_age_ms", 1000.0, "older attitudes are stale"),
+    ("max_gap_ms", 2000.0, "a longer pause in the attitudes is a gap"),
+    ("gap_recovery_s", 600.0, "a duration"),
+    (
+        "max_plausible_rate_dps",
+        120.0,
+        "a faster change is a bad estimate, not a deck",
+    ),
+    ("window_s", 600.0, "a duration"),
+    ("min_history_s", 600.0, "a duration"),
+    (
+        "refit_interval_s",
+        10.0,
+        "a model older than this follows a sea no longer",
+    ),
+    (
+        "risk_per_touchdown",
+        0.01,
+        "one touchdown in a hundred is not a safe clearance",
+    ),
+    ("fit_memory_s", 3600.0, "a duration"),
+    (
+        "max_holdout_error_deg",
+        10.0,
+        "a larger miss is an unreliable prediction",
+    ),
+    (
+        "max_holdout_error_m",
+        1.5,
+        "a larger miss is an unreliable prediction",
+    ),
+    ("holdout_s", 300.0, "a duration"),
+    ("error_factor", 10.0, "a bound"),
+    ("error_memory_s", 3600.0, "a duration"),
+    (
+        "max_innovation_deg",
+        5.0,
+        "a larger surprise is a model that missed",
+    ),
+    (
+        "max_heave_innovation_m",
+        1.0,
+        "a larger surprise is a model that missed",
+    ),
+    (
+        "max_rate_innovation_dps",
+        10.0,
+        "a larger surprise is a model that missed",
+    ),
+    ("horizon_s", 600.0, "a duration"),
+    ("abort_hold_s", 600.0, "a duration"),
+    (
+        "ride_through_ms",
+        2000.0,
+        "longer blind is not riding through, it is flying blind",
+    ),
+];
+
+/// At most this many bit-identical inputs in a row before they count as a frozen input.
+pub const MAX_FROZEN_INPUT_COUNT: u32 = 30;

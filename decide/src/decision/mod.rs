@@ -24,7 +24,9 @@ mod config;
 mod envelope;
 mod models;
 
-pub use config::{DecisionConfig, DecisionConfigError, HeaveUse, Predictor};
+pub use config::{
+    DecisionConfig, DecisionConfigError, HeaveUse, Predictor, MAX_FROZEN_INPUT_COUNT, SAFETY_BOUNDS,
+};
 pub use envelope::tilt_deg;
 use models::{fit_line, Margins, Models, Track};
 
@@ -158,8 +160,12 @@ pub struct LandingDecider {
     repeated: Option<([u64; 3], u32)>,
     /// Inputs in a row whose time went backwards.
     backwards_run: u32,
-    /// When the committed touchdown began riding through missing attitudes.
-    riding_since: Option<f64>,
+    /// Blind time the committed touchdown has ridden through so far (s): one budget per
+    /// commitment, however many spells it comes in.
+    ridden_s: f64,
+    /// The newest frame's time during the commitment (any verdict): each blind frame adds the
+    /// interval since.
+    commit_last_frame: f64,
     /// The newest frame's time, and the interval before it (s): when the next frame is
     /// expected, for the refit between frames.
     last_frame_t: Option<f64>,
@@ -197,7 +203,8 @@ impl LandingDecider {
             last_input: None,
             repeated: None,
             backwards_run: 0,
-            riding_since: None,
+            ridden_s: 0.0,
+            commit_last_frame: f64::NEG_INFINITY,
             last_frame_t: None,
             frame_interval_s: None,
         })
@@ -340,12 +347,29 @@ impl LandingDecider {
 
     fn check(&mut self, t: f64, deck: Option<DeckObservation>, age_s: f64) -> Result<(), DecisionReason> {
         let c = self.config.clone();
+        // Time and freshness first, for every frame, one without a deck included: a late frame
+        // without a deck is late, not missing (ridden through, 400 ms old frames with no deck
+        // kept a committed touchdown clear).
+        let clock_ok = t.is_finite() && age_s >= -MAX_FUTURE_S;
+        let fresh = age_s <= c.max_age_ms / 1e3;
         let Some(deck) = deck.filter(|d| d.roll_deg.is_finite() && d.pitch_deg.is_finite()) else {
-            return Err(DecisionReason::InvalidAttitude);
+            return Err(if !clock_ok {
+                DecisionReason::ClockJump
+            } else if !fresh {
+                DecisionReason::StaleData
+            } else {
+                DecisionReason::InvalidAttitude
+            });
         };
         let heave = self.channels > HEAVE;
         if heave && !deck.height_m.is_finite() {
-            return Err(DecisionReason::NoDeckHeave);
+            return Err(if !clock_ok {
+                DecisionReason::ClockJump
+            } else if !fresh {
+                DecisionReason::StaleData
+            } else {
+                DecisionReason::NoDeckHeave
+            });
         }
         let sample = [
             deck.roll_deg,
@@ -366,10 +390,10 @@ impl LandingDecider {
             self.forget();
             return Err(DecisionReason::FrozenInput);
         }
-        if !t.is_finite() || age_s < -MAX_FUTURE_S {
+        if !clock_ok {
             return Err(DecisionReason::ClockJump);
         }
-        if !(age_s <= c.max_age_ms / 1e3) {
+        if !fresh {
             return Err(DecisionReason::StaleData);
         }
         if let Some(&(tp, prev)) = self.history.back() {
@@ -411,6 +435,10 @@ impl LandingDecider {
             self.history.pop_front();
         }
         if t < self.gap_until {
+            // Still a measurement: one the model misses is not a gap to ride through.
+            if self.models.as_ref().is_some_and(|m| self.misses(m, t, &sample)) {
+                return Err(DecisionReason::PredictionUnreliable);
+            }
             return Err(DecisionReason::Gap);
         }
         let span = t - self.history.front().map_or(t, |h| h.0);
@@ -433,15 +461,7 @@ impl LandingDecider {
         if !banded && (m.holdout_error > c.max_holdout_error_deg || m.heave_error > c.max_holdout_error_m) {
             return Err(DecisionReason::PredictionUnreliable);
         }
-        // A measurement further from the model than the configured limit and than
-        // `INNOVATION_Z` of the model's own standard deviations: the model is wrong.
-        let outside = |k: usize, limit: f64| {
-            let track = &m.tracks[k];
-            (track.value(t) - sample[k]).abs() > limit.max(INNOVATION_Z * m.band_scale[k] * track.std(t))
-        };
-        let innovation = outside(ROLL, c.max_innovation_deg) || outside(PITCH, c.max_innovation_deg);
-        let heave_innovation = heave && outside(HEAVE, c.max_heave_innovation_m);
-        if innovation || heave_innovation {
+        if self.misses(m, t, &sample) {
             return self.unexplained(t, banded);
         }
         // The model's rate must match the measured one (a local line through the newest
@@ -498,6 +518,20 @@ impl LandingDecider {
     /// the interpolation onto its grid).
     fn ar_lag_span_s(&self) -> f64 {
         (self.config.ar_order as f64 + 3.0) * FIT_SPACING_S
+    }
+
+    /// Whether measurement `sample` at `t` is further from the model than the configured
+    /// limits and than `INNOVATION_Z` of the model's own standard deviations: the model is
+    /// wrong.
+    fn misses(&self, m: &Models, t: f64, sample: &[f64; 3]) -> bool {
+        let c = &self.config;
+        let outside = |k: usize, limit: f64| {
+            let track = &m.tracks[k];
+            (track.value(t) - sample[k]).abs() > limit.max(INNOVATION_Z * m.band_scale[k] * track.std(t))
+        };
+        outside(ROLL, c.max_innovation_deg)
+            || outside(PITCH, c.max_innovation_deg)
+            || (m.tracks.len() > HEAVE && outside(HEAVE, c.max_heave_innovation_m))
     }
 
     /// No clearance for this long after a gap: `gap_recovery_s`, and with the autoregressive
@@ -581,8 +615,15 @@ impl LandingDecider {
                 | DecisionReason::Gap
                 | DecisionReason::Jump
         );
-        let since = *self.riding_since.get_or_insert(now);
-        let short = self.config.ride_through_ms > 0.0 && now - since <= self.config.ride_through_ms / 1e3;
+        // Time must move on: a frame whose time does not advance (a stuck source clock) adds
+        // nothing to the budget and would ride through for ever.
+        let advancing = now > self.commit_last_frame;
+        if advancing {
+            self.ridden_s += now - self.commit_last_frame;
+        }
+        let short = advancing
+            && self.config.ride_through_ms > 0.0
+            && self.ridden_s <= self.config.ride_through_ms / 1e3;
         let bounded = self
             .models
             .as_ref()
@@ -600,11 +641,15 @@ impl LandingDecider {
             new_commit: false,
             heave_rate_mps: f64::NAN,
         };
-        if verdict.is_ok() || !committed {
-            self.riding_since = None;
+        let ride = match verdict {
+            Err(reason) if committed => self.rides_through(reason, now),
+            _ => false,
+        };
+        if committed {
+            self.commit_last_frame = self.commit_last_frame.max(now);
         }
         match verdict {
-            Err(reason) if committed && self.rides_through(reason, now) => {
+            Err(_) if ride => {
                 decision.state = DecisionState::ClearToLand;
                 decision.reason = DecisionReason::RideThrough;
             }
@@ -660,6 +705,8 @@ impl LandingDecider {
                     decision.state = DecisionState::ClearToLand;
                     decision.new_commit = true;
                     self.commit_end = now + self.config.touchdown_s;
+                    self.ridden_s = 0.0;
+                    self.commit_last_frame = now;
                 } else {
                     decision.reason = if self.predicted_within(&m, now, now, Margins::NONE) {
                         DecisionReason::PredictedOutside
@@ -1204,5 +1251,126 @@ mod tests {
         ] {
             assert_eq!(c.validate().unwrap_err().key, key);
         }
+    }
+
+    /// Late or stuck data cannot hold a committed touchdown open: frames with no deck that
+    /// arrive late abort (stale, not missing); a source clock that stops while no deck is seen
+    /// aborts; one ride-through budget per commitment, however it is split; a fresh
+    /// measurement during a gap's recovery that the model misses aborts.
+    #[test]
+    fn late_or_stuck_data_never_keeps_a_touchdown_clear() {
+        // Late frames without a deck (400 ms, past max_age_ms = 300).
+        let (mut d, t0) = committed(DecisionConfig::default());
+        let r = d.update_at_capture(t0 + 0.1, None, 0.4);
+        assert_eq!(
+            (r.state, r.reason),
+            (DecisionState::Abort, DecisionReason::StaleData)
+        );
+        let (mut d, t0) = committed(DecisionConfig::default());
+        let r = d.update_at_capture(t0 + 0.1, Some(DeckObservation::new(0.0, 0.0, f64::NAN)), 0.4);
+        assert_eq!(
+            (r.state, r.reason),
+            (DecisionState::Abort, DecisionReason::StaleData)
+        );
+        // A stuck source clock with no deck: the first blind frame rides through, the same
+        // time again does not.
+        let (mut d, t0) = committed(DecisionConfig::default());
+        assert_eq!(
+            d.update_at_capture(t0 + 0.1, None, 0.01).reason,
+            DecisionReason::RideThrough
+        );
+        assert_eq!(
+            d.update_at_capture(t0 + 0.1, None, 0.01).state,
+            DecisionState::Abort
+        );
+        // Chained spells share one budget (1 s): 0.6 s blind, one good frame, 0.6 s blind.
+        let (mut d, t0) = committed(DecisionConfig::default());
+        let mut t = t0;
+        let mut states = Vec::new();
+        for k in 1..=13 {
+            t = t0 + 0.1 * k as f64;
+            let deck = (k == 7).then(|| sea(t, 0.8));
+            states.push(d.update_at_capture(t, deck, 0.01).state);
+        }
+        assert!(
+            states[..10].iter().all(|s| *s == DecisionState::ClearToLand),
+            "{states:?}"
+        );
+        assert_eq!(states.last(), Some(&DecisionState::Abort), "{states:?} until {t}");
+        // A gap during the touchdown, then a fresh measurement 7 deg off the model: abort.
+        let (mut d, t0) = committed(DecisionConfig::default());
+        let t = t0 + 0.7;
+        let s = sea(t, 0.8);
+        let r = d.update_at_capture(
+            t,
+            Some(DeckObservation::new(s.roll_deg + 7.0, s.pitch_deg, s.height_m)),
+            0.01,
+        );
+        assert_eq!(r.state, DecisionState::Abort, "{r:?}");
+        // ... while a measurement the model expects in the same gap rides through.
+        let (mut d, t0) = committed(DecisionConfig::default());
+        let r = d.update_at_capture(t0 + 0.7, Some(sea(t0 + 0.7, 0.8)), 0.01);
+        assert_eq!(
+            (r.state, r.reason),
+            (DecisionState::ClearToLand, DecisionReason::RideThrough)
+        );
+    }
+
+    /// No key can switch a check off: each is refused, by name, just past its bound (and a
+    /// NaN); the cross-key rules name the key that defeats the other.
+    #[test]
+    fn no_configuration_switches_a_safety_check_off() {
+        for &(key, max, _) in SAFETY_BOUNDS {
+            for bad in [max * 1.01 + 1e-9, f64::NAN] {
+                let mut c = DecisionConfig::default();
+                *c.field_mut(key).unwrap() = bad;
+                let e = c.validate().unwrap_err();
+                assert_eq!(e.key, key, "{key} = {bad}: {e}");
+            }
+        }
+        for (c, key) in [
+            (
+                DecisionConfig {
+                    error_factor: 0.9,
+                    ..Default::default()
+                },
+                "error_factor",
+            ),
+            (
+                DecisionConfig {
+                    max_abs_roll_rate_dps: 25.0,
+                    max_plausible_rate_dps: 20.0,
+                    ..Default::default()
+                },
+                "max_plausible_rate_dps",
+            ),
+            (
+                DecisionConfig {
+                    horizon_s: 1.0,
+                    ..Default::default()
+                },
+                "horizon_s",
+            ),
+            (
+                DecisionConfig {
+                    frozen_input_count: MAX_FROZEN_INPUT_COUNT + 1,
+                    ..Default::default()
+                },
+                "frozen_input_count",
+            ),
+            (
+                DecisionConfig {
+                    ride_through_ms: 2500.0,
+                    touchdown_s: 5.0,
+                    ..Default::default()
+                },
+                "ride_through_ms",
+            ),
+        ] {
+            assert_eq!(c.validate().unwrap_err().key, key);
+        }
+        // The defaults and both predictors' own settings are within every bound.
+        DecisionConfig::default().validate().unwrap();
+        DecisionConfig::sinusoid_defaults().validate().unwrap();
     }
 }

@@ -13,7 +13,7 @@ use deckwatch_common::messages::{monotonic_ns, LandingDecision, LinkTraffic, Veh
 use deckwatch_common::stats::Percentiles;
 use deckwatch_link::incoming::{Incoming, LinkState};
 use deckwatch_link::mavlink;
-use deckwatch_link::outgoing::{stale_decision, Outgoing};
+use deckwatch_link::outgoing::{forwardable, stale_decision, Outgoing};
 use deckwatch_link::{LinkConfig, MavHeader, MavMessage};
 use mavlink::error::MessageReadError;
 use mavlink::{ConnectionAddress, MavConnection, MavlinkVersion};
@@ -172,8 +172,8 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
     let (mut hop_ns, mut first_ns, mut all_ns) = (Vec::new(), Vec::new(), Vec::new());
     let mut sent_decisions = 0u64;
     let mut last_logged_seq = u64::MAX;
-    // The newest decision and when it came: one older than decide's freshness limit (or none
-    // yet) is reported as NO-DECK stale-data, whatever it said.
+    // The newest decision and the time it is aged from: one older than decide's freshness
+    // limit (or none yet) is reported as NO-DECK stale-data, whatever it said.
     let mut newest_decision: Option<(LandingDecision, u64)> = None;
     let stale_after_ns = (config.decide.max_age_ms * 1e6) as u64;
     let tick = Duration::from_millis(50);
@@ -231,13 +231,22 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
         }
         while let Some(d) = decisions.receive()? {
             let received = monotonic_ns();
+            let d = forwardable(&d, received, stale_after_ns);
             let mut first = None;
             for m in outgoing.decision(&d, state, clock.as_ref(), received) {
                 send(&conn, &id, &m, &failed, traffic);
                 first.get_or_insert_with(monotonic_ns);
             }
             sent_decisions += 1;
-            newest_decision = Some((d, received));
+            // Aged from its frame's capture (decide's own stale decisions from their arrival):
+            // a clearance is not repeated past `max_age_ms` of its capture.
+            let captured = d.stamp.times.captured_ns;
+            let aged_from = if captured != 0 && !d.watchdog.get() {
+                captured.min(received)
+            } else {
+                received
+            };
+            newest_decision = Some((d, aged_from));
             let made = d.stamp.times.decide_finished_ns;
             if made != 0 && !d.watchdog.get() {
                 let since = |t: u64| t.saturating_sub(made) as f64;

@@ -347,29 +347,23 @@ impl LandingDecider {
 
     fn check(&mut self, t: f64, deck: Option<DeckObservation>, age_s: f64) -> Result<(), DecisionReason> {
         let c = self.config.clone();
-        // Time and freshness first, for every frame, one without a deck included: a late frame
-        // without a deck is late, not missing (ridden through, 400 ms old frames with no deck
-        // kept a committed touchdown clear).
-        let clock_ok = t.is_finite() && age_s >= -MAX_FUTURE_S;
-        let fresh = age_s <= c.max_age_ms / 1e3;
+        // Time and freshness are judged for every frame, one without a deck included: a late
+        // frame without a deck is late, not missing (ridden through, 400 ms old frames with no
+        // deck kept a committed touchdown clear). A valid deck's repeats are counted before
+        // its time is refused (below).
+        let untimely = if !(t.is_finite() && age_s >= -MAX_FUTURE_S) {
+            Some(DecisionReason::ClockJump)
+        } else if !(age_s <= c.max_age_ms / 1e3) {
+            Some(DecisionReason::StaleData)
+        } else {
+            None
+        };
         let Some(deck) = deck.filter(|d| d.roll_deg.is_finite() && d.pitch_deg.is_finite()) else {
-            return Err(if !clock_ok {
-                DecisionReason::ClockJump
-            } else if !fresh {
-                DecisionReason::StaleData
-            } else {
-                DecisionReason::InvalidAttitude
-            });
+            return Err(untimely.unwrap_or(DecisionReason::InvalidAttitude));
         };
         let heave = self.channels > HEAVE;
         if heave && !deck.height_m.is_finite() {
-            return Err(if !clock_ok {
-                DecisionReason::ClockJump
-            } else if !fresh {
-                DecisionReason::StaleData
-            } else {
-                DecisionReason::NoDeckHeave
-            });
+            return Err(untimely.unwrap_or(DecisionReason::NoDeckHeave));
         }
         let sample = [
             deck.roll_deg,
@@ -390,11 +384,8 @@ impl LandingDecider {
             self.forget();
             return Err(DecisionReason::FrozenInput);
         }
-        if !clock_ok {
-            return Err(DecisionReason::ClockJump);
-        }
-        if !fresh {
-            return Err(DecisionReason::StaleData);
+        if let Some(reason) = untimely {
+            return Err(reason);
         }
         if let Some(&(tp, prev)) = self.history.back() {
             let dt = t - tp;

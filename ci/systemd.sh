@@ -24,10 +24,19 @@ if [ -n "$out" ]; then
   echo "systemd-analyze verify: $out" >&2
   exit 1
 fi
+# Its sandbox: `systemd-analyze security`'s exposure (0 safest, 10 none) must stay "OK" (at most
+# 3.0; 1.8 when written, 9.2 before the hardening: BENCHMARKS).
+exposure=$(systemd-analyze security --offline=true "$unit" 2>/dev/null \
+  | sed -n 's/.*Overall exposure level for [^:]*: \([0-9.]*\).*/\1/p')
+if [ -z "$exposure" ] || ! awk -v e="$exposure" 'BEGIN { exit !(e <= 3.0) }'; then
+  systemd-analyze security --offline=true "$unit" >&2 || true
+  echo "deckwatch.service: exposure ${exposure:-unknown}, more than 3.0" >&2
+  exit 1
+fi
 # The configuration it installs is one deckwatch accepts: every section as written, the source
 # switched to the simulator (this build may lack libcamera; ci/libcamera.sh tests the camera).
 cfg="$STAGE/pipeline.toml"
 sed -e "s#/etc/deckwatch#$STAGE/root/etc/deckwatch#g" -e 's#^kind = "libcamera"#kind = "sim"#' \
     "$STAGE/root/etc/deckwatch/pipeline.toml" > "$cfg"
 "$BIN_DIR/deckwatch" run --config "$cfg" --print-config >/dev/null
-echo "deckwatch.service: verified; the Pi 5 configuration parses and validates"
+echo "deckwatch.service: verified, exposure $exposure; the Pi 5 configuration parses and validates"

@@ -116,8 +116,11 @@ fn a_killed_launcher_leaves_nothing_after_clean() {
     let dir = tempfile::tempdir().unwrap();
     let domain = format!("t{}-kill", std::process::id());
     let csv = dir.path().join("d.csv");
+    // The user's runtime directory: the run folder goes there, private.
+    let runtime = tempfile::tempdir().unwrap();
     let mut launcher = PipelineGuard::spawn(
         Command::new(workspace_binary("deckwatch"))
+            .env("XDG_RUNTIME_DIR", runtime.path())
             .args([
                 "run", "--quiet", "--frames", "100000", "--rate", "10", "--rerun", "off",
             ])
@@ -136,8 +139,17 @@ fn a_killed_launcher_leaves_nothing_after_clean() {
     }
     let stages = children(launcher.id());
     assert_eq!(stages.len(), 4, "capture, detect, estimate, decide: {stages:?}");
-    let run_dir = std::env::temp_dir().join(format!("deckwatch-{domain}-{}", launcher.id()));
-    assert!(run_dir.exists());
+    let run_dir = runtime
+        .path()
+        .join(format!("deckwatch-{domain}-{}", launcher.id()));
+    use std::os::unix::fs::PermissionsExt;
+    let mode = std::fs::metadata(&run_dir).map(|m| m.permissions().mode() & 0o777);
+    assert_eq!(
+        mode.ok(),
+        Some(0o700),
+        "{}: the run folder is private",
+        run_dir.display()
+    );
     launcher.child().kill().unwrap();
     launcher.wait();
     let killed = std::time::Instant::now();
@@ -151,6 +163,7 @@ fn a_killed_launcher_leaves_nothing_after_clean() {
     );
     assert!(run_dir.exists(), "a SIGKILL leaves the run folder");
     let out = Command::new(workspace_binary("deckwatch"))
+        .env("XDG_RUNTIME_DIR", runtime.path())
         .args(["clean", "--domain", &domain])
         .output()
         .unwrap();

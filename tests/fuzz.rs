@@ -1,8 +1,9 @@
 //! Property-based fuzzing (proptest) of what comes from outside: every parser (frames.csv,
 //! camera.json, vehicle.csv, the marker table, the TOML configuration) fed arbitrary and
 //! near-valid text must answer with a value or an error, never a panic; the landing decider fed
-//! arbitrary streams (NaN, infinities, out of order, future, frozen, jumps) must never panic and
-//! never clear a landing on an invalid input.
+//! arbitrary streams (NaN, infinities, out of order, future, frozen, jumps, late frames without a
+//! deck, a stuck source clock, outliers) must never panic, never clear a landing on an invalid
+//! input, and never ride a commitment through for longer than its one budget.
 //!
 //! A bounded number of cases runs by default; `DECKWATCH_FUZZ_CASES=N` sets it, and the
 //! `--ignored` tests run a million parser cases and ten thousand decider streams:
@@ -293,7 +294,7 @@ fn decider_holds(n: u32) {
         5.0..15.0f64,
         0.0..1.0f64,
         prop::collection::vec(
-            (0u8..10, -1e6..1e6f64).prop_map(|(kind, size)| Fault { kind, size }),
+            (0u8..13, -1e6..1e6f64).prop_map(|(kind, size)| Fault { kind, size }),
             50..200,
         ),
     );
@@ -324,6 +325,11 @@ fn decider_holds(n: u32) {
             }
             // How many times in a row the same input came (a repeat of the previous one adds one).
             let mut run = 1u32;
+            // The time given last (a stuck source clock repeats it), and the blind time ridden
+            // through since the current commitment began.
+            let mut last_time = t - 0.1;
+            let mut ridden_s = 0.0;
+            let budget_s = DecisionConfig::default().ride_through_ms / 1e3;
             for f in faults {
                 t += 0.1;
                 let good = sea(t);
@@ -364,9 +370,41 @@ fn decider_holds(n: u32) {
                     6 => (t - 5.0, Some(good), 0.005), // out of order
                     7 => (t, Some(good), 10.0),        // stale
                     8 => (t, Some(good), -1.0),        // captured in the future
-                    _ => (t, Some(last), 0.005),       // repeats the last input bit for bit
+                    10 => (t, None, 0.4),              // no deck, and late (max_age_ms 300)
+                    11 => (last_time, None, 0.005),    // no deck, the source clock stuck
+                    // A measurement 7 deg off the sea from one frame to the next: faster than
+                    // any deck moves (`max_plausible_rate_dps`), so a bad measurement (a jump),
+                    // ridden through like a missing one at most; a plausible measurement the
+                    // model misses aborts (decide's unit test
+                    // `late_or_stuck_data_never_keeps_a_touchdown_clear`).
+                    12 => (
+                        t,
+                        Some(DeckObservation {
+                            roll_deg: good.roll_deg + 7.0,
+                            ..good
+                        }),
+                        0.005,
+                    ),
+                    _ => (t, Some(last), 0.005), // repeats the last input bit for bit
                 };
                 let r = d.update_at_capture(time, deck, age);
+                if time.is_finite() {
+                    last_time = time;
+                }
+                if r.new_commit {
+                    ridden_s = 0.0;
+                }
+                if r.state == DecisionState::ClearToLand
+                    && r.reason == deckwatch_common::messages::DecisionReason::RideThrough
+                {
+                    ridden_s += 0.1;
+                    // One budget per commitment, however the blind frames are split (a frame's
+                    // interval of slack).
+                    prop_assert!(
+                        ridden_s <= budget_s + 0.1 + 1e-9,
+                        "rode through {ridden_s:.1} s of one commitment (budget {budget_s} s)"
+                    );
+                }
                 if r.state == DecisionState::ClearToLand {
                     cleared.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 }
@@ -381,7 +419,8 @@ fn decider_holds(n: u32) {
                 } else if !valid_kind(f.kind) || repeats_invalid {
                     // A missing attitude (NaN, infinite, no height, none) may only keep a
                     // committed touchdown going (`ride-through`); nothing else ever clears.
-                    let rides = (matches!(f.kind, 1..=4) || repeats_invalid)
+                    // Late frames (10) and a stuck clock (11) never do.
+                    let rides = (matches!(f.kind, 1..=4 | 12) || repeats_invalid)
                         && r.reason == deckwatch_common::messages::DecisionReason::RideThrough
                         && !r.new_commit;
                     prop_assert!(

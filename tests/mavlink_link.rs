@@ -7,6 +7,13 @@
 //! the deck attitude compensated for the tilt; the decision and status messages; no CLEAR once
 //! the stream stopped (beyond a committed touchdown's ride-through); and a telemetry log that pymavlink's own `mavlogdump.py` decodes.
 //!
+//! The link requires MAVLink 2 signing (a key file only its owner reads); the autopilot signs
+//! with pymavlink's signing. A pymavlink attacker on a second socket (tests/peers/attacker.py)
+//! meanwhile sends the autopilot's attitude with a 5 deg roll bias unsigned, signed with another
+//! key, from another system with the right key, and the autopilot's own frames replayed, besides
+//! MAVLink 1, broken and junk frames and TIMESYNC: none of it changes a vehicle sample, the clock
+//! or the reply address, and each is counted by its cause.
+//!
 //! Needs python3 with pymavlink (`ci/peers.sh` installs it; `DECKWATCH_PYTHON` names the
 //! interpreter).
 
@@ -62,6 +69,21 @@ fn pymavlink_autopilot_and_ground_station() {
     let port = free_udp_port();
     let domain = format!("t{}-mav", std::process::id());
     let config = dir.path().join("p.toml");
+    // The link's key, owner-only (the link refuses it otherwise).
+    let key: [u8; 32] = std::array::from_fn(|k| (k as u8).wrapping_mul(37).wrapping_add(11));
+    let key_hex: String = key.iter().map(|b| format!("{b:02x}")).collect();
+    let key_file = dir.path().join("mavlink.key");
+    {
+        use std::io::Write;
+        use std::os::unix::fs::OpenOptionsExt;
+        std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .mode(0o600)
+            .open(&key_file)
+            .and_then(|mut f| f.write_all(&key))
+            .unwrap();
+    }
     let [r, p, y] = TILT_DEG;
     std::fs::write(
         &config,
@@ -69,14 +91,16 @@ fn pymavlink_autopilot_and_ground_station() {
             "[bus]\ndomain = \"{domain}\"\n\
              [sim]\nvehicle = \"tilted\"\nvehicle_tilt_deg = [{r}, {p}, {y}]\nframes = 170\nrate = {RATE_HZ}\n\
              [vehicle]\nattitude = \"autopilot\"\n\
-             [link]\nenabled = true\naddress = \"udpin:127.0.0.1:{port}\"\n\
+             [link]\nenabled = true\naddress = \"udpin:127.0.0.1:{port}\"\nsigning = \"required\"\nsigning_key_file = \"{}\"\n\
              [rerun]\nsink = \"off\"\n\
              [record]\npath = \"{}\"\nframes = \"none\"\n",
+            key_file.display(),
             dir.path().join("flight.mcap").display()
         ),
     )
     .unwrap();
     let tlog = dir.path().join("session.tlog");
+    let captured = dir.path().join("captured.hex");
     let peer = Command::new(&python)
         .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/autopilot.py"))
         .args(["--port", &port.to_string(), "--tilt-deg"])
@@ -84,9 +108,22 @@ fn pymavlink_autopilot_and_ground_station() {
         .args(["--clock-offset-s", &CLOCK_OFFSET_S.to_string()])
         .args(["--stop-after-s", "12", "--linger-s", "4", "--tlog"])
         .arg(&tlog)
+        .args(["--key-hex", &key_hex, "--capture"])
+        .arg(&captured)
         .stdout(Stdio::piped())
         .spawn()
         .expect("start the pymavlink autopilot");
+    // While the autopilot streams (from its 3rd to its 9th second).
+    let attacker = Command::new(&python)
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/attacker.py"))
+        .args(["--port", &port.to_string(), "--key-hex", &key_hex, "--tilt-deg"])
+        .args(TILT_DEG.map(|a| a.to_string()))
+        .args(["--bias-deg", "5", "--clock-offset-s", &CLOCK_OFFSET_S.to_string()])
+        .args(["--start-after-s", "3", "--duration-s", "6", "--replay"])
+        .arg(&captured)
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("start the pymavlink attacker");
     let decisions = dir.path().join("decisions.csv");
     let run = pipeline_output(
         Command::new(&deckwatch)
@@ -102,6 +139,85 @@ fn pymavlink_autopilot_and_ground_station() {
     assert!(peer.status.success(), "the pymavlink autopilot failed");
     let seen: serde_json::Value = serde_json::from_slice(&peer.stdout).expect("its JSON summary");
     let stop_ns = seen["stop_monotonic_ns"].as_u64().unwrap();
+    let attacker = attacker.wait_with_output().unwrap();
+    assert!(attacker.status.success(), "the pymavlink attacker failed");
+    let attack: serde_json::Value = serde_json::from_slice(&attacker.stdout).expect("its JSON summary");
+
+    // The attack: every kind was sent, and refused for its cause (the link's closing line); the
+    // attacker's socket never heard from deckwatch (replies go to the autopilot alone).
+    for kind in [
+        "unsigned",
+        "other-key",
+        "other-system",
+        "replay",
+        "mavlink1",
+        "bad-crc",
+        "timesync",
+    ] {
+        assert!(
+            attack["sent"][kind].as_u64().unwrap_or(0) >= 100,
+            "{kind}: {attack}"
+        );
+    }
+    assert_eq!(
+        attack["received"], 0,
+        "deckwatch replied to the attacker: {attack}"
+    );
+    let summary = stderr
+        .lines()
+        .find(|l| l.contains("deckwatch-link:") && l.contains("frames admitted"))
+        .unwrap_or_else(|| panic!("the link's closing line:\n{stderr}"));
+    let refused = |cause: &str| -> u64 {
+        summary
+            .split(&format!("{cause} "))
+            .nth(1)
+            .and_then(|r| r.split(|c: char| !c.is_ascii_digit()).next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or(0)
+    };
+    let sent = |kind: &str| attack["sent"][kind].as_u64().unwrap();
+    // Signed with another key, or a TIMESYNC signed so: bad signatures. Unsigned attitudes,
+    // broken-checksum frames (unsigned) and TIMESYNC: unsigned. Replays, the second vehicle,
+    // MAVLink 1: each its own count. (A bad checksum is found before the missing signature.)
+    assert!(refused("unsigned") >= sent("unsigned"), "{summary}");
+    assert!(refused("bad-signature") >= sent("other-key"), "{summary}");
+    assert!(refused("replay") >= sent("replay"), "{summary}");
+    assert!(refused("wrong-sender") >= sent("other-system"), "{summary}");
+    assert!(refused("mavlink1") >= sent("mavlink1"), "{summary}");
+    assert!(refused("bad-crc") >= sent("bad-crc"), "{summary}");
+    // No vehicle sample but the autopilot's: never more attitudes in than it sent (those it sent
+    // before the link listened are not in, however long the pipeline took to start); and of the
+    // autopilot's frames that reached the link, none lost to the flood of the attacker's (the
+    // gaps in its sequence numbers).
+    let number_before = |what: &str| -> u64 {
+        summary
+            .split(what)
+            .next()
+            .and_then(|s| s.rsplit(' ').next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or(u64::MAX)
+    };
+    let attitudes_in = number_before(" attitudes (");
+    let attitudes_sent = seen["attitudes_sent"].as_u64().unwrap();
+    assert!(
+        attitudes_in <= attitudes_sent,
+        "{attitudes_in} attitudes in, {attitudes_sent} sent by the autopilot: {summary}"
+    );
+    let lost = number_before(" of the autopilot's lost");
+    assert!(lost * 100 <= attitudes_in, "{lost} of the autopilot's frames lost: {summary}");
+    // The clock is the autopilot's (TIMESYNC answers of an hour from the attacker changed nothing).
+    let offset_ms: f64 = summary
+        .split("clock offset ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or(f64::NAN);
+    assert!(
+        (offset_ms - CLOCK_OFFSET_S * 1e3).abs() < 5.0,
+        "clock offset {offset_ms} ms: {summary}"
+    );
+    // pymavlink, verifying our signatures, dropped nothing we sent.
+    assert_eq!(seen["counts"]["BAD_DATA"].as_u64().unwrap_or(0), 0, "{seen}");
 
     // Our heartbeat: an onboard controller (MAV_TYPE 18) as component 191 of the autopilot's
     // system, and TIMESYNC requests the autopilot answered.
@@ -322,6 +438,29 @@ fn pymavlink_autopilot_and_ground_station() {
         targets.len()
     );
     assert!(t["vehicle_samples"].as_u64().unwrap() > 100, "{t}");
+    // The refused frames are in the recording too: the link's log lines, read back with the
+    // `mcap` package.
+    let check = Command::new(&python)
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/mcap_check.py"))
+        .arg(dir.path().join("flight.mcap"))
+        .output()
+        .unwrap();
+    assert!(
+        check.status.success(),
+        "{}",
+        String::from_utf8_lossy(&check.stderr)
+    );
+    let c: serde_json::Value = serde_json::from_slice(&check.stdout).unwrap();
+    let lines: Vec<&str> = c["log_lines"]
+        .as_array()
+        .map(|a| a.iter().filter_map(|l| l.as_str()).collect())
+        .unwrap_or_default();
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.contains("deckwatch-link: refused") && l.contains("bad-signature")),
+        "no refusal line among the recording's log lines: {lines:?}"
+    );
     // The pipeline left nothing in shared memory.
     let prefix = domain_prefix(&domain);
     let left = std::fs::read_dir("/dev/shm")

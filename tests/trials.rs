@@ -1,6 +1,6 @@
 //! Closed-loop landings (`deckwatch trials`): a simulated vehicle lands on a spectrum sea through
 //! the stage chain, judged at contact against the true deck; the same approach through the real
-//! processes and the MAVLink link at real time lands alike; the first approach's rerun recording
+//! processes and the MAVLink link (signed: MAVLink 2 signing required) at real time lands alike; the first approach's rerun recording
 //! is one the rerun CLI verifies.
 
 use deckwatch_tests::{workspace_binary, PipelineGuard};
@@ -10,9 +10,32 @@ use std::process::{Command, Stdio};
 fn closed_loop_landings_touch_down_safely_in_one_process_and_through_the_processes() {
     let dir = tempfile::tempdir().unwrap();
     let rrd = dir.path().join("trial.rrd");
+    // The link through the processes requires MAVLink 2 signing; the trial's autopilot signs with
+    // the same key (the mavlink crate's signing; tests/mavlink_link.rs has pymavlink's).
+    let key_file = dir.path().join("mavlink.key");
+    {
+        use std::io::Write;
+        use std::os::unix::fs::OpenOptionsExt;
+        std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .mode(0o600)
+            .open(&key_file)
+            .and_then(|mut f| f.write_all(&[0x5a; 32]))
+            .unwrap();
+    }
+    let config = dir.path().join("signed.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "[link]\nsigning = \"required\"\nsigning_key_file = \"{}\"\n",
+            key_file.display()
+        ),
+    )
+    .unwrap();
     let mut cmd = Command::new(workspace_binary("deckwatch"));
+    cmd.arg("trials").arg("--config").arg(&config);
     cmd.args([
-        "trials",
         "--json",
         "--sea-states",
         "3",

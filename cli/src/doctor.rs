@@ -235,34 +235,36 @@ fn camera(c: &PipelineConfig) -> Vec<Finding> {
 }
 
 fn link(c: &PipelineConfig) -> Vec<Finding> {
+    use deckwatch_link::admission::Signing;
+    use deckwatch_link::{Endpoint, SigningMode};
     if !c.link.enabled {
         return vec![Finding::Note("link off: no autopilot endpoint needed".into())];
     }
     let address = c.link.address.as_str();
     let what = format!("MAVLink endpoint {address}");
-    let (kind, rest) = address.split_once(':').unwrap_or((address, ""));
-    let finding = match kind {
-        "serial" => {
-            let device = rest.rsplit_once(':').map_or(rest, |(d, _)| d);
-            match std::fs::OpenOptions::new().read(true).write(true).open(device) {
-                Ok(_) => Finding::Ok(format!("{what}: {device} opens for reading and writing")),
-                Err(e) if e.kind() == std::io::ErrorKind::NotFound => Finding::Fix(
-                    what,
-                    format!("{device} does not exist: is the flight controller wired and the UART enabled (dtoverlay=uart0 on a Pi)?"),
-                ),
-                Err(e) => Finding::Fix(what, format!("{device}: {e} (is this user in the `dialout` group?)")),
-            }
-        }
-        "udpin" => match std::net::UdpSocket::bind(rest) {
+    let endpoint = match Endpoint::parse(address) {
+        Ok(e) => e,
+        Err(e) => return vec![Finding::Fix(what, e)],
+    };
+    let reach = match &endpoint {
+        Endpoint::Serial { port, .. } => match std::fs::OpenOptions::new().read(true).write(true).open(port) {
+            Ok(_) => Finding::Ok(format!("{what}: {port} opens for reading and writing")),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Finding::Fix(
+                what,
+                format!("{port} does not exist: is the flight controller wired and the UART enabled (dtoverlay=uart0 on a Pi)?"),
+            ),
+            Err(e) => Finding::Fix(what, format!("{port}: {e} (is this user in the `dialout` group?)")),
+        },
+        Endpoint::UdpIn(listen) => match std::net::UdpSocket::bind(listen) {
             Ok(_) => Finding::Ok(format!("{what}: the port is free to listen on")),
             Err(e) => Finding::Fix(
                 what,
-                format!("cannot listen on {rest}: {e} (another program holds the port?)"),
+                format!("cannot listen on {listen}: {e} (another program holds the port?)"),
             ),
         },
-        "udpout" | "udpcast" | "tcpout" => {
-            match std::net::ToSocketAddrs::to_socket_addrs(rest).map(|mut a| a.next()) {
-                Ok(Some(addr)) if kind == "tcpout" => {
+        Endpoint::UdpOut(to) | Endpoint::TcpOut(to) => {
+            match std::net::ToSocketAddrs::to_socket_addrs(to.as_str()).map(|mut a| a.next()) {
+                Ok(Some(addr)) if matches!(endpoint, Endpoint::TcpOut(_)) => {
                     match std::net::TcpStream::connect_timeout(&addr, Duration::from_secs(1)) {
                         Ok(_) => Finding::Ok(format!("{what}: reachable")),
                         Err(e) => Finding::Fix(what, format!("cannot connect: {e}")),
@@ -273,9 +275,18 @@ fn link(c: &PipelineConfig) -> Vec<Finding> {
                 Err(e) => Finding::Fix(what, format!("does not resolve: {e}")),
             }
         }
-        _ => Finding::Note(format!("{what}: not checked ({kind})")),
     };
-    vec![finding]
+    let signing = match (c.link.signing, Signing::configured(&c.link)) {
+        (SigningMode::Off, _) => Finding::Note(format!(
+            "MAVLink signing off: whoever reaches {address} can send the link an attitude (keep it on the loopback behind mavlink-router, or set [link] signing)"
+        )),
+        (SigningMode::Required, Ok(_)) => Finding::Ok(format!(
+            "MAVLink signing required: the key in {} is this user's alone",
+            c.link.signing_key_file
+        )),
+        (SigningMode::Required, Err(e)) => Finding::Fix("MAVLink signing key".into(), e.to_string()),
+    };
+    vec![reach, signing]
 }
 
 fn viewer(c: &PipelineConfig) -> Vec<Finding> {

@@ -49,7 +49,7 @@ pub struct RunArgs {
     /// rerun logging: `off`, `spawn` (start a viewer), `connect [ADDR]`, `save FILE.rrd`.
     #[arg(long, num_args = 1..=2, value_names = ["MODE", "ARG"])]
     rerun: Vec<String>,
-    /// Start the MAVLink link to the autopilot at this address (`udpin:0.0.0.0:14540`,
+    /// Start the MAVLink link to the autopilot at this address (`udpin:127.0.0.1:14540`,
     /// `udpout:HOST:PORT`, `serial:/dev/ttyAMA0:921600`); sets `[link]`.
     #[arg(long, value_name = "ADDRESS")]
     link: Option<String>,

@@ -9,12 +9,35 @@ use serde::{Deserialize, Serialize};
 pub struct LinkConfig {
     /// Start the link process with the pipeline.
     pub enabled: bool,
-    /// Where the autopilot is, in the mavlink crate's address form: `udpin:HOST:PORT` (listen;
-    /// answer whoever speaks: mavlink-router or MAVProxy `--out` pointed at it),
-    /// `udpout:HOST:PORT` (send to it), `serial:/dev/ttyAMA0:921600`.
+    /// Where the autopilot is: `udpin:HOST:PORT` (listen, on the loopback unless
+    /// `listen_beyond_loopback`: mavlink-router or MAVProxy `--out` pointed at it; replies go to
+    /// `peer`, or to the autopilot's own address once its first frame passed every check),
+    /// `udpout:HOST:PORT` (a socket connected to it), `tcpout:HOST:PORT`,
+    /// `serial:/dev/ttyAMA0:921600`.
     pub address: String,
+    /// `udpin` on an address other than the loopback: anyone on that network can then reach the
+    /// link; say so here, and require signing.
+    pub listen_beyond_loopback: bool,
+    /// With `udpin`: the only address replies go to (`HOST:PORT`); empty: the autopilot's.
+    pub peer: String,
+    /// The autopilot's MAVLink system id: attitude, position, height and TIMESYNC are taken from
+    /// it alone.
+    pub autopilot_system_id: u8,
+    /// ... and its component id (1: MAV_COMP_ID_AUTOPILOT1).
+    pub autopilot_component_id: u8,
+    /// MAVLink 2 message signing: `required` (every frame received must be signed with the key,
+    /// newer than its stream's last; every frame sent is signed) or `off`.
+    pub signing: SigningMode,
+    /// The 32-byte key (raw, or 64 hex digits), in a file only its owner can read; the same key
+    /// as the autopilot's (README: PX4 and ArduPilot). Set exactly when `signing = "required"`.
+    pub signing_key_file: String,
+    /// Our link id in the signature (one stream per link id, system and component).
+    pub signing_link_id: u8,
+    /// Frames a second taken from any one sender (UDP address); the rest are dropped before
+    /// any check and counted (`rate-limited`). An autopilot sends a few hundred.
+    pub sender_rate_hz: f64,
     /// Our MAVLink system id; 0: the autopilot's (a companion computer joins its vehicle's
-    /// system), taken from its first HEARTBEAT.
+    /// system).
     pub system_id: u8,
     /// Our component id (191: MAV_COMP_ID_ONBOARD_COMPUTER).
     pub component_id: u8,
@@ -35,7 +58,15 @@ impl Default for LinkConfig {
     fn default() -> Self {
         Self {
             enabled: false,
-            address: "udpin:0.0.0.0:14540".into(),
+            address: "udpin:127.0.0.1:14540".into(),
+            listen_beyond_loopback: false,
+            peer: String::new(),
+            autopilot_system_id: 1,
+            autopilot_component_id: 1,
+            signing: SigningMode::Off,
+            signing_key_file: String::new(),
+            signing_link_id: 0,
+            sender_rate_hz: 2000.0,
             system_id: 0,
             component_id: 191,
             heartbeat_hz: 1.0,
@@ -48,13 +79,142 @@ impl Default for LinkConfig {
     }
 }
 
+/// `[link] signing`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SigningMode {
+    Off,
+    Required,
+}
+
+/// Where the link's bytes go: `[link] address`, read.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Endpoint {
+    /// Listen on this UDP address.
+    UdpIn(String),
+    /// A UDP socket connected to this address.
+    UdpOut(String),
+    /// A TCP connection to this address.
+    TcpOut(String),
+    /// A serial port and its baud rate.
+    Serial { port: String, baud: u32 },
+}
+
+impl Endpoint {
+    /// `[link] address` read; the error says what is wrong with it.
+    pub fn parse(address: &str) -> Result<Endpoint, String> {
+        let (kind, rest) = address
+            .split_once(':')
+            .ok_or_else(|| format!("`{address}`: must be udpin:HOST:PORT, udpout:HOST:PORT, tcpout:HOST:PORT or serial:DEVICE:BAUD"))?;
+        let host_port = |rest: &str| -> Result<String, String> {
+            match rest.rsplit_once(':') {
+                Some((host, port)) if !host.is_empty() && port.parse::<u16>().is_ok() => Ok(rest.to_string()),
+                _ => Err(format!("`{address}`: `{rest}` is not HOST:PORT")),
+            }
+        };
+        match kind {
+            "udpin" => Ok(Endpoint::UdpIn(host_port(rest)?)),
+            "udpout" => Ok(Endpoint::UdpOut(host_port(rest)?)),
+            "tcpout" => Ok(Endpoint::TcpOut(host_port(rest)?)),
+            "serial" => {
+                let (port, baud) = rest
+                    .rsplit_once(':')
+                    .ok_or_else(|| format!("`{address}`: must be serial:DEVICE:BAUD"))?;
+                let baud = baud
+                    .parse::<u32>()
+                    .ok()
+                    .filter(|b| *b > 0)
+                    .ok_or_else(|| format!("`{address}`: `{baud}` is not a baud rate"))?;
+                Ok(Endpoint::Serial {
+                    port: port.to_string(),
+                    baud,
+                })
+            }
+            "udpbcast" | "tcpin" => Err(format!(
+                "`{address}`: {kind} answers whoever connects or listens; use udpin (with a pinned peer) or udpout"
+            )),
+            _ => Err(format!(
+                "`{address}`: must be udpin:HOST:PORT, udpout:HOST:PORT, tcpout:HOST:PORT or serial:DEVICE:BAUD"
+            )),
+        }
+    }
+}
+
+/// True when `host_port`'s host is a loopback address (`127.x`, `::1`, `localhost`).
+fn is_loopback(host_port: &str) -> bool {
+    let host = host_port
+        .rsplit_once(':')
+        .map_or(host_port, |(h, _)| h)
+        .trim_start_matches('[')
+        .trim_end_matches(']');
+    host == "localhost" || host.parse::<std::net::IpAddr>().is_ok_and(|ip| ip.is_loopback())
+}
+
 impl LinkConfig {
+    pub fn endpoint(&self) -> Result<Endpoint, InvalidField> {
+        Endpoint::parse(&self.address).map_err(|e| InvalidField::new("address", e))
+    }
+
     pub fn validate(&self) -> Result<(), InvalidField> {
-        let known = ["udpin:", "udpout:", "udpbcast:", "serial:", "tcpin:", "tcpout:"];
-        if !known.iter().any(|p| self.address.starts_with(p)) {
+        let endpoint = self.endpoint()?;
+        if let Endpoint::UdpIn(listen) = &endpoint {
+            if !is_loopback(listen) && !self.listen_beyond_loopback {
+                return Err(InvalidField::new(
+                    "address",
+                    format!("`{}` listens beyond the loopback: anyone on that network reaches the link; run behind mavlink-router on 127.0.0.1, or set listen_beyond_loopback = true (with signing)", self.address),
+                ));
+            }
+            if self.listen_beyond_loopback && !is_loopback(listen) && self.signing == SigningMode::Off {
+                return Err(InvalidField::new(
+                    "signing",
+                    "must be \"required\" when listen_beyond_loopback = true: an unsigned link open to a network can be fed a false attitude",
+                ));
+            }
+        }
+        if !self.peer.is_empty() {
+            if !matches!(endpoint, Endpoint::UdpIn(_)) {
+                return Err(InvalidField::new(
+                    "peer",
+                    "only for a udpin address (others have their one peer in `address`)",
+                ));
+            }
+            if self.peer.parse::<std::net::SocketAddr>().is_err() {
+                return Err(InvalidField::new(
+                    "peer",
+                    format!("`{}` is not IP:PORT", self.peer),
+                ));
+            }
+        }
+        match (self.signing, self.signing_key_file.is_empty()) {
+            (SigningMode::Required, true) => {
+                return Err(InvalidField::new(
+                    "signing_key_file",
+                    "must name the key's file when signing = \"required\"",
+                ))
+            }
+            (SigningMode::Off, false) => {
+                return Err(InvalidField::new(
+                    "signing",
+                    "must be \"required\" when a signing_key_file is configured (a key that is not used protects nothing)",
+                ))
+            }
+            _ => {}
+        }
+        for (key, id) in [
+            ("autopilot_system_id", self.autopilot_system_id),
+            ("autopilot_component_id", self.autopilot_component_id),
+        ] {
+            if id == 0 {
+                return Err(InvalidField::new(key, "0 is the broadcast id, not one sender"));
+            }
+        }
+        if !(self.sender_rate_hz >= 100.0 && self.sender_rate_hz <= 100_000.0) {
             return Err(InvalidField::new(
-                "address",
-                format!("`{}`: must start with one of {}", self.address, known.join(" ")),
+                "sender_rate_hz",
+                format!(
+                    "must be in [100, 100000] (an autopilot sends a few hundred frames a second), got {}",
+                    self.sender_rate_hz
+                ),
             ));
         }
         for (key, v, max) in [
@@ -113,5 +273,83 @@ mod tests {
             ..LinkConfig::default()
         };
         assert_eq!(bad.validate().unwrap_err().field, "attitude_timeout_ms");
+    }
+
+    #[test]
+    fn a_link_open_to_anyone_must_be_said_and_signed() {
+        let field = |c: LinkConfig| c.validate().map_or_else(|e| e.field, |_| "ok".to_string());
+        let wide = LinkConfig {
+            address: "udpin:0.0.0.0:14540".into(),
+            ..LinkConfig::default()
+        };
+        assert_eq!(field(wide.clone()), "address");
+        let said = LinkConfig {
+            listen_beyond_loopback: true,
+            ..wide.clone()
+        };
+        assert_eq!(field(said.clone()), "signing");
+        let signed = LinkConfig {
+            signing: SigningMode::Required,
+            signing_key_file: "/etc/deckwatch/mavlink.key".into(),
+            ..said
+        };
+        assert_eq!(field(signed.clone()), "ok");
+        assert_eq!(
+            field(LinkConfig {
+                signing_key_file: String::new(),
+                ..signed.clone()
+            }),
+            "signing_key_file"
+        );
+        assert_eq!(
+            field(LinkConfig {
+                signing: SigningMode::Off,
+                ..signed
+            }),
+            "signing",
+            "a key is configured: signing is required"
+        );
+        for address in [
+            "tcpin:0.0.0.0:5760",
+            "udpbcast:255.255.255.255:14550",
+            "udpin:14540",
+        ] {
+            let e = LinkConfig {
+                address: address.into(),
+                ..LinkConfig::default()
+            }
+            .validate()
+            .unwrap_err();
+            assert_eq!(e.field, "address", "{address}");
+        }
+        assert_eq!(
+            field(LinkConfig {
+                address: "udpout:10.0.0.2:14550".into(),
+                peer: "10.0.0.2:14550".into(),
+                ..LinkConfig::default()
+            }),
+            "peer"
+        );
+        assert_eq!(
+            field(LinkConfig {
+                autopilot_system_id: 0,
+                ..LinkConfig::default()
+            }),
+            "autopilot_system_id"
+        );
+        assert_eq!(
+            Endpoint::parse("serial:/dev/ttyAMA0:921600"),
+            Ok(Endpoint::Serial {
+                port: "/dev/ttyAMA0".into(),
+                baud: 921_600
+            })
+        );
+        assert_eq!(
+            field(LinkConfig {
+                address: "udpin:[::1]:14540".into(),
+                ..LinkConfig::default()
+            }),
+            "ok"
+        );
     }
 }

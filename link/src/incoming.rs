@@ -42,8 +42,11 @@ pub struct InCounts {
     pub heights: u64,
     /// LOCAL_POSITION_NED received (the vehicle's height in the local frame).
     pub positions: u64,
-    /// Attitudes that were not rotations, or came from another system.
+    /// Attitudes that were not rotations.
     pub refused: u64,
+    /// Messages from anyone but the pinned autopilot (admission refuses them first; counted here
+    /// should a caller hand one over).
+    pub foreign: u64,
     pub other: u64,
 }
 
@@ -65,7 +68,9 @@ pub struct Incoming {
     heartbeat_timeout_ns: u64,
     attitude_timeout_ns: u64,
     pub clock: ClockSync,
-    /// The autopilot: system and component id of the first autopilot HEARTBEAT.
+    /// The autopilot's system and component id (`[link]`), pinned.
+    pinned: (u32, u8),
+    /// The autopilot, once its first HEARTBEAT came.
     pub autopilot: Option<(u32, u8)>,
     last_heartbeat_ns: Option<u64>,
     last_attitude_ns: Option<u64>,
@@ -85,6 +90,10 @@ impl Incoming {
             heartbeat_timeout_ns: (config.heartbeat_timeout_ms * 1e6) as u64,
             attitude_timeout_ns: (config.attitude_timeout_ms * 1e6) as u64,
             clock: ClockSync::default(),
+            pinned: (
+                u32::from(config.autopilot_system_id),
+                config.autopilot_component_id,
+            ),
             autopilot: None,
             last_heartbeat_ns: None,
             last_attitude_ns: None,
@@ -117,15 +126,19 @@ impl Incoming {
         self.autopilot == Some((h.system_id, h.component_id))
     }
 
-    /// Handles one message received at `now_ns`.
+    /// Handles one message received at `now_ns`: only the pinned autopilot's are used.
     pub fn handle(&mut self, h: &MavHeader, msg: &MavMessage, now_ns: u64) -> Handled {
         let mut out = Handled::default();
+        if (h.system_id, h.component_id) != self.pinned {
+            self.counts.foreign += 1;
+            return out;
+        }
         match msg {
             MavMessage::HEARTBEAT(hb) => {
                 let is_autopilot = hb.autopilot != MavAutopilot::MAV_AUTOPILOT_INVALID
                     && hb.mavtype != MavType::MAV_TYPE_GCS;
                 if is_autopilot && self.autopilot.is_none() {
-                    self.autopilot = Some((h.system_id, h.component_id));
+                    self.autopilot = Some(self.pinned);
                 }
                 if self.is_autopilot(h) {
                     self.counts.heartbeats += 1;
@@ -143,7 +156,7 @@ impl Incoming {
                 let q = vehicle_from_ned_euler(a.roll, a.pitch, a.yaw);
                 out.sample = self.attitude(h, a.time_boot_ms, q, now_ns);
             }
-            MavMessage::TIMESYNC(t) => {
+            MavMessage::TIMESYNC(t) if self.is_autopilot(h) => {
                 self.counts.timesyncs += 1;
                 if t.tc1 == 0 {
                     // A request (the autopilot syncing to us): answer with our time.
@@ -157,7 +170,7 @@ impl Incoming {
                     self.clock.answer(t.tc1, t.ts1, now_ns as i64);
                 }
             }
-            MavMessage::DISTANCE_SENSOR(d) if self.is_autopilot(h) || self.autopilot.is_none() => {
+            MavMessage::DISTANCE_SENSOR(d) if self.is_autopilot(h) => {
                 // cm; 0 and out-of-range readings mean "nothing measured".
                 let cm = d.current_distance;
                 if cm > 0 && cm >= d.min_distance && (d.max_distance == 0 || cm <= d.max_distance) {
@@ -295,12 +308,32 @@ mod tests {
         assert_eq!(i.state(10_000_000 + 150_000_000), LinkState::Up);
         assert_eq!(i.state(10_000_000 + 250_000_000), LinkState::NoAttitude);
         assert_eq!(i.state(4_000_000_000), LinkState::NoHeartbeat);
-        // Another system's attitude is not ours.
+        // Another system's attitude, heartbeat or TIMESYNC is not ours, whatever it says.
         assert!(i
             .handle(&header(2, 1), &attitude(6_000), 11_000_000)
             .sample
             .is_none());
-        assert_eq!(i.counts.refused, 2);
+        i.handle(
+            &header(1, 2),
+            &heartbeat(MavAutopilot::MAV_AUTOPILOT_PX4, MavType::MAV_TYPE_QUADROTOR),
+            12_000_000,
+        );
+        let answer = i.handle(
+            &header(2, 1),
+            &MavMessage::TIMESYNC(TIMESYNC_DATA {
+                tc1: 0,
+                ts1: 5,
+                target_system: 0,
+                target_component: 0,
+            }),
+            13_000_000,
+        );
+        assert!(
+            answer.reply.is_none(),
+            "TIMESYNC is answered for the autopilot only"
+        );
+        assert_eq!((i.counts.refused, i.counts.foreign), (1, 4));
+        assert_eq!(i.autopilot, Some((1, 1)));
     }
 
     #[test]
@@ -337,6 +370,11 @@ mod tests {
     fn timesync_requests_are_answered_and_answers_used() {
         let mut i = Incoming::new(&LinkConfig::default());
         let ap = header(1, 1);
+        i.handle(
+            &ap,
+            &heartbeat(MavAutopilot::MAV_AUTOPILOT_PX4, MavType::MAV_TYPE_QUADROTOR),
+            1_000,
+        );
         let reply = i
             .handle(
                 &ap,

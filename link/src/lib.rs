@@ -9,37 +9,37 @@
 //!   LOCAL_POSITION_NED in; vehicle samples and TIMESYNC answers out; the link's health.
 //! - [`outgoing`]: a landing decision as LANDING_TARGET, NAMED_VALUE_FLOAT/INT and STATUSTEXT,
 //!   at the configured rates; our HEARTBEAT and TIMESYNC requests.
+//! - [`admission`]: which received frames are believed (rate limit, checksum, MAVLink 2 signing,
+//!   the pinned autopilot), every refusal counted by cause; the frames sent, signed.
 //! - [`config`]: `[link]` of the pipeline configuration.
 
+pub mod admission;
 pub mod clock;
 pub mod config;
 pub mod frames;
 pub mod incoming;
 pub mod outgoing;
 
-pub use config::LinkConfig;
+pub use config::{Endpoint, LinkConfig, SigningMode};
 /// The MAVLink implementation (connections), for the process that opens the socket.
 pub use mavlink;
 /// The MAVLink messages deckwatch speaks (the common dialect, MAVLink 2).
 pub use mavlink::dialects::common::MavMessage;
 pub use mavlink::MavHeader;
 
-/// A message as the recorder keeps it: its MAVLink 2 frame as sent or received (`LinkTraffic`).
+/// A frame as the recorder keeps it (`LinkTraffic`): as sent or received, signature included.
 pub fn traffic(
     time_ns: u64,
     outgoing: bool,
-    header: &MavHeader,
     message: &MavMessage,
+    frame: &[u8],
 ) -> deckwatch_common::messages::LinkTraffic {
     use mavlink::Message;
-    let mut frame = Vec::with_capacity(deckwatch_common::messages::LinkTraffic::FRAME_BYTES);
-    // Writing into a Vec cannot fail.
-    let _ = mavlink::write_v2_msg(&mut frame, *header, message);
     deckwatch_common::messages::LinkTraffic::new(
         time_ns,
         outgoing,
         message.message_id(),
         message.message_name(),
-        &frame,
+        frame,
     )
 }

@@ -6,7 +6,9 @@ It streams HEARTBEAT and ATTITUDE_QUATERNION (a constant tilt, on its own clock 
 `--clock-offset-s` ahead of CLOCK_MONOTONIC), answers TIMESYNC requests, and records what
 deckwatch sends: every message into a telemetry log (`--tlog`, read back by mavlogdump.py), and a
 JSON summary on stdout. After `--stop-after-s` it stops its attitude stream (a link loss) and
-keeps listening for `--linger-s`.
+keeps listening for `--linger-s`. With `--key-hex` it signs what it sends and accepts only frames
+signed with that key (pymavlink's MAVLink 2 signing); `--capture FILE` keeps its first signed
+attitude frames there (hex, one a line) for an attacker to replay.
 """
 
 import os
@@ -52,6 +54,8 @@ def main():
     ap.add_argument("--stop-after-s", type=float, required=True)
     ap.add_argument("--linger-s", type=float, default=3.0)
     ap.add_argument("--tlog", required=True)
+    ap.add_argument("--key-hex", help="sign with this 32-byte key; refuse frames not signed with it")
+    ap.add_argument("--capture", help="write the first signed attitude frames here (hex lines)")
     a = ap.parse_args()
 
     conn = mavutil.mavlink_connection(
@@ -61,6 +65,9 @@ def main():
     # because pymavlink's UDP connection does not log what it receives.
     tlog = open(a.tlog, "wb")
     mav = conn.mav
+    if a.key_hex:
+        conn.setup_signing(bytes.fromhex(a.key_hex), sign_outgoing=True, link_id=1)
+    captured = []
     q = quaternion_ned(*a.tilt_deg)
     offset_ns = int(a.clock_offset_s * 1e9)
 
@@ -97,8 +104,15 @@ def main():
             )
             next_heartbeat += 1_000_000_000
         if streaming and now >= next_attitude:
-            mav.attitude_quaternion_send(int(boot_ns() / 1e6) & 0xFFFFFFFF, q[0], q[1], q[2], q[3], 0, 0, 0)
+            m = mav.attitude_quaternion_encode(int(boot_ns() / 1e6) & 0xFFFFFFFF, q[0], q[1], q[2], q[3], 0, 0, 0)
+            mav.send(m)
             out["attitudes_sent"] += 1
+            if a.capture and len(captured) < 50:
+                captured.append(m.get_msgbuf().hex())
+                if len(captured) == 50:
+                    with open(a.capture + ".part", "w") as f:
+                        f.write("\n".join(captured) + "\n")
+                    os.rename(a.capture + ".part", a.capture)
             next_attitude += period_ns
         if streaming and now >= next_position:
             # NED: z is down; holding its height, the vehicle does not move.

@@ -66,6 +66,8 @@ pub const VEHICLE_ROLL: &str = "vehicle/roll";
 pub const VEHICLE_PITCH: &str = "vehicle/pitch";
 pub const LINK_CLOCK_OFFSET: &str = "link/clock_offset_ms";
 pub const LINK_UP: &str = "link/up";
+/// Frames the link refused, by cause: `link/refused/<cause>` (running totals).
+pub const LINK_REFUSED: &str = "link/refused";
 
 /// Colours (RGBA). Detections are large yellow discs, the model small green dots drawn over
 /// them with its ring: where they agree, a green dot sits in a yellow disc.
@@ -412,6 +414,20 @@ pub fn vehicle_items(v: &deckwatch_common::messages::VehicleSample) -> Vec<Item>
             (LINK_CLOCK_OFFSET.into(), v.clock_offset_ns as f64 / 1e6),
             (LINK_UP.into(), f64::from(u8::from(v.link_up.get()))),
         ]),
+    }]
+}
+
+/// The link's refused frames so far, one running total per cause (`bad-signature`, ...).
+pub fn link_refusal_items(time_ns: u64, by_cause: &[(&str, u64)]) -> Vec<Item> {
+    vec![Item {
+        frame: None,
+        time_ns,
+        kind: ItemKind::Scalars(
+            by_cause
+                .iter()
+                .map(|(cause, n)| (format!("{LINK_REFUSED}/{cause}"), *n as f64))
+                .collect(),
+        ),
     }]
 }
 

@@ -77,6 +77,11 @@ impl LogForwarder {
 /// configuration in errors.
 pub fn launch(config: &PipelineConfig, file: &str, options: &LaunchOptions) -> Result<RunReport, String> {
     config.validate(file).map_err(|e| e.to_string())?;
+    if config.link.enabled {
+        // The signing key, read now: a key others can read, or none, stops the start here
+        // rather than the link stage at every restart.
+        deckwatch_link::admission::Signing::configured(&config.link).map_err(|e| e.to_string())?;
+    }
     let domain = config.bus.domain.clone();
     quiet_logging();
     Bus::cleanup_dead_nodes(&domain).map_err(|e| e.to_string())?;
@@ -115,9 +120,7 @@ pub fn launch(config: &PipelineConfig, file: &str, options: &LaunchOptions) -> R
     let config = &config;
     // The stages read the same configuration, as the launcher resolved it.
     let run_dir = run_dir(&domain, std::process::id());
-    std::fs::create_dir_all(&run_dir).map_err(|e| format!("{}: {e}", run_dir.display()))?;
-    let config_path = run_dir.join("pipeline.toml");
-    std::fs::write(&config_path, config.to_toml()).map_err(|e| format!("{}: {e}", config_path.display()))?;
+    let config_path = create_run_dir(&run_dir, &config.to_toml())?;
 
     let log = if config.record.enabled() {
         Some(LogForwarder::start(config, &mut stages)?)
@@ -193,15 +196,68 @@ const STDERR_READ_TIMEOUT: Duration = Duration::from_secs(2);
 /// The launcher's name as a rerun part and iceoryx2 node.
 const LAUNCHER: &str = "launcher";
 
-/// The launcher's temporary folder of a run (the configuration it hands the stages).
-fn run_dir(domain: &str, pid: u32) -> PathBuf {
-    std::env::temp_dir().join(format!("deckwatch-{domain}-{pid}"))
+/// Where run folders go: the service's runtime directory (systemd's `RuntimeDirectory=`, mode
+/// 0700 and ours), else the user's (`XDG_RUNTIME_DIR`), else the temporary directory.
+fn run_base() -> PathBuf {
+    ["RUNTIME_DIRECTORY", "XDG_RUNTIME_DIR"]
+        .iter()
+        .filter_map(std::env::var_os)
+        .map(PathBuf::from)
+        .find(|p| p.is_absolute() && p.is_dir())
+        .unwrap_or_else(std::env::temp_dir)
 }
 
-/// Run folders of `domain` whose launcher is gone (a SIGKILL leaves them).
+/// The launcher's folder of a run (the configuration it hands the stages).
+fn run_dir(domain: &str, pid: u32) -> PathBuf {
+    run_base().join(format!("deckwatch-{domain}-{pid}"))
+}
+
+/// True when `path` is a folder (not a link to one) owned by this user.
+fn is_ours(path: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    // SAFETY: geteuid has no preconditions and cannot fail.
+    let us = unsafe { libc::geteuid() };
+    std::fs::symlink_metadata(path).is_ok_and(|m| m.is_dir() && m.uid() == us)
+}
+
+/// Creates the run folder fresh, readable by this user alone (0700), with the configuration in
+/// it (0600). A folder of that name that is not ours (another user made it first, or a link)
+/// is refused: the stages read their configuration from it, at every restart.
+fn create_run_dir(dir: &Path, config_toml: &str) -> Result<PathBuf, String> {
+    use std::io::Write;
+    use std::os::unix::fs::{DirBuilderExt, OpenOptionsExt};
+    let create = || std::fs::DirBuilder::new().mode(0o700).create(dir);
+    match create() {
+        Ok(()) => {}
+        // Ours, left by an earlier launcher with this pid: remove and make it again.
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && is_ours(dir) => {
+            std::fs::remove_dir_all(dir)
+                .and_then(|_| create())
+                .map_err(|e| format!("run folder {}: {e}", dir.display()))?;
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+            return Err(format!(
+                "run folder {} exists and is not this user's folder: refusing to read the stages' configuration from it (remove it, or set XDG_RUNTIME_DIR)",
+                dir.display()
+            ))
+        }
+        Err(e) => return Err(format!("run folder {}: {e}", dir.display())),
+    }
+    let path = dir.join("pipeline.toml");
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .mode(0o600)
+        .open(&path)
+        .and_then(|mut f| f.write_all(config_toml.as_bytes()))
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(path)
+}
+
+/// Run folders of `domain` whose launcher is gone (a SIGKILL leaves them); only this user's.
 fn stale_run_dirs(domain: &str) -> Vec<PathBuf> {
     let prefix = format!("deckwatch-{domain}-");
-    let Ok(entries) = std::fs::read_dir(std::env::temp_dir()) else {
+    let Ok(entries) = std::fs::read_dir(run_base()) else {
         return Vec::new();
     };
     entries
@@ -211,7 +267,7 @@ fn stale_run_dirs(domain: &str) -> Vec<PathBuf> {
             let pid: i32 = name.strip_prefix(&prefix)?.parse().ok()?;
             // SAFETY: kill with signal 0 only checks that the process exists.
             let alive = pid > 0 && unsafe { libc::kill(pid, 0) } == 0;
-            (!alive).then(|| e.path())
+            (!alive && is_ours(&e.path())).then(|| e.path())
         })
         .collect()
 }
@@ -305,4 +361,33 @@ fn start_viewer(config: &mut PipelineConfig) -> Result<Option<deckwatch_viz::Vie
         r.address = Some(deckwatch_viz::DEFAULT_ADDRESS.into());
     }
     Ok(viewer)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::os::unix::fs::PermissionsExt;
+
+    #[test]
+    fn the_run_folder_is_private_and_made_fresh() {
+        let base = tempfile::tempdir().unwrap();
+        let dir = base.path().join("deckwatch-x-1");
+        let config = create_run_dir(&dir, "a = 1\n").unwrap();
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode(&dir), 0o700);
+        assert_eq!(mode(&config), 0o600);
+        // Left by an earlier launcher of ours (a different configuration): made again.
+        std::fs::write(dir.join("left"), "x").unwrap();
+        create_run_dir(&dir, "a = 2\n").unwrap();
+        assert!(!dir.join("left").exists());
+        assert_eq!(std::fs::read_to_string(&config).unwrap(), "a = 2\n");
+        // A link planted under the name (to a folder someone else controls): refused.
+        let elsewhere = base.path().join("elsewhere");
+        std::fs::create_dir(&elsewhere).unwrap();
+        let planted = base.path().join("deckwatch-x-2");
+        std::os::unix::fs::symlink(&elsewhere, &planted).unwrap();
+        let e = create_run_dir(&planted, "a = 3\n").unwrap_err();
+        assert!(e.contains("not this user's folder"), "{e}");
+        assert!(!elsewhere.join("pipeline.toml").exists());
+    }
 }

@@ -9,9 +9,11 @@ use super::{fault_model, world_of, Setup, TrialsArgs};
 use crate::launch::{launch, LaunchOptions};
 use deckwatch_common::messages::{monotonic_ns, DecisionReason, DecisionState};
 use deckwatch_common::wire::WireCode;
+use deckwatch_link::admission::load_key;
 use deckwatch_link::frames::ned_quaternion_of_vehicle;
 use deckwatch_link::mavlink::{self, ConnectionAddress, MavConnection, MavlinkVersion};
 use deckwatch_link::outgoing::names;
+use deckwatch_link::SigningMode;
 use deckwatch_link::{MavHeader, MavMessage};
 use deckwatch_runtime::bus::{services, Bus};
 use deckwatch_runtime::stages::capture::{complete_header, new_header};
@@ -162,6 +164,12 @@ fn fly_with(
     let mut conn =
         mavlink::Connectable::connect::<MavMessage>(&address).map_err(|e| format!("MAVLink: {e}"))?;
     conn.set_protocol_version(MavlinkVersion::V2);
+    // The autopilot signs with the link's key when the link requires it (as PX4 or ArduPilot
+    // do once given the same key), on a link id of its own.
+    if config.link.signing == SigningMode::Required {
+        let key = load_key(std::path::Path::new(&config.link.signing_key_file)).map_err(|e| e.to_string())?;
+        conn.setup_signing(Some(mavlink::SigningConfig::new(key, 1, true, false)));
+    }
     let conn = Arc::new(conn);
     let (tx, heard) = mpsc::channel();
     let listener = {

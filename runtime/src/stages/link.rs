@@ -1,9 +1,12 @@
 //! The link process: MAVLink to the autopilot (`deckwatch_link` does the protocol).
 //!
-//! Two threads: one blocks on the MAVLink connection and publishes each attitude as a
-//! [`VehicleSample`] (for estimate) the moment it arrives, answering TIMESYNC requests; the
-//! other sleeps on the decisions and sends each one out at once (LANDING_TARGET, named values,
-//! STATUSTEXT), and on a tick sends our HEARTBEAT and TIMESYNC requests and watches the link.
+//! Two threads: one blocks on the socket (or serial port), passes every frame through the
+//! link's admission (rate limit, checksum, signature, the pinned autopilot) and publishes each
+//! attitude as a [`VehicleSample`] (for estimate) the moment it arrives, answering the
+//! autopilot's TIMESYNC requests; the other sleeps on the decisions and sends each one out at
+//! once (LANDING_TARGET, named values, STATUSTEXT), and on a tick sends our HEARTBEAT and TIMESYNC
+//! requests, watches the link and reports refused frames. Replies go to the configured peer
+//! only: a connected socket, `[link] peer`, or the address of the autopilot's checked frames.
 //! Not a [`crate::stage::Stage`]: it has two inputs (the bus and a socket) and no output on the
 //! bus but the vehicle samples.
 
@@ -11,12 +14,12 @@ use crate::bus::{event_loop, Bus, BusError, Flow, MessagePublisher, Wake};
 use crate::stage::{checked_config, exit_code, setup, Heartbeat, RunError, StageArgs};
 use deckwatch_common::messages::{monotonic_ns, LandingDecision, LinkTraffic, VehicleSample};
 use deckwatch_common::stats::Percentiles;
+use deckwatch_link::admission::{self, Admission, Admitted, Refusal, RefusalCounts, Signing};
 use deckwatch_link::incoming::{Incoming, LinkState};
-use deckwatch_link::mavlink;
 use deckwatch_link::outgoing::{forwardable, stale_decision, Outgoing};
-use deckwatch_link::{LinkConfig, MavHeader, MavMessage};
-use mavlink::error::MessageReadError;
-use mavlink::{ConnectionAddress, MavConnection, MavlinkVersion};
+use deckwatch_link::{Endpoint, LinkConfig, MavHeader, MavMessage};
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpStream, ToSocketAddrs, UdpSocket};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -25,48 +28,215 @@ use std::time::Duration;
 /// The process's name: its node, its binary (`deckwatch-link`), its log lines.
 pub const NAME: &str = "link";
 
-type Connection = mavlink::Connection<MavMessage>;
+/// How long a blocking read waits, so the receiving thread notices nothing is coming.
+const READ_TIMEOUT: Duration = Duration::from_millis(100);
+/// The kernel's receive buffer asked for: a burst of a flood queues here rather than pushing
+/// the autopilot's frames out (the kernel caps it at `net.core.rmem_max`).
+const RECEIVE_BUFFER_BYTES: libc::c_int = 4 << 20;
 
-/// The connection, MAVLink 2, with a read timeout so the receiving thread notices a stop.
-fn open(address: &str) -> Result<Connection, RunError> {
-    let fail = |e: std::io::Error| RunError::Link(format!("link.address `{address}`: {e}"));
-    let parsed = ConnectionAddress::parse_address(address).map_err(fail)?;
-    let parsed = match parsed {
-        ConnectionAddress::Udp(u) => ConnectionAddress::Udp(u.read_timeout(Duration::from_millis(100))),
-        other => other,
-    };
-    let mut c = mavlink::Connectable::connect::<MavMessage>(&parsed).map_err(fail)?;
-    c.set_protocol_version(MavlinkVersion::V2);
-    Ok(c)
+/// The link's socket or serial port.
+enum Transport {
+    /// UDP: `connected` (udpout) sends to its one peer; otherwise replies go to `peer` (`[link]
+    /// peer`) or the autopilot's checked address ([`Admission::reply_address`]).
+    Udp {
+        socket: UdpSocket,
+        connected: bool,
+        peer: Option<SocketAddr>,
+    },
+    /// A byte stream (TCP, serial): one peer by construction.
+    Stream {
+        read: Mutex<Box<dyn Read + Send>>,
+        write: Mutex<Box<dyn Write + Send>>,
+    },
 }
 
-/// Who we are on the link, shared by both threads (0 = the autopilot's system, once known).
-struct Identity {
-    system_id: AtomicU64,
-    component_id: u8,
-    sequence: AtomicU64,
+fn link_error(address: &str, e: impl std::fmt::Display) -> RunError {
+    RunError::Link(format!("link.address `{address}`: {e}"))
 }
 
-impl Identity {
-    fn header(&self) -> MavHeader {
-        MavHeader {
-            system_id: self.system_id.load(Ordering::Relaxed) as u32,
-            component_id: self.component_id,
-            sequence: self.sequence.fetch_add(1, Ordering::Relaxed) as u8,
+fn resolve(address: &str, host_port: &str) -> Result<SocketAddr, RunError> {
+    host_port
+        .to_socket_addrs()
+        .map_err(|e| link_error(address, e))?
+        .next()
+        .ok_or_else(|| link_error(address, format!("`{host_port}` resolves to no address")))
+}
+
+/// Asks the kernel for a larger receive buffer (best effort: the kernel caps it).
+fn enlarge_receive_buffer(socket: &UdpSocket) {
+    use std::os::fd::AsRawFd;
+    let size = RECEIVE_BUFFER_BYTES;
+    // SAFETY: setsockopt reads `size_of::<c_int>()` bytes from a live c_int; the descriptor is
+    // the socket's own, open for this call.
+    unsafe {
+        libc::setsockopt(
+            socket.as_raw_fd(),
+            libc::SOL_SOCKET,
+            libc::SO_RCVBUF,
+            (&size as *const libc::c_int).cast(),
+            std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+        );
+    }
+}
+
+impl Transport {
+    fn open(config: &LinkConfig) -> Result<Transport, RunError> {
+        let address = config.address.as_str();
+        let endpoint = config
+            .endpoint()
+            .map_err(|e| RunError::Link(format!("link.{e}")))?;
+        match endpoint {
+            Endpoint::UdpIn(listen) => {
+                let socket =
+                    UdpSocket::bind(resolve(address, &listen)?).map_err(|e| link_error(address, e))?;
+                socket
+                    .set_read_timeout(Some(READ_TIMEOUT))
+                    .map_err(|e| link_error(address, e))?;
+                enlarge_receive_buffer(&socket);
+                let peer = if config.peer.is_empty() {
+                    None
+                } else {
+                    Some(
+                        config
+                            .peer
+                            .parse()
+                            .map_err(|e| RunError::Link(format!("link.peer `{}`: {e}", config.peer)))?,
+                    )
+                };
+                Ok(Transport::Udp {
+                    socket,
+                    connected: false,
+                    peer,
+                })
+            }
+            Endpoint::UdpOut(to) => {
+                let to = resolve(address, &to)?;
+                let any: SocketAddr = if to.is_ipv4() {
+                    ([0, 0, 0, 0], 0).into()
+                } else {
+                    (std::net::Ipv6Addr::UNSPECIFIED, 0).into()
+                };
+                let socket = UdpSocket::bind(any).map_err(|e| link_error(address, e))?;
+                // Connected: the kernel drops datagrams from anyone else.
+                socket.connect(to).map_err(|e| link_error(address, e))?;
+                socket
+                    .set_read_timeout(Some(READ_TIMEOUT))
+                    .map_err(|e| link_error(address, e))?;
+                enlarge_receive_buffer(&socket);
+                Ok(Transport::Udp {
+                    socket,
+                    connected: true,
+                    peer: Some(to),
+                })
+            }
+            Endpoint::TcpOut(to) => {
+                let stream =
+                    TcpStream::connect(resolve(address, &to)?).map_err(|e| link_error(address, e))?;
+                stream
+                    .set_read_timeout(Some(READ_TIMEOUT))
+                    .map_err(|e| link_error(address, e))?;
+                let _ = stream.set_nodelay(true);
+                let write = stream.try_clone().map_err(|e| link_error(address, e))?;
+                Ok(Transport::Stream {
+                    read: Mutex::new(Box::new(stream)),
+                    write: Mutex::new(Box::new(write)),
+                })
+            }
+            Endpoint::Serial { port, baud } => {
+                let read = serialport::new(&port, baud)
+                    .timeout(READ_TIMEOUT)
+                    .open_native()
+                    .map_err(|e| link_error(address, e))?;
+                let write = read.try_clone_native().map_err(|e| link_error(address, e))?;
+                Ok(Transport::Stream {
+                    read: Mutex::new(Box::new(read)),
+                    write: Mutex::new(Box::new(write)),
+                })
+            }
+        }
+    }
+
+    /// Sends one frame to the peer; false when it could not go (no peer known yet on `udpin`,
+    /// a full socket).
+    fn send(&self, frame: &[u8], admission: &Mutex<Admission>) -> bool {
+        match self {
+            Transport::Udp {
+                socket,
+                connected: true,
+                ..
+            } => socket.send(frame).is_ok(),
+            Transport::Udp { socket, peer, .. } => {
+                let to = peer.or_else(|| lock(admission).reply_address());
+                to.is_some_and(|to| socket.send_to(frame, to).is_ok())
+            }
+            Transport::Stream { write, .. } => lock(write).write_all(frame).is_ok(),
+        }
+    }
+
+    /// Waits for bytes (up to [`READ_TIMEOUT`]) and hands them to admission: the frames that
+    /// passed. An empty list on a timeout.
+    fn receive(&self, buffer: &mut [u8], admission: &Mutex<Admission>) -> std::io::Result<Vec<Admitted>> {
+        let quiet = |e: &std::io::Error| {
+            matches!(
+                e.kind(),
+                std::io::ErrorKind::WouldBlock
+                    | std::io::ErrorKind::TimedOut
+                    | std::io::ErrorKind::Interrupted
+            )
+        };
+        match self {
+            Transport::Udp { socket, .. } => match socket.recv_from(buffer) {
+                Ok((n, from)) => Ok(lock(admission).datagram(&buffer[..n], from, monotonic_ns())),
+                Err(e) if quiet(&e) => Ok(Vec::new()),
+                Err(e) => Err(e),
+            },
+            Transport::Stream { read, .. } => match lock(read).read(buffer) {
+                Ok(0) => Err(std::io::ErrorKind::UnexpectedEof.into()),
+                Ok(n) => Ok(lock(admission).stream(&buffer[..n], monotonic_ns())),
+                Err(e) if quiet(&e) => Ok(Vec::new()),
+                Err(e) => Err(e),
+            },
         }
     }
 }
 
-/// Sends, counting what could not go (no peer yet on `udpin`, a full socket): a lost message is
-/// not a reason to stop. With a recorder, the frame is published on `deckwatch/link` too.
-fn send(conn: &Connection, id: &Identity, m: &MavMessage, failed: &AtomicU64, traffic: Traffic<'_>) {
-    let header = id.header();
-    if conn.send(&header, m).is_err() {
-        failed.fetch_add(1, Ordering::Relaxed);
-        return;
+/// A lock whose holder panicked is still the data: the link goes on.
+fn lock<T: ?Sized>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// Who we are on the link and how we sign, shared by both threads.
+struct Sender {
+    transport: Transport,
+    admission: Mutex<Admission>,
+    signing: Option<Arc<Signing>>,
+    system_id: u8,
+    component_id: u8,
+    sequence: AtomicU64,
+    failed: AtomicU64,
+}
+
+impl Sender {
+    /// Sends, counting what could not go (no peer yet on `udpin`, a full socket): a lost message
+    /// is not a reason to stop. With a recorder, the frame is published on `deckwatch/link` too.
+    fn send(&self, m: &MavMessage, traffic: Traffic<'_>) {
+        let header = MavHeader {
+            system_id: u32::from(self.system_id),
+            component_id: self.component_id,
+            sequence: self.sequence.fetch_add(1, Ordering::Relaxed) as u8,
+        };
+        let frame = admission::frame(header, m, self.signing.as_deref());
+        if !self.transport.send(&frame, &self.admission) {
+            self.failed.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
+        if let Some(p) = traffic {
+            let _ = p.send(&deckwatch_link::traffic(monotonic_ns(), true, m, &frame));
+        }
     }
-    if let Some(p) = traffic {
-        let _ = p.send(&deckwatch_link::traffic(monotonic_ns(), true, &header, m));
+
+    fn refused(&self) -> RefusalCounts {
+        lock(&self.admission).refused
     }
 }
 
@@ -75,12 +245,9 @@ type Traffic<'a> = Option<&'a MessagePublisher<LinkTraffic>>;
 
 /// The receiving thread: until the process ends.
 fn receive(
-    conn: Arc<Connection>,
-    id: Arc<Identity>,
+    link: Arc<Sender>,
     incoming: Arc<Mutex<Incoming>>,
     bus: Bus,
-    failed: Arc<AtomicU64>,
-    configured_system: u8,
     recording: bool,
 ) -> Result<(), BusError> {
     let samples = bus.publisher::<VehicleSample>()?;
@@ -89,37 +256,36 @@ fn receive(
     } else {
         None
     };
+    let mut buffer = vec![0u8; 65_536];
+    let mut reported_error = false;
     loop {
-        let (header, message) = match conn.recv() {
-            Ok(m) => m,
-            // Timeouts, and frames that are not MAVLink 2 of the common dialect: skip.
-            Err(MessageReadError::Io(e))
-                if e.kind() != std::io::ErrorKind::WouldBlock && e.kind() != std::io::ErrorKind::TimedOut =>
-            {
-                std::thread::sleep(Duration::from_millis(10));
+        let admitted = match link.transport.receive(&mut buffer, &link.admission) {
+            Ok(a) => {
+                reported_error = false;
+                a
+            }
+            Err(e) => {
+                // A closed TCP peer or an unplugged port: say it once, keep trying.
+                if !reported_error {
+                    deckwatch_common::say!("deckwatch-{NAME}: reading the link: {e}");
+                    reported_error = true;
+                }
+                std::thread::sleep(Duration::from_millis(100));
                 continue;
             }
-            Err(_) => continue,
         };
-        let now = monotonic_ns();
-        if let Some(p) = &traffic {
-            let _ = p.send(&deckwatch_link::traffic(now, false, &header, &message));
-        }
-        let handled = {
-            let mut i = incoming.lock().unwrap_or_else(|p| p.into_inner());
-            let h = i.handle(&header, &message, now);
-            if configured_system == 0 {
-                if let Some((system, _)) = i.autopilot {
-                    id.system_id.store(u64::from(system), Ordering::Relaxed);
-                }
+        for a in admitted {
+            let now = monotonic_ns();
+            if let Some(p) = &traffic {
+                let _ = p.send(&deckwatch_link::traffic(now, false, &a.message, &a.frame));
             }
-            h
-        };
-        if let Some(s) = handled.sample {
-            samples.send(&s)?;
-        }
-        if let Some(r) = handled.reply {
-            send(&conn, &id, &r, &failed, traffic.as_ref());
+            let handled = lock(&incoming).handle(&a.header, &a.message, now);
+            if let Some(s) = handled.sample {
+                samples.send(&s)?;
+            }
+            if let Some(r) = handled.reply {
+                link.send(&r, traffic.as_ref());
+            }
         }
     }
 }
@@ -128,26 +294,32 @@ fn receive(
 pub fn run(args: &StageArgs) -> Result<String, RunError> {
     let config = checked_config(args)?;
     let lc: LinkConfig = config.link.clone();
+    let signing = Signing::configured(&lc).map_err(|e| RunError::Link(e.to_string()))?;
     let (logger, bus) = setup(NAME, &config, 1)?;
-    let conn = Arc::new(open(&lc.address)?);
-    // System 1 until the autopilot's is known (with `system_id = 0`).
-    let id = Arc::new(Identity {
-        system_id: AtomicU64::new(u64::from(lc.system_id.max(1))),
+    let link = Arc::new(Sender {
+        transport: Transport::open(&lc)?,
+        admission: Mutex::new(Admission::new(&lc, signing.clone())),
+        signing,
+        // A companion computer joins its vehicle's system.
+        system_id: if lc.system_id == 0 {
+            lc.autopilot_system_id
+        } else {
+            lc.system_id
+        },
         component_id: lc.component_id,
         sequence: AtomicU64::new(0),
+        failed: AtomicU64::new(0),
     });
     let incoming = Arc::new(Mutex::new(Incoming::new(&lc)));
-    let failed = Arc::new(AtomicU64::new(0));
     {
-        let (conn, id, incoming, failed) = (conn.clone(), id.clone(), incoming.clone(), failed.clone());
+        let (link, incoming) = (link.clone(), incoming.clone());
         let settings = bus.settings().clone();
-        let system = lc.system_id;
         let recording = config.record.enabled();
         std::thread::Builder::new()
             .name("link-rx".into())
             .spawn(move || {
-                let result = Bus::join(&settings, "link-rx")
-                    .and_then(|b| receive(conn, id, incoming, b, failed, system, recording));
+                let result =
+                    Bus::join(&settings, "link-rx").and_then(|b| receive(link, incoming, b, recording));
                 if let Err(e) = result {
                     deckwatch_common::say!("deckwatch-{NAME}: receiving stopped: {e}");
                 }
@@ -172,6 +344,9 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
     let (mut hop_ns, mut first_ns, mut all_ns) = (Vec::new(), Vec::new(), Vec::new());
     let mut sent_decisions = 0u64;
     let mut last_logged_seq = u64::MAX;
+    // Refused frames are reported (log line, rerun) at most once a second, when there are new.
+    const REFUSAL_REPORT_NS: u64 = 1_000_000_000;
+    let (mut reported_refusals, mut next_refusal_report) = (RefusalCounts::default(), 0u64);
     // The newest decision and the time it is aged from: one older than decide's freshness
     // limit (or none yet) is reported as NO-DECK stale-data, whatever it said.
     let mut newest_decision: Option<(LandingDecision, u64)> = None;
@@ -183,7 +358,7 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
         alive.beat();
         let now = monotonic_ns();
         let (state, clock, autopilot, newest) = {
-            let i = incoming.lock().unwrap_or_else(|p| p.into_inner());
+            let i = lock(&incoming);
             (i.state(now), i.clock.estimate(), i.autopilot, i.newest_sample())
         };
         if state != last_state {
@@ -197,27 +372,37 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
         if wake == Wake::Tick {
             if heartbeat_period.is_some_and(|_| now >= next_heartbeat) {
                 next_heartbeat = now + heartbeat_period.unwrap_or(u64::MAX);
-                send(&conn, &id, &Outgoing::heartbeat(state), &failed, traffic);
+                link.send(&Outgoing::heartbeat(state), traffic);
             }
             if let Some(p) = timesync_period.filter(|_| autopilot.is_some() && now >= next_timesync) {
                 next_timesync = now + p;
-                let ts1 = incoming
-                    .lock()
-                    .unwrap_or_else(|p| p.into_inner())
-                    .clock
-                    .request(monotonic_ns() as i64);
-                send(
-                    &conn,
-                    &id,
-                    &Outgoing::timesync_request(ts1, autopilot),
-                    &failed,
-                    traffic,
-                );
+                let ts1 = lock(&incoming).clock.request(monotonic_ns() as i64);
+                link.send(&Outgoing::timesync_request(ts1, autopilot), traffic);
             }
             if newest_decision.is_none_or(|(_, at)| now.saturating_sub(at) > stale_after_ns) {
                 let stale = stale_decision(newest_decision.as_ref().map(|(d, _)| d));
                 for m in outgoing.decision(&stale, state, clock.as_ref(), now) {
-                    send(&conn, &id, &m, &failed, traffic);
+                    link.send(&m, traffic);
+                }
+            }
+            if now >= next_refusal_report {
+                let refused = link.refused();
+                let new = refused.since(&reported_refusals);
+                if new.total() > 0 {
+                    next_refusal_report = now + REFUSAL_REPORT_NS;
+                    deckwatch_common::say!(
+                        "deckwatch-{NAME}: refused {} frames: {}",
+                        new.total(),
+                        new.describe()
+                    );
+                    reported_refusals = refused;
+                    if let Some(l) = &logger {
+                        let by_cause: Vec<(&str, u64)> =
+                            Refusal::ALL.iter().map(|r| (r.name(), refused.get(*r))).collect();
+                        deckwatch_viz::entities::link_refusal_items(now, &by_cause)
+                            .into_iter()
+                            .for_each(|i| l.log(i));
+                    }
                 }
             }
             if let (Some(l), Some(s)) = (&logger, newest) {
@@ -234,7 +419,7 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
             let d = forwardable(&d, received, stale_after_ns);
             let mut first = None;
             for m in outgoing.decision(&d, state, clock.as_ref(), received) {
-                send(&conn, &id, &m, &failed, traffic);
+                link.send(&m, traffic);
                 first.get_or_insert_with(monotonic_ns);
             }
             sent_decisions += 1;
@@ -260,7 +445,7 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
         }
         Ok::<Flow, BusError>(Flow::Continue)
     })?;
-    let i = incoming.lock().unwrap_or_else(|p| p.into_inner());
+    let i = lock(&incoming);
     let c = i.counts;
     let clock = i.clock.estimate().map_or("no clock".to_string(), |e| {
         format!(
@@ -287,8 +472,14 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
         pct(&mut first_ns),
         pct(&mut all_ns)
     );
+    let (admitted, refused, lost) = {
+        let a = lock(&link.admission);
+        (a.admitted, a.refused, a.autopilot_lost)
+    };
     Ok(format!(
-        "{} heartbeats, {} attitudes ({} refused), {} timesyncs, {} ranges, {} local positions in; {sent_decisions} decisions ({} bad ones skipped), {} landing targets out ({} sends failed); {latency}; {clock}",
+        "{admitted} frames admitted, {} refused ({}), {lost} of the autopilot's lost (sequence gaps); {} heartbeats, {} attitudes ({} refused), {} timesyncs, {} ranges, {} local positions in; {sent_decisions} decisions ({} bad ones skipped), {} landing targets out ({} sends failed); {latency}; {clock}",
+        refused.total(),
+        refused.describe(),
         c.heartbeats,
         c.attitudes,
         c.refused,
@@ -297,7 +488,7 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
         c.positions,
         decisions.rejections().count(),
         outgoing.landing_targets,
-        failed.load(Ordering::Relaxed)
+        link.failed.load(Ordering::Relaxed)
     ))
 }
 

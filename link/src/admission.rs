@@ -1,0 +1,717 @@
+//! Which received bytes the link believes, and the frames it sends.
+//!
+//! Every frame that reaches the link passes, in this order, a per-sender rate limit, the
+//! MAVLink 2 framing and checksum, the message signature (MAVLink 2 signing: a shared 32-byte key,
+//! SHA-256, a timestamp per stream that must only grow) and the pinned sender (the autopilot's
+//! system and component id from `[link]`). A frame refused at any step is counted by its cause
+//! ([`Refusal`]) and never reaches [`crate::incoming`]: nobody else on the network steers the
+//! vehicle attitude, the clock or the reply address. The signature itself is the mavlink crate's
+//! (`SigningData`); this module decides what to do with its verdict and names the cause.
+
+use crate::config::{LinkConfig, SigningMode};
+use mavlink::consts::{self, v2};
+use mavlink::dialects::common::MavMessage;
+use mavlink::{MAVLinkV2MessageRaw, MavHeader, MavlinkVersion, Message, SigningConfig, SigningData};
+use std::collections::HashMap;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+const STX_V1: u8 = 0xFE;
+const STX_V2: u8 = 0xFD;
+/// STX, the length and the incompatibility flags: enough to know a MAVLink 2 frame's size.
+const V2_PREFIX: usize = 3;
+
+/// Why a received frame was not used.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Refusal {
+    /// Cut short, or flags this implementation does not know.
+    Malformed,
+    /// The checksum does not match the bytes.
+    BadCrc,
+    /// MAVLink 1 (cannot be signed; deckwatch speaks MAVLink 2 only).
+    Mavlink1,
+    /// A message id outside the common dialect.
+    Unknown,
+    /// Not signed, while signing is required.
+    Unsigned,
+    /// Signed with another key (or altered).
+    BadSignature,
+    /// Correctly signed but not newer than the last frame of its stream: a replay, or a new
+    /// stream more than a minute older than the newest time seen (the specification's rule).
+    Replay,
+    /// Not the autopilot named in `[link]`.
+    WrongSender,
+    /// Beyond its sender's share (`[link] sender_rate_hz`), dropped before any other check.
+    RateLimited,
+}
+
+impl Refusal {
+    pub const ALL: [Refusal; 9] = [
+        Refusal::Malformed,
+        Refusal::BadCrc,
+        Refusal::Mavlink1,
+        Refusal::Unknown,
+        Refusal::Unsigned,
+        Refusal::BadSignature,
+        Refusal::Replay,
+        Refusal::WrongSender,
+        Refusal::RateLimited,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Refusal::Malformed => "malformed",
+            Refusal::BadCrc => "bad-crc",
+            Refusal::Mavlink1 => "mavlink1",
+            Refusal::Unknown => "unknown-message",
+            Refusal::Unsigned => "unsigned",
+            Refusal::BadSignature => "bad-signature",
+            Refusal::Replay => "replay",
+            Refusal::WrongSender => "wrong-sender",
+            Refusal::RateLimited => "rate-limited",
+        }
+    }
+}
+
+/// Refused frames, by cause.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RefusalCounts([u64; Refusal::ALL.len()]);
+
+impl RefusalCounts {
+    pub fn add(&mut self, r: Refusal) {
+        self.0[r as usize] += 1;
+    }
+
+    pub fn get(&self, r: Refusal) -> u64 {
+        self.0[r as usize]
+    }
+
+    pub fn total(&self) -> u64 {
+        self.0.iter().sum()
+    }
+
+    /// What was refused since `earlier`.
+    pub fn since(&self, earlier: &RefusalCounts) -> RefusalCounts {
+        RefusalCounts(std::array::from_fn(|k| self.0[k].saturating_sub(earlier.0[k])))
+    }
+
+    /// `unsigned 12, bad-signature 3` (causes with none left out); `none` when empty.
+    pub fn describe(&self) -> String {
+        let parts: Vec<String> = Refusal::ALL
+            .iter()
+            .filter(|r| self.get(**r) > 0)
+            .map(|r| format!("{} {}", r.name(), self.get(*r)))
+            .collect();
+        if parts.is_empty() {
+            "none".into()
+        } else {
+            parts.join(", ")
+        }
+    }
+}
+
+/// A frame that passed every check.
+#[derive(Debug, Clone)]
+pub struct Admitted {
+    pub header: MavHeader,
+    pub message: MavMessage,
+    /// The frame as received (with its signature, if any), for the recorder.
+    pub frame: Vec<u8>,
+}
+
+/// Why the signing key could not be used.
+#[derive(Debug, thiserror::Error)]
+pub enum KeyError {
+    #[error("link.signing_key_file `{path}`: {source}")]
+    Read { path: PathBuf, source: std::io::Error },
+    #[error("link.signing_key_file `{path}`: readable by others (mode {mode:o}); `chmod 600` it: a key others can read signs for them too")]
+    NotPrivate { path: PathBuf, mode: u32 },
+    #[error("link.signing_key_file `{path}`: owned by uid {owner}, not by this user (uid {us})")]
+    NotOurs { path: PathBuf, owner: u32, us: u32 },
+    #[error("link.signing_key_file `{path}`: {what}; it must hold the 32-byte key, raw or as 64 hexadecimal digits")]
+    Format { path: PathBuf, what: String },
+}
+
+/// The 32-byte signing key from `path`: owner-only (mode 0600 or stricter, owned by this user),
+/// raw 32 bytes or 64 hexadecimal digits (a trailing newline allowed).
+pub fn load_key(path: &Path) -> Result<[u8; 32], KeyError> {
+    use std::os::unix::fs::MetadataExt;
+    let read = |source| KeyError::Read {
+        path: path.into(),
+        source,
+    };
+    let meta = std::fs::metadata(path).map_err(read)?;
+    if meta.mode() & 0o077 != 0 {
+        return Err(KeyError::NotPrivate {
+            path: path.into(),
+            mode: meta.mode() & 0o7777,
+        });
+    }
+    // SAFETY: geteuid has no preconditions and cannot fail.
+    let us = unsafe { libc::geteuid() };
+    if meta.uid() != us {
+        return Err(KeyError::NotOurs {
+            path: path.into(),
+            owner: meta.uid(),
+            us,
+        });
+    }
+    let bytes = std::fs::read(path).map_err(read)?;
+    parse_key(&bytes).map_err(|what| KeyError::Format {
+        path: path.into(),
+        what,
+    })
+}
+
+fn parse_key(bytes: &[u8]) -> Result<[u8; 32], String> {
+    if let Ok(raw) = <[u8; 32]>::try_from(bytes) {
+        return Ok(raw);
+    }
+    let text = std::str::from_utf8(bytes)
+        .map_err(|_| format!("{} bytes that are not text", bytes.len()))?
+        .trim();
+    if text.len() != 64 || !text.bytes().all(|b| b.is_ascii_hexdigit()) {
+        return Err(format!(
+            "{} bytes, not 32 raw bytes or 64 hex digits",
+            bytes.len()
+        ));
+    }
+    let mut key = [0u8; 32];
+    for (k, pair) in text.as_bytes().chunks(2).enumerate() {
+        // Two ASCII hex digits: always valid UTF-8 and a valid u8.
+        let s = std::str::from_utf8(pair).unwrap_or("00");
+        key[k] = u8::from_str_radix(s, 16).unwrap_or(0);
+    }
+    Ok(key)
+}
+
+/// The signing shared by the receiving and the sending side of one link: the mavlink crate's
+/// `SigningData` (one timestamp, which the specification wants never to go back, and each
+/// stream's newest) and the key (which the crate does not hand back, and which telling a bad
+/// signature from a replay needs).
+pub struct Signing {
+    key: [u8; 32],
+    data: SigningData,
+}
+
+impl Signing {
+    pub fn new(key: [u8; 32], link_id: u8) -> Self {
+        Self {
+            key,
+            data: SigningData::from_config(SigningConfig::new(key, link_id, true, false)),
+        }
+    }
+
+    /// The `[link]` signing: the key when signing is required.
+    pub fn configured(config: &LinkConfig) -> Result<Option<Arc<Signing>>, KeyError> {
+        match config.signing {
+            SigningMode::Off => Ok(None),
+            SigningMode::Required => {
+                let key = load_key(Path::new(&config.signing_key_file))?;
+                Ok(Some(Arc::new(Signing::new(key, config.signing_link_id))))
+            }
+        }
+    }
+}
+
+impl std::fmt::Debug for Signing {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        // Never the key.
+        f.write_str("Signing { .. }")
+    }
+}
+
+/// One sender's token bucket: `rate_hz` frames a second, bursts of a quarter second.
+#[derive(Debug, Clone, Copy)]
+struct Bucket {
+    tokens: f64,
+    last_ns: u64,
+}
+
+/// Frames a second for each source address; an unknown sender past `MAX_SENDERS` shares one
+/// bucket with the others like it (a flood from many ports cannot grow the table).
+#[derive(Debug, Clone)]
+struct RateLimit {
+    rate_hz: f64,
+    burst: f64,
+    buckets: HashMap<Option<SocketAddr>, Bucket>,
+}
+
+const MAX_SENDERS: usize = 64;
+/// The shared bucket's key: no address is `None` except a byte stream's single sender, which
+/// is never over the table's size.
+const OVERFLOW: Option<SocketAddr> = Some(SocketAddr::V4(std::net::SocketAddrV4::new(
+    std::net::Ipv4Addr::UNSPECIFIED,
+    0,
+)));
+
+impl RateLimit {
+    fn new(rate_hz: f64) -> Self {
+        Self {
+            rate_hz,
+            burst: (rate_hz / 4.0).max(1.0),
+            buckets: HashMap::new(),
+        }
+    }
+
+    /// Takes one frame's token from `sender` at `now_ns`; false: over its rate.
+    fn take(&mut self, sender: Option<SocketAddr>, now_ns: u64) -> bool {
+        if self.rate_hz <= 0.0 {
+            return true;
+        }
+        let key = if self.buckets.contains_key(&sender) || self.buckets.len() < MAX_SENDERS {
+            sender
+        } else {
+            // Forget senders silent for 10 s before sending this one to the shared bucket.
+            self.buckets
+                .retain(|_, b| now_ns.saturating_sub(b.last_ns) < 10_000_000_000);
+            if self.buckets.len() < MAX_SENDERS {
+                sender
+            } else {
+                OVERFLOW
+            }
+        };
+        let (rate, burst) = (self.rate_hz, self.burst);
+        let b = self.buckets.entry(key).or_insert(Bucket {
+            tokens: burst,
+            last_ns: now_ns,
+        });
+        let dt_s = now_ns.saturating_sub(b.last_ns) as f64 / 1e9;
+        b.tokens = (b.tokens + dt_s * rate).min(burst);
+        b.last_ns = now_ns.max(b.last_ns);
+        if b.tokens >= 1.0 {
+            b.tokens -= 1.0;
+            true
+        } else {
+            false
+        }
+    }
+}
+
+/// The receiving checks of one link, and its reply address.
+pub struct Admission {
+    signing: Option<Arc<Signing>>,
+    autopilot: (u32, u8),
+    limit: RateLimit,
+    /// A byte stream's bytes not yet a whole frame.
+    pending: Vec<u8>,
+    /// Where replies go on a listening UDP socket: the autopilot's address, taken from its first
+    /// admitted frame; with signing it moves only with a signed frame of the autopilot.
+    peer: Option<SocketAddr>,
+    pub refused: RefusalCounts,
+    pub admitted: u64,
+    /// The autopilot's frames that never arrived, from the gaps in its sequence numbers (one
+    /// counter per sender in MAVLink): lost on the way, or in a full receive buffer.
+    pub autopilot_lost: u64,
+    last_sequence: Option<u8>,
+}
+
+impl Admission {
+    /// `signing`: the link's signing (None: `signing = "off"`).
+    pub fn new(config: &LinkConfig, signing: Option<Arc<Signing>>) -> Self {
+        Self {
+            signing,
+            autopilot: (
+                u32::from(config.autopilot_system_id),
+                config.autopilot_component_id,
+            ),
+            limit: RateLimit::new(config.sender_rate_hz),
+            pending: Vec::new(),
+            peer: None,
+            refused: RefusalCounts::default(),
+            admitted: 0,
+            autopilot_lost: 0,
+            last_sequence: None,
+        }
+    }
+
+    /// The address replies go to on a listening socket: the autopilot's, once it was heard.
+    pub fn reply_address(&self) -> Option<SocketAddr> {
+        self.peer
+    }
+
+    /// Every frame of one datagram from `sender` (UDP: a frame never spans two datagrams).
+    pub fn datagram(&mut self, bytes: &[u8], sender: SocketAddr, now_ns: u64) -> Vec<Admitted> {
+        let mut out = Vec::new();
+        let mut at = 0;
+        while at < bytes.len() {
+            match self.next_frame(&bytes[at..], Some(sender), now_ns, &mut out) {
+                Step::Consumed(n) => at += n,
+                Step::Incomplete => {
+                    self.refused.add(Refusal::Malformed);
+                    break;
+                }
+            }
+        }
+        out
+    }
+
+    /// Bytes from a stream (serial, TCP): the frames they complete; a frame's beginning waits
+    /// for the rest.
+    pub fn stream(&mut self, bytes: &[u8], now_ns: u64) -> Vec<Admitted> {
+        let mut out = Vec::new();
+        self.pending.extend_from_slice(bytes);
+        let mut at = 0;
+        while at < self.pending.len() {
+            let rest = std::mem::take(&mut self.pending);
+            let step = self.next_frame(&rest[at..], None, now_ns, &mut out);
+            self.pending = rest;
+            match step {
+                Step::Consumed(n) => at += n,
+                Step::Incomplete => break,
+            }
+        }
+        self.pending.drain(..at);
+        out
+    }
+
+    /// Looks at the bytes from a frame's possible start: skips junk up to the next start
+    /// marker, or judges one whole frame.
+    fn next_frame(
+        &mut self,
+        bytes: &[u8],
+        sender: Option<SocketAddr>,
+        now_ns: u64,
+        out: &mut Vec<Admitted>,
+    ) -> Step {
+        match bytes[0] {
+            STX_V2 => {}
+            STX_V1 => {
+                // STX, length, then 4 header bytes, the payload and the checksum.
+                let Some(&len) = bytes.get(1) else {
+                    return Step::Incomplete;
+                };
+                let size = 6 + usize::from(len) + consts::CHECKSUM_SIZE;
+                if bytes.len() < size {
+                    return Step::Incomplete;
+                }
+                let refusal = if self.limit.take(sender, now_ns) {
+                    Refusal::Mavlink1
+                } else {
+                    Refusal::RateLimited
+                };
+                self.refused.add(refusal);
+                return Step::Consumed(size);
+            }
+            _ => {
+                // Not a frame: up to the next start marker (junk is not a frame to count).
+                let n = bytes[1..]
+                    .iter()
+                    .position(|b| *b == STX_V1 || *b == STX_V2)
+                    .map_or(bytes.len(), |p| p + 1);
+                return Step::Consumed(n);
+            }
+        }
+        if bytes.len() < V2_PREFIX {
+            return Step::Incomplete;
+        }
+        let flags = bytes[v2::INCOMPAT_FLAGS_OFFSET];
+        if flags & !v2::SUPPORTED_IFLAGS != 0 {
+            // An unknown incompatibility flag: the frame cannot be read; resynchronise.
+            self.refused.add(Refusal::Malformed);
+            return Step::Consumed(1);
+        }
+        let header = v2::MIN_HEADER_SIZE
+            + if flags & v2::IFLAG_SYSID32 != 0 {
+                v2::SYSID32_EXTRA_HEADER_SIZE
+            } else {
+                0
+            };
+        let signature = if flags & v2::IFLAG_SIGNED != 0 {
+            v2::SIGNATURE_SIZE
+        } else {
+            0
+        };
+        let size = consts::STX_SIZE + header + usize::from(bytes[1]) + consts::CHECKSUM_SIZE + signature;
+        if bytes.len() < size {
+            return Step::Incomplete;
+        }
+        if !self.limit.take(sender, now_ns) {
+            self.refused.add(Refusal::RateLimited);
+            return Step::Consumed(size);
+        }
+        let mut raw = MAVLinkV2MessageRaw::new();
+        raw.as_mut_slice()[..size].copy_from_slice(&bytes[..size]);
+        match self.judge(&raw) {
+            Ok(admitted) => {
+                let signed = signature > 0;
+                // The reply address: the autopilot's first frame; later only a signed one moves it.
+                if let Some(s) = sender.filter(|_| self.peer.is_none() || signed) {
+                    self.peer = Some(s);
+                }
+                self.admitted += 1;
+                let sequence = admitted.header.sequence;
+                if let Some(last) = self.last_sequence {
+                    // A gap of more than half the counter is a reordered or repeated frame.
+                    let gap = sequence.wrapping_sub(last).wrapping_sub(1);
+                    if gap < 128 {
+                        self.autopilot_lost += u64::from(gap);
+                    }
+                }
+                self.last_sequence = Some(sequence);
+                out.push(admitted);
+                Step::Consumed(size)
+            }
+            // A bad checksum may be a start marker inside other bytes: look again one byte on.
+            Err(Refusal::BadCrc) => {
+                self.refused.add(Refusal::BadCrc);
+                Step::Consumed(1)
+            }
+            Err(r) => {
+                self.refused.add(r);
+                Step::Consumed(size)
+            }
+        }
+    }
+
+    /// One whole MAVLink 2 frame: its checks in order of cost, the signature's replay check last
+    /// (it records the stream's newest timestamp, which only an authentic frame may move).
+    fn judge(&self, raw: &MAVLinkV2MessageRaw) -> Result<Admitted, Refusal> {
+        let id = raw.message_id();
+        if MavMessage::default_message_from_id(id).is_none() {
+            return Err(Refusal::Unknown);
+        }
+        if !raw.has_valid_crc::<MavMessage>() {
+            return Err(Refusal::BadCrc);
+        }
+        if let Some(signing) = &self.signing {
+            if raw.incompatibility_flags() & v2::IFLAG_SIGNED == 0 {
+                return Err(Refusal::Unsigned);
+            }
+            let mut value = [0u8; v2::SIGNATURE_VALUE_SIZE];
+            raw.calculate_signature(&signing.key, &mut value);
+            if value != raw.signature_value() {
+                return Err(Refusal::BadSignature);
+            }
+            if !signing.data.verify_signature(raw) {
+                return Err(Refusal::Replay);
+            }
+        }
+        if (raw.system_id(), raw.component_id()) != self.autopilot {
+            return Err(Refusal::WrongSender);
+        }
+        let message =
+            MavMessage::parse(MavlinkVersion::V2, id, raw.payload()).map_err(|_| Refusal::Malformed)?;
+        Ok(Admitted {
+            header: MavHeader {
+                system_id: raw.system_id(),
+                component_id: raw.component_id(),
+                sequence: raw.sequence(),
+            },
+            message,
+            frame: raw.raw_bytes().to_vec(),
+        })
+    }
+}
+
+enum Step {
+    Consumed(usize),
+    Incomplete,
+}
+
+/// A message as the bytes the link sends: MAVLink 2, signed when the link signs.
+pub fn frame(header: MavHeader, message: &MavMessage, signing: Option<&Signing>) -> Vec<u8> {
+    let mut out = Vec::with_capacity(v2::FRAME_SIZE);
+    // Writing into a Vec cannot fail.
+    let _ = mavlink::write_v2_msg_signed(&mut out, header, message, signing.map(|s| &s.data));
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mavlink::dialects::common::{ATTITUDE_QUATERNION_DATA, HEARTBEAT_DATA};
+
+    const KEY: [u8; 32] = [7; 32];
+
+    fn header(system_id: u32, component_id: u8) -> MavHeader {
+        MavHeader {
+            system_id,
+            component_id,
+            sequence: 0,
+        }
+    }
+
+    fn attitude() -> MavMessage {
+        MavMessage::ATTITUDE_QUATERNION(ATTITUDE_QUATERNION_DATA {
+            time_boot_ms: 10,
+            q1: 1.0,
+            ..Default::default()
+        })
+    }
+
+    fn signed_config() -> LinkConfig {
+        LinkConfig {
+            signing: SigningMode::Required,
+            signing_key_file: "unused-here".into(),
+            ..LinkConfig::default()
+        }
+    }
+
+    fn addr(port: u16) -> SocketAddr {
+        ([127, 0, 0, 1], port).into()
+    }
+
+    #[test]
+    fn with_signing_only_the_autopilots_fresh_signed_frames_pass_and_each_refusal_is_named() {
+        let ours = Arc::new(Signing::new(KEY, 0));
+        let mut a = Admission::new(&signed_config(), Some(ours));
+        // The autopilot signs with the same key on its own side (its own timestamp state).
+        let autopilot = Signing::new(KEY, 3);
+        let good = frame(header(1, 1), &attitude(), Some(&autopilot));
+        let got = a.datagram(&good, addr(5000), 0);
+        assert_eq!(got.len(), 1);
+        assert_eq!(got[0].frame, good, "the frame as received, signature included");
+        assert_eq!(a.reply_address(), Some(addr(5000)));
+
+        let cases: [(Vec<u8>, Refusal); 5] = [
+            (frame(header(1, 1), &attitude(), None), Refusal::Unsigned),
+            (
+                frame(header(1, 1), &attitude(), Some(&Signing::new([9; 32], 3))),
+                Refusal::BadSignature,
+            ),
+            // The same bytes again: correctly signed, not newer than its stream's last.
+            (good.clone(), Refusal::Replay),
+            // Another system with the key (a second vehicle): not the pinned autopilot.
+            (
+                frame(header(2, 1), &attitude(), Some(&Signing::new(KEY, 4))),
+                Refusal::WrongSender,
+            ),
+            (
+                {
+                    let mut v1 = Vec::new();
+                    let _ = mavlink::write_v1_msg(&mut v1, header(1, 1), &attitude());
+                    v1
+                },
+                Refusal::Mavlink1,
+            ),
+        ];
+        for (bytes, cause) in cases {
+            let before = a.refused;
+            assert!(a.datagram(&bytes, addr(6000), 1_000).is_empty(), "{cause:?}");
+            assert_eq!(
+                a.refused.since(&before).get(cause),
+                1,
+                "{cause:?}: {}",
+                a.refused.describe()
+            );
+            assert_eq!(a.refused.since(&before).total(), 1, "{cause:?}");
+        }
+        // None of them moved the reply address.
+        assert_eq!(a.reply_address(), Some(addr(5000)));
+        // A newer signed frame of the autopilot passes, from wherever it now comes.
+        let next = frame(header(1, 1), &attitude(), Some(&autopilot));
+        assert_eq!(a.datagram(&next, addr(5001), 2_000).len(), 1);
+        assert_eq!(a.reply_address(), Some(addr(5001)));
+    }
+
+    #[test]
+    fn damaged_cut_unknown_and_junk_bytes_are_counted_not_believed() {
+        let mut a = Admission::new(&LinkConfig::default(), None);
+        let good = frame(header(1, 1), &attitude(), None);
+        let mut bad_crc = good.clone();
+        let last = bad_crc.len() - 1;
+        bad_crc[last] ^= 0xFF;
+        assert!(a.datagram(&bad_crc, addr(1), 0).is_empty());
+        assert_eq!(a.refused.get(Refusal::BadCrc), 1);
+        // A message id outside the dialect (ids are bytes 7..10).
+        let mut unknown = good.clone();
+        unknown[7..10].copy_from_slice(&[0x10, 0x27, 0x00]);
+        assert!(a.datagram(&unknown, addr(1), 0).is_empty());
+        assert_eq!(a.refused.get(Refusal::Unknown), 1);
+        assert!(a.datagram(&good[..good.len() - 3], addr(1), 0).is_empty());
+        assert_eq!(a.refused.get(Refusal::Malformed), 1);
+        // Junk around two good frames in one datagram: both found, the junk is no frame.
+        let mut mixed = vec![0x00, 0x42, 0x13];
+        mixed.extend_from_slice(&good);
+        mixed.extend_from_slice(&[0xAA; 7]);
+        mixed.extend_from_slice(&good);
+        assert_eq!(a.datagram(&mixed, addr(1), 0).len(), 2);
+        assert_eq!(a.refused.total(), 3, "{}", a.refused.describe());
+        // Without signing, the reply address is the autopilot's first and stays.
+        assert_eq!(a.reply_address(), Some(addr(1)));
+        a.datagram(&good, addr(2), 0);
+        assert_eq!(a.reply_address(), Some(addr(1)));
+    }
+
+    #[test]
+    fn a_stream_keeps_a_frame_cut_between_reads() {
+        let mut a = Admission::new(&LinkConfig::default(), None);
+        let hb = frame(
+            header(1, 1),
+            &MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()),
+            None,
+        );
+        let mut bytes = hb.clone();
+        bytes.extend_from_slice(&frame(header(1, 1), &attitude(), None));
+        let (x, y) = bytes.split_at(hb.len() + 5);
+        assert_eq!(a.stream(x, 0).len(), 1);
+        let got = a.stream(y, 0);
+        assert_eq!(got.len(), 1);
+        assert!(matches!(got[0].message, MavMessage::ATTITUDE_QUATERNION(_)));
+        assert_eq!(a.refused.total(), 0);
+        // Sequence numbers 0 and 0 (frame() in this test numbers nothing): a repeat, not a loss;
+        // a jump from 0 to 5 is four frames lost.
+        let mut h = header(1, 1);
+        h.sequence = 5;
+        a.stream(&frame(h, &attitude(), None), 0);
+        assert_eq!(a.autopilot_lost, 4);
+    }
+
+    #[test]
+    fn a_flooding_sender_gets_its_share_and_the_autopilot_keeps_its_own() {
+        let config = LinkConfig {
+            sender_rate_hz: 1000.0,
+            ..LinkConfig::default()
+        };
+        let mut a = Admission::new(&config, None);
+        let spoof = frame(header(1, 1), &attitude(), None);
+        let real = frame(header(1, 1), &attitude(), None);
+        // One second: the flooder sends 20 000 frames, the autopilot 100.
+        let (mut real_in, mut spoof_in) = (0, 0);
+        for k in 0..20_000u64 {
+            let now = k * 50_000;
+            spoof_in += a.datagram(&spoof, addr(9999), now).len();
+            if k % 200 == 0 {
+                real_in += a.datagram(&real, addr(14550), now).len();
+            }
+        }
+        assert_eq!(real_in, 100, "every autopilot frame passed");
+        assert_eq!(
+            a.autopilot_lost, 0,
+            "(both senders' frames here carry sequence 0)"
+        );
+        // A quarter second of burst and a second at the rate.
+        assert!((1000..=1300).contains(&spoof_in), "{spoof_in}");
+        assert_eq!(a.refused.get(Refusal::RateLimited), 20_000 - spoof_in as u64);
+        // Many senders cannot grow the table past its size.
+        for port in 0..1000 {
+            a.datagram(&spoof, addr(20_000 + port), 2_000_000_000);
+        }
+        assert!(a.limit.buckets.len() <= MAX_SENDERS + 1);
+    }
+
+    #[test]
+    fn the_key_file_must_be_ours_alone_and_32_bytes() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("key");
+        std::fs::write(&path, KEY).unwrap();
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o644)).unwrap();
+        let e = load_key(&path).unwrap_err();
+        assert!(matches!(e, KeyError::NotPrivate { mode: 0o644, .. }), "{e}");
+        assert!(e.to_string().contains("link.signing_key_file"), "{e}");
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o600)).unwrap();
+        assert_eq!(load_key(&path).unwrap(), KEY);
+        let hex: String = KEY.iter().map(|b| format!("{b:02x}")).collect();
+        std::fs::write(&path, format!("{hex}\n")).unwrap();
+        assert_eq!(load_key(&path).unwrap(), KEY);
+        std::fs::write(&path, "secret").unwrap();
+        assert!(matches!(load_key(&path), Err(KeyError::Format { .. })));
+        assert!(matches!(
+            load_key(&dir.path().join("missing")),
+            Err(KeyError::Read { .. })
+        ));
+    }
+}

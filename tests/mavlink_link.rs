@@ -204,7 +204,10 @@ fn pymavlink_autopilot_and_ground_station() {
         "{attitudes_in} attitudes in, {attitudes_sent} sent by the autopilot: {summary}"
     );
     let lost = number_before(" of the autopilot's lost");
-    assert!(lost * 100 <= attitudes_in, "{lost} of the autopilot's frames lost: {summary}");
+    assert!(
+        lost * 100 <= attitudes_in,
+        "{lost} of the autopilot's frames lost: {summary}"
+    );
     // The clock is the autopilot's (TIMESYNC answers of an hour from the attacker changed nothing).
     let offset_ms: f64 = summary
         .split("clock offset ")

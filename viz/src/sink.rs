@@ -306,8 +306,14 @@ pub fn send_blueprint(rec: &RecordingStream) -> Result<(), VizError> {
         series("heave (m, m/s)", entities::HEAVE.into()),
         TimeSeriesView::new("vehicle (deg)")
             .with_origin("/")
-            .with_contents(["vehicle/**", "link/**"])
+            .with_contents([
+                "+ vehicle/**".to_string(),
+                "+ link/**".to_string(),
+                format!("- {}/**", entities::LINK_REFUSED),
+            ])
             .into(),
+        // Running totals by cause, thousands under a flood: apart from the degrees.
+        series("link refused (frames)", entities::LINK_REFUSED.into()),
     ]);
     let right = Vertical::new(errors.chain(std::iter::once(more.into())));
     let layout =

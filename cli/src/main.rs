@@ -450,7 +450,10 @@ fn main() -> ExitCode {
         Command::Inproc(a) => inproc::run(*a),
         Command::DecideEval(a) => decide_eval::run(a),
         Command::PredictEval(a) => predict_eval::run(a),
-        Command::Trials(a) => trials::run(a),
+        Command::Trials(a) => match &a.command {
+            Some(trials::TrialsCommand::Merge(m)) => trials::merge(m),
+            None => trials::run(a),
+        },
         Command::Soak(a) => soak::run(a),
         Command::Budget(a) => budget::run(a),
         Command::Eval(a) => eval::run(a),

@@ -45,7 +45,7 @@ impl RuleOutcome {
 pub type TrueDeck<'a> = &'a dyn Fn(f64) -> [f64; 3];
 
 /// The true deck at an instant with its rates, from [`TrueDeck`] by central differences.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TrueDeckState {
     pub roll_deg: f64,
     pub pitch_deg: f64,

@@ -9,6 +9,7 @@
 
 pub mod faults;
 pub mod fly;
+pub mod stats;
 pub mod world;
 
 pub use faults::{AttitudeStreamModel, Episodes, FrameFaultModel, FrameFaults};
@@ -20,7 +21,7 @@ use deckwatch_common::RotationMatrix;
 use deckwatch_decide::eval::{TrueDeck, TrueDeckState};
 use deckwatch_decide::DecisionConfig;
 use deckwatch_sim::landing::SharedFlightPath;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// How the simulated vehicle flies an approach.
@@ -192,7 +193,7 @@ impl SimulatedAutopilot {
 }
 
 /// A touchdown judged at contact against the true deck and the vehicle's true attitude.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TouchdownVerdict {
     /// Contact, on the approach's clock (s).
     pub t_s: f64,
@@ -200,7 +201,7 @@ pub struct TouchdownVerdict {
     /// The angle between the vehicle's and the deck's vertical axes (deg).
     pub relative_tilt_deg: f64,
     /// The limits broken (empty: a safe touchdown).
-    pub violations: Vec<&'static str>,
+    pub violations: Vec<String>,
 }
 
 impl TouchdownVerdict {
@@ -218,9 +219,9 @@ impl TouchdownVerdict {
         let up = nalgebra::Vector3::z();
         let cos = (r_d * up).dot(&(r_v * up)).clamp(-1.0, 1.0);
         let relative_tilt_deg = cos.acos().to_degrees();
-        let mut violations = deck.violations(capacity);
+        let mut violations: Vec<String> = deck.violations(capacity).into_iter().map(String::from).collect();
         if !(relative_tilt_deg <= model.max_relative_tilt_deg) {
-            violations.push("relative-tilt");
+            violations.push("relative-tilt".into());
         }
         Self {
             t_s,
@@ -236,7 +237,7 @@ impl TouchdownVerdict {
 }
 
 /// One approach of one rule.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct ApproachOutcome {
     pub commits: u32,
     pub go_arounds: u32,
@@ -305,7 +306,7 @@ impl RuleSummary {
                 if !v.safe() {
                     self.unsafe_touchdowns += 1;
                     for name in &v.violations {
-                        *self.violations.entry(name.to_string()).or_default() += 1;
+                        *self.violations.entry(name.clone()).or_default() += 1;
                     }
                 }
             }
@@ -343,6 +344,21 @@ impl RuleSummary {
         }
     }
 
+    /// The safety case's figures (95 %): the unsafe-touchdown rate per touchdown with its exact
+    /// one-sided upper bound, the landing rate per approach with its exact interval, go-arounds
+    /// per commit, and arrival-to-touchdown percentiles.
+    pub fn safety_case(&self) -> SafetyCase {
+        let t = &self.arrival_to_touchdown_s;
+        SafetyCase {
+            unsafe_rate: ratio(self.unsafe_touchdowns, self.touchdowns),
+            unsafe_rate_upper_95: stats::upper_bound(self.unsafe_touchdowns, self.touchdowns, 0.95),
+            landing_rate: ratio(self.touchdowns, self.approaches),
+            landing_rate_95: stats::interval(self.touchdowns, self.approaches, 0.95),
+            go_around_rate: self.aborts_per_commit(),
+            arrival_to_touchdown_s_p50_p90_p99: [0.5, 0.9, 0.99].map(|q| stats::percentile(t, q)),
+        }
+    }
+
     /// The median time from arrival to touchdown (NaN without touchdowns).
     pub fn median_arrival_to_touchdown_s(&self) -> f64 {
         let mut t = self.arrival_to_touchdown_s.clone();
@@ -353,6 +369,30 @@ impl RuleSummary {
             n => 0.5 * (t[n / 2 - 1] + t[n / 2]),
         }
     }
+}
+
+fn ratio(k: u64, n: u64) -> f64 {
+    if n == 0 {
+        f64::NAN
+    } else {
+        k as f64 / n as f64
+    }
+}
+
+/// [`RuleSummary::safety_case`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SafetyCase {
+    /// Unsafe touchdowns per touchdown (NaN without touchdowns).
+    pub unsafe_rate: f64,
+    /// Its exact (Clopper-Pearson) one-sided 95 % upper bound.
+    pub unsafe_rate_upper_95: f64,
+    /// Touchdowns per approach.
+    pub landing_rate: f64,
+    /// Its exact two-sided 95 % interval.
+    pub landing_rate_95: [f64; 2],
+    /// Go-arounds per commit.
+    pub go_around_rate: f64,
+    pub arrival_to_touchdown_s_p50_p90_p99: [f64; 3],
 }
 
 /// The oracle: knows the whole future motion, and commits the first time a touchdown would be

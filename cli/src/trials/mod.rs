@@ -19,11 +19,20 @@ use deckwatch_trials::{
     fly_approach, oracle_approach, Approach, ApproachModel, ApproachOutcome, ApproachTiming, ApproachWorld,
     ClosedLoopPipeline, FrameFaultModel, FrameFaults, FrameStep, PipelineRule, RuleSummary, WorldError,
 };
+use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 #[derive(clap::Args, Debug, Clone)]
+#[command(args_conflicts_with_subcommands = true)]
 pub struct TrialsArgs {
+    #[command(subcommand)]
+    pub command: Option<TrialsCommand>,
+    /// Fly only part K of N of the job list (`--shard 2/8`: jobs 1, 9, 17, ... counted from 0):
+    /// the parts of N runs together are the whole, and `trials merge` of their `--json` outputs
+    /// is the report of one run, bit for bit.
+    #[arg(long)]
+    pub shard: Option<String>,
     /// Sea states of the spectrum seas (3-6).
     #[arg(long, value_delimiter = ',', default_value = "3,4,5,6")]
     pub sea_states: Vec<u32>,
@@ -91,7 +100,10 @@ pub struct TrialsArgs {
     /// height, the decisions, the verdict).
     #[arg(long)]
     pub rrd: Option<std::path::PathBuf>,
-    /// One JSON object per sea state and rule, and the totals.
+    /// JSON lines: one record per approach and rule (`{"approach": ...}`: the job's number, sea
+    /// state, seed, heading, index, rule and outcome: commits, go-arounds and their reasons,
+    /// the touchdown's verdict and time, the decisions by reason), then one object per sea
+    /// state and rule and the totals, with the safety case (exact 95 % bounds).
     #[arg(long)]
     pub json: bool,
     /// Also fly the first this many approaches through the real processes at real time (the
@@ -102,6 +114,52 @@ pub struct TrialsArgs {
     /// Approaches flown at once (default: one per core).
     #[arg(long, default_value_t = std::thread::available_parallelism().map_or(1, |n| n.get()))]
     pub threads: usize,
+}
+
+/// `deckwatch trials merge`.
+#[derive(clap::Subcommand, Debug, Clone)]
+pub enum TrialsCommand {
+    /// Merges the `--json` outputs of `trials --shard K/N` runs into the report one run of the
+    /// whole job list gives (the same lines, bit for bit, with `--json`).
+    Merge(MergeArgs),
+}
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct MergeArgs {
+    /// The shards' `--json` outputs.
+    #[arg(required = true)]
+    pub files: Vec<std::path::PathBuf>,
+    /// JSON lines (as `trials --json`); otherwise the table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// One approach flown by one rule, as `--json` writes it and `trials merge` reads it.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+struct ApproachRecord {
+    /// The job's place in the whole job list (sea states x seeds x headings x approaches).
+    job: usize,
+    sea_state: u32,
+    seed: u64,
+    /// None with a motion file.
+    heading_deg: Option<f64>,
+    index: u32,
+    rule: String,
+    outcome: ApproachOutcome,
+}
+
+/// `--shard K/N`: (K - 1, N), checked.
+fn parse_shard(s: &str) -> Result<(usize, usize), String> {
+    let bad = || format!("--shard `{s}`: must be K/N with 1 <= K <= N (e.g. 2/8)");
+    let (k, n) = s.split_once('/').ok_or_else(bad)?;
+    let (k, n): (usize, usize) = (
+        k.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    );
+    if n == 0 || k == 0 || k > n {
+        return Err(bad());
+    }
+    Ok((k - 1, n))
 }
 
 /// The rules an approach can be flown by.
@@ -529,6 +587,17 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
             }
         }
     }
+    // This shard's jobs (all without `--shard`), by their place in the whole list.
+    let (part, parts) = match &a.shard {
+        Some(s) => parse_shard(s)?,
+        None => (0, 1),
+    };
+    let mine: Vec<(usize, Approach)> = jobs
+        .iter()
+        .copied()
+        .enumerate()
+        .filter(|(i, _)| i % parts == part)
+        .collect();
     let setup = Setup {
         rules,
         pipeline,
@@ -538,15 +607,15 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
     let clock = Instant::now();
     // Approaches are independent: as many at once as there are cores (each its own chain).
     let next = std::sync::atomic::AtomicUsize::new(0);
-    let results: Mutex<Vec<Option<JobResult>>> = Mutex::new(vec![None; jobs.len()]);
+    let results: Mutex<Vec<Option<JobResult>>> = Mutex::new(vec![None; mine.len()]);
     let log = Mutex::new(log);
     std::thread::scope(|scope| {
-        for _ in 0..a.threads.min(jobs.len().max(1)) {
+        for _ in 0..a.threads.min(mine.len().max(1)) {
             scope.spawn(|| loop {
                 let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                let Some(&job) = jobs.get(i) else { break };
-                // The first approach is the one logged.
-                let r = if i == 0 {
+                let Some(&(number, job)) = mine.get(i) else { break };
+                // The whole list's first approach is the one logged.
+                let r = if number == 0 {
                     let mut guard = log.lock().unwrap_or_else(|e| e.into_inner());
                     fly_job(job, &setup, &a, Some(&mut guard))
                 } else {
@@ -555,69 +624,34 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
                 let failed = r.is_err();
                 results.lock().unwrap_or_else(|e| e.into_inner())[i] = Some(r);
                 if failed {
-                    next.store(jobs.len(), std::sync::atomic::Ordering::Relaxed);
+                    next.store(mine.len(), std::sync::atomic::Ordering::Relaxed);
                 }
             });
         }
     });
     let results = results.into_inner().unwrap_or_else(|e| e.into_inner());
-    let mut per_sea: std::collections::BTreeMap<u32, std::collections::BTreeMap<Rule, RuleSummary>> =
-        Default::default();
-    for (job, r) in jobs.iter().zip(results) {
+    let mut records = Vec::new();
+    for (&(number, job), r) in mine.iter().zip(results) {
         let Some(r) = r else { continue };
-        for (rule, o) in r? {
-            // Every unsafe touchdown, with what it broke, to look into.
-            if let Some(v) = o.touchdown.as_ref().filter(|v| !v.safe()) {
-                let record = serde_json::json!({"unsafe_touchdown": {
-                    "sea_state": job.sea_state, "seed": job.seed, "heading_deg": job.heading_deg,
-                    "index": job.index, "rule": rule.name(), "verdict": v}});
-                if a.json {
-                    println!("{record}");
-                } else {
-                    eprintln!("{record}");
-                }
-            }
-            per_sea
-                .entry(job.sea_state)
-                .or_default()
-                .entry(rule)
-                .or_default()
-                .add(&o);
+        for (rule, outcome) in r? {
+            records.push(ApproachRecord {
+                job: number,
+                sea_state: job.sea_state,
+                seed: job.seed,
+                heading_deg: Some(job.heading_deg).filter(|h| h.is_finite()),
+                index: job.index,
+                rule: rule.name().to_string(),
+                outcome,
+            });
         }
     }
-    let mut totals: std::collections::BTreeMap<Rule, RuleSummary> = Default::default();
-    let summary_json = |sea: serde_json::Value, rule: Rule, s: &RuleSummary| {
-        serde_json::json!({"sea_state": sea, "rule": rule.name(), "summary": s,
-            "aborts_per_commit": s.aborts_per_commit(), "median_arrival_to_touchdown_s": s.median_arrival_to_touchdown_s()})
-    };
-    for (ss, per_rule) in &per_sea {
-        for (rule, s) in per_rule {
-            if a.json {
-                println!("{}", summary_json((*ss).into(), *rule, s));
-            } else {
-                println!("{}", row(&ss.to_string(), *rule, s));
-            }
-            totals.entry(*rule).or_default().merge(s);
-        }
-    }
-    for (rule, s) in &totals {
-        if a.json {
-            println!("{}", summary_json("all".into(), *rule, s));
-        } else {
-            println!("{}", row("all", *rule, s));
-            if !s.abort_reasons.is_empty() || !s.violations.is_empty() {
-                println!(
-                    "     {:<10} go-arounds by reason: {:?}; unsafe by limit: {:?}",
-                    rule.name(),
-                    s.abort_reasons,
-                    s.violations
-                );
-            }
-            if !s.decisions_by_reason.is_empty() {
-                println!("     {:<10} decisions: {:?}", rule.name(), s.decisions_by_reason);
-            }
-        }
-    }
+    // Within a job, the rules in one order whatever `--rules` said: a merge sorts them so too.
+    records.sort_by(|x, y| {
+        x.job
+            .cmp(&y.job)
+            .then_with(|| rule_order(&x.rule).cmp(&rule_order(&y.rule)))
+    });
+    let totals = report(&records, a.json)?;
     if a.processes > 0 {
         agreement(&jobs[..a.processes.min(jobs.len())], &setup, &a)?;
     }
@@ -635,6 +669,130 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
         );
     }
     Ok(())
+}
+
+/// The report of `records` (in job order): with `json`, each record, every unsafe touchdown, one
+/// object per sea state and rule and the totals; otherwise the table (unsafe touchdowns on
+/// stderr). The totals per rule, back.
+fn report(records: &[ApproachRecord], json: bool) -> Result<BTreeMap<Rule, RuleSummary>, String> {
+    let mut per_sea: BTreeMap<u32, BTreeMap<Rule, RuleSummary>> = Default::default();
+    for r in records {
+        let rule = Rule::parse(&r.rule)?;
+        if json {
+            println!("{}", serde_json::json!({ "approach": r }));
+        }
+        // Every unsafe touchdown, with what it broke, to look into.
+        if let Some(v) = r.outcome.touchdown.as_ref().filter(|v| !v.safe()) {
+            let record = serde_json::json!({"unsafe_touchdown": {
+                "sea_state": r.sea_state, "seed": r.seed, "heading_deg": r.heading_deg,
+                "index": r.index, "rule": r.rule, "verdict": v}});
+            if json {
+                println!("{record}");
+            } else {
+                eprintln!("{record}");
+            }
+        }
+        per_sea
+            .entry(r.sea_state)
+            .or_default()
+            .entry(rule)
+            .or_default()
+            .add(&r.outcome);
+    }
+    let mut totals: BTreeMap<Rule, RuleSummary> = Default::default();
+    let summary_json = |sea: serde_json::Value, rule: Rule, s: &RuleSummary| {
+        serde_json::json!({"sea_state": sea, "rule": rule.name(), "summary": s,
+            "aborts_per_commit": s.aborts_per_commit(), "median_arrival_to_touchdown_s": s.median_arrival_to_touchdown_s(),
+            "safety_case": s.safety_case()})
+    };
+    for (ss, per_rule) in &per_sea {
+        for (rule, s) in per_rule {
+            if json {
+                println!("{}", summary_json((*ss).into(), *rule, s));
+            } else {
+                println!("{}", row(&ss.to_string(), *rule, s));
+            }
+            totals.entry(*rule).or_default().merge(s);
+        }
+    }
+    for (rule, s) in &totals {
+        if json {
+            println!("{}", summary_json("all".into(), *rule, s));
+            continue;
+        }
+        println!("{}", row("all", *rule, s));
+        let c = s.safety_case();
+        println!(
+            "     {:<10} unsafe {} of {} touchdowns (95 % upper bound {:.3} %); landed {:.1} % of approaches (95 %: {:.1}-{:.1} %); arrival to touchdown p50/p90/p99 {:.1}/{:.1}/{:.1} s",
+            rule.name(),
+            s.unsafe_touchdowns,
+            s.touchdowns,
+            100.0 * c.unsafe_rate_upper_95,
+            100.0 * c.landing_rate,
+            100.0 * c.landing_rate_95[0],
+            100.0 * c.landing_rate_95[1],
+            c.arrival_to_touchdown_s_p50_p90_p99[0],
+            c.arrival_to_touchdown_s_p50_p90_p99[1],
+            c.arrival_to_touchdown_s_p50_p90_p99[2]
+        );
+        if !s.abort_reasons.is_empty() || !s.violations.is_empty() {
+            println!(
+                "     {:<10} go-arounds by reason: {:?}; unsafe by limit: {:?}",
+                rule.name(),
+                s.abort_reasons,
+                s.violations
+            );
+        }
+        if !s.decisions_by_reason.is_empty() {
+            println!("     {:<10} decisions: {:?}", rule.name(), s.decisions_by_reason);
+        }
+    }
+    Ok(totals)
+}
+
+/// `deckwatch trials merge`: the shards' approach records, in job order, reported as one run.
+pub fn merge(m: &MergeArgs) -> Result<(), String> {
+    let mut records: Vec<ApproachRecord> = Vec::new();
+    for path in &m.files {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        for (n, line) in text.lines().enumerate() {
+            let Ok(value) = serde_json::from_str::<serde_json::Value>(line) else {
+                continue;
+            };
+            if let Some(r) = value.get("approach") {
+                let r: ApproachRecord = serde_json::from_value(r.clone())
+                    .map_err(|e| format!("{}:{}: an approach record: {e}", path.display(), n + 1))?;
+                records.push(r);
+            }
+        }
+    }
+    if records.is_empty() {
+        return Err("trials merge: no approach records (run the shards with --json)".into());
+    }
+    records.sort_by(|x, y| {
+        x.job
+            .cmp(&y.job)
+            .then_with(|| rule_order(&x.rule).cmp(&rule_order(&y.rule)))
+    });
+    // The same job and rule twice: a shard given twice, or two runs of different lists.
+    if let Some(w) = records
+        .windows(2)
+        .find(|w| w[0].job == w[1].job && w[0].rule == w[1].rule)
+    {
+        return Err(format!(
+            "trials merge: job {} ({}) appears twice: the same shard given twice?",
+            w[0].job, w[0].rule
+        ));
+    }
+    report(&records, m.json).map(|_| ())
+}
+
+/// The order of the rules' records within a job, in a run's report and a merge's alike.
+fn rule_order(name: &str) -> usize {
+    ["deckwatch", "naive", "oracle"]
+        .iter()
+        .position(|r| *r == name)
+        .unwrap_or(usize::MAX)
 }
 
 /// The same approaches in one process (simulated clock) and through the processes (real time).

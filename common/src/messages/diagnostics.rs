@@ -171,8 +171,9 @@ impl Default for LinkTraffic {
 
 impl LinkTraffic {
     pub const NAME_BYTES: usize = 48;
-    /// The largest MAVLink 2 frame (280 bytes with a signature).
-    pub const FRAME_BYTES: usize = 280;
+    /// The largest MAVLink 2 frame is 283 bytes (a 32-bit system id and a signature); 288 keeps
+    /// the layout free of padding.
+    pub const FRAME_BYTES: usize = 288;
 
     pub fn new(time_ns: u64, outgoing: bool, msg_id: u32, name: &str, frame: &[u8]) -> Self {
         let mut out = Self {

@@ -1,0 +1,176 @@
+"""Landing trials at cluster scale: `deckwatch trials` split into shards (`--shard K/N`), each
+shard a Ray task that runs the `deckwatch` binary on a worker, a lost task retried, progress
+shown (shards done, approaches a minute, ETA), the shards' records merged (`deckwatch trials
+merge`, the same report one process gives, bit for bit) and the safety case written: the report
+(`report.jsonl`, `report.txt`) and a plot of the unsafe rate's exact 95 % upper bound against
+the number of touchdowns (`bound.png`).
+
+    python3 cluster/run_trials.py --deckwatch target/release/deckwatch --shards 16 --out runs/x \\
+        -- --sea-states 3,4,5,6 --seeds 101,102 --headings-deg 0,110,160 --approaches 40 --rules deckwatch
+
+Without `--address`, a local Ray cluster is started on this machine (`--workers` CPUs); with
+`--address ray://HEAD:10001` (or `auto` inside a cluster) the tasks go to that cluster. The
+binary is taken from `--deckwatch` on each worker (preinstalled at the same path), or shipped
+with the job (`--ship`: Ray's `runtime_env` uploads the binary's folder; each worker runs its
+copy). Needs the `ray` package (ci/peers.sh installs it) and matplotlib for the plot.
+"""
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+
+
+def parse():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--deckwatch", required=True, help="the deckwatch binary (on every worker, or shipped)")
+    ap.add_argument("--shards", type=int, required=True, help="parts of the job list, one Ray task each")
+    ap.add_argument("--out", required=True, help="folder for the shards' records and the report")
+    ap.add_argument("--address", help="a running Ray cluster (ray://HOST:10001, or auto); default: start one here")
+    ap.add_argument("--workers", type=int, default=os.cpu_count(), help="CPUs of the local cluster")
+    ap.add_argument("--retries", type=int, default=2, help="times a lost or failed shard is run again")
+    ap.add_argument("--ship", action="store_true", help="ship the binary's folder with the job")
+    ap.add_argument("trials", nargs=argparse.REMAINDER, help="-- then `deckwatch trials` options")
+    a = ap.parse_args()
+    a.trials = [t for t in a.trials if t != "--"]
+    if any(t in ("--shard", "--json", "--threads") for t in a.trials):
+        ap.error("--shard, --json and --threads are the driver's to set")
+    if a.shards < 1:
+        ap.error("--shards must be at least 1")
+    return a
+
+
+def main():
+    a = parse()
+    import ray  # here: `--help` works without it
+
+    binary = os.path.abspath(a.deckwatch)
+    os.makedirs(a.out, exist_ok=True)
+    runtime_env = None
+    if a.ship:
+        runtime_env = {"working_dir": os.path.dirname(binary)}
+    if a.address:
+        ray.init(address=a.address, runtime_env=runtime_env, log_to_driver=False)
+    else:
+        ray.init(num_cpus=a.workers, runtime_env=runtime_env, log_to_driver=False, include_dashboard=False)
+
+    @ray.remote(num_cpus=1, max_retries=a.retries, retry_exceptions=True)
+    def shard(k, n, binary_name, trials):
+        # Shipped: the binary sits in the task's working folder.
+        exe = os.path.join(os.getcwd(), binary_name) if a.ship else binary_name
+        started = time.time()
+        run = subprocess.run(
+            [exe, "trials", *trials, "--json", "--threads", "1", "--shard", f"{k}/{n}"],
+            capture_output=True, text=True,
+        )
+        if run.returncode != 0:
+            raise RuntimeError(f"shard {k}/{n} failed ({run.returncode}): {run.stderr[-2000:]}")
+        return k, run.stdout, time.time() - started
+
+    name = os.path.basename(binary) if a.ship else binary
+    pending = {shard.remote(k, a.shards, name, a.trials): k for k in range(1, a.shards + 1)}
+    started = time.time()
+    approaches = 0
+    files = []
+    while pending:
+        done, _ = ray.wait(list(pending), num_returns=1)
+        for ref in done:
+            k, text, seconds = ray.get(ref)
+            del pending[ref]
+            path = os.path.join(a.out, f"shard-{k:04d}-of-{a.shards:04d}.jsonl")
+            with open(path, "w") as f:
+                f.write(text)
+            files.append(path)
+            approaches += sum(1 for line in text.splitlines() if line.startswith('{"approach"'))
+            elapsed = time.time() - started
+            finished = a.shards - len(pending)
+            rate = approaches / elapsed * 60 if elapsed > 0 else 0.0
+            eta = elapsed / finished * len(pending)
+            print(
+                f"shards {finished}/{a.shards}, {approaches} approach records, {rate:.0f} a minute, "
+                f"ETA {eta:.0f} s (shard {k}: {seconds:.1f} s)",
+                file=sys.stderr, flush=True,
+            )
+    ray.shutdown()
+
+    files.sort()
+    merged = subprocess.run([binary, "trials", "merge", "--json", *files], capture_output=True, text=True)
+    if merged.returncode != 0:
+        raise SystemExit(f"trials merge failed: {merged.stderr}")
+    with open(os.path.join(a.out, "report.jsonl"), "w") as f:
+        f.write(merged.stdout)
+    table = subprocess.run([binary, "trials", "merge", *files], capture_output=True, text=True)
+    with open(os.path.join(a.out, "report.txt"), "w") as f:
+        f.write(table.stdout)
+    print(table.stdout)
+    plot(merged.stdout, os.path.join(a.out, "bound.png"))
+
+
+def plot(report, path):
+    """The unsafe-touchdown rate's exact one-sided 95 % upper bound against the number of
+    touchdowns, as the campaign grew (in job order), per rule; and the zero-failure line."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("no matplotlib: no plot", file=sys.stderr)
+        return
+    def upper(k, n):
+        # One-sided exact bound: the p where P(X <= k; n, p) = 0.05, by bisection.
+        if n == 0:
+            return 1.0
+
+        def cdf(p):
+            if p <= 0:
+                return 1.0
+            if p >= 1:
+                return 0.0
+            terms, ln_c = [], 0.0
+            for i in range(k + 1):
+                if i:
+                    ln_c += math.log(n - i + 1) - math.log(i)
+                terms.append(ln_c + i * math.log(p) + (n - i) * math.log1p(-p))
+            top = max(terms)
+            return math.exp(top) * sum(math.exp(t - top) for t in terms)
+
+        lo, hi = 0.0, 1.0
+        for _ in range(80):
+            mid = (lo + hi) / 2
+            lo, hi = (mid, hi) if cdf(mid) > 0.05 else (lo, mid)
+        return (lo + hi) / 2
+
+    series = {}
+    for line in report.splitlines():
+        v = json.loads(line)
+        r = v.get("approach")
+        if not r or r["outcome"]["touchdown"] is None:
+            continue
+        s = series.setdefault(r["rule"], [0, 0, []])
+        s[0] += 1
+        s[1] += 1 if r["outcome"]["touchdown"]["violations"] else 0
+        s[2].append((s[0], upper(s[1], s[0])))
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for rule, (_, _, points) in sorted(series.items()):
+        xs, ys = zip(*points)
+        ax.plot(xs, ys, label=rule)
+    if series:
+        n = max(s[0] for s in series.values())
+        xs = list(range(1, n + 1))
+        ax.plot(xs, [1 - 0.05 ** (1 / x) for x in xs], "k:", label="0 unsafe in n")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("touchdowns")
+    ax.set_ylabel("unsafe rate, exact 95 % upper bound")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    print(f"plot: {path}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()

@@ -73,17 +73,7 @@ fn pymavlink_autopilot_and_ground_station() {
     let key: [u8; 32] = std::array::from_fn(|k| (k as u8).wrapping_mul(37).wrapping_add(11));
     let key_hex: String = key.iter().map(|b| format!("{b:02x}")).collect();
     let key_file = dir.path().join("mavlink.key");
-    {
-        use std::io::Write;
-        use std::os::unix::fs::OpenOptionsExt;
-        std::fs::OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .mode(0o600)
-            .open(&key_file)
-            .and_then(|mut f| f.write_all(&key))
-            .unwrap();
-    }
+    deckwatch_tests::write_private_key(&key_file, &key);
     let [r, p, y] = TILT_DEG;
     std::fs::write(
         &config,
@@ -428,6 +418,10 @@ fn pymavlink_autopilot_and_ground_station() {
         String::from_utf8_lossy(&traffic.stderr)
     );
     let t: serde_json::Value = serde_json::from_slice(&traffic.stdout).unwrap();
+    if !t["cut"].is_null() {
+        // Seen once on a loaded machine: said, and the frames before the cut still checked.
+        eprintln!("the flight recording's end is cut ({}):\n{stderr}", t["cut"]);
+    }
     assert_eq!(t["undecoded"], 0, "{t}");
     assert_eq!(t["misnamed"], serde_json::json!([]), "{t}");
     for kind in ["HEARTBEAT", "LANDING_TARGET", "TIMESYNC", "NAMED_VALUE_FLOAT"] {

@@ -13,17 +13,7 @@ fn closed_loop_landings_touch_down_safely_in_one_process_and_through_the_process
     // The link through the processes requires MAVLink 2 signing; the trial's autopilot signs with
     // the same key (the mavlink crate's signing; tests/mavlink_link.rs has pymavlink's).
     let key_file = dir.path().join("mavlink.key");
-    {
-        use std::io::Write;
-        use std::os::unix::fs::OpenOptionsExt;
-        std::fs::OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .mode(0o600)
-            .open(&key_file)
-            .and_then(|mut f| f.write_all(&[0x5a; 32]))
-            .unwrap();
-    }
+    deckwatch_tests::write_private_key(&key_file, &[0x5a; 32]);
     let config = dir.path().join("signed.toml");
     std::fs::write(
         &config,

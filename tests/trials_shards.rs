@@ -2,7 +2,7 @@
 //! cluster does) and merged give the report of one run, bit for bit (the same seeds, a
 //! simulated clock); the safety case's exact bounds are in it.
 
-use deckwatch_tests::workspace_binary;
+use deckwatch_tests::{run_deckwatch as run, workspace_binary};
 use std::process::Command;
 
 const CAMPAIGN: &[&str] = &[
@@ -21,19 +21,6 @@ const CAMPAIGN: &[&str] = &[
     "2",
     "--json",
 ];
-
-fn run(args: &[&str]) -> String {
-    let out = Command::new(workspace_binary("deckwatch"))
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout).unwrap()
-}
 
 #[test]
 fn shards_merged_are_the_whole_run_bit_for_bit() {

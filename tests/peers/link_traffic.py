@@ -11,16 +11,28 @@ import os
 import sys
 
 os.environ.setdefault("MAVLINK20", "1")
-from mcap.reader import make_reader
+from mcap.reader import NonSeekingReader, make_reader
 from pymavlink.dialects.v20 import common as mavlink2
 
 
 def main(path):
-    out = {"out": {}, "in": {}, "undecoded": 0, "misnamed": [], "vehicle_samples": 0}
+    out = {"out": {}, "in": {}, "undecoded": 0, "misnamed": [], "vehicle_samples": 0, "cut": None}
     with open(path, "rb") as f:
-        for schema, channel, message in make_reader(f).iter_messages(
-            topics=["/deckwatch/link", "/deckwatch/vehicle"]
-        ):
+        try:
+            messages = list(make_reader(f).iter_messages(topics=["/deckwatch/link", "/deckwatch/vehicle"]))
+        except Exception as e:  # noqa: BLE001 - a file whose end is cut: read what is there
+            # A recorder stopped before it wrote its summary (a loaded machine) leaves a file
+            # `deckwatch recover` completes; its messages are read in order up to the cut.
+            out["cut"] = repr(e)
+            f.seek(0)
+            messages = []
+            try:
+                for m in NonSeekingReader(f).iter_messages():
+                    if m[1].topic in ("/deckwatch/link", "/deckwatch/vehicle"):
+                        messages.append(m)
+            except Exception:  # noqa: BLE001 - the cut itself
+                pass
+        for schema, channel, message in messages:
             if channel.topic == "/deckwatch/vehicle":
                 out["vehicle_samples"] += 1
                 continue

@@ -208,6 +208,20 @@ pub fn peer_python(module: &str) -> std::path::PathBuf {
     panic!("no python3 with {module}: run ci/peers.sh (or set DECKWATCH_PYTHON)");
 }
 
+/// Writes `key` to `path` readable by its owner alone (mode 0600), as the link wants a MAVLink
+/// signing key.
+pub fn write_private_key(path: &std::path::Path, key: &[u8]) {
+    use std::io::Write;
+    use std::os::unix::fs::OpenOptionsExt;
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .mode(0o600)
+        .open(path)
+        .and_then(|mut f| f.write_all(key))
+        .expect("the key file");
+}
+
 /// Runs `deckwatch ARGS` and returns its standard output; a failure is the test's, with the
 /// command's standard error.
 pub fn run_deckwatch(args: &[&str]) -> String {

@@ -348,14 +348,15 @@ impl RuleSummary {
     /// one-sided upper bound, the landing rate per approach with its exact interval, go-arounds
     /// per commit, and arrival-to-touchdown percentiles.
     pub fn safety_case(&self) -> SafetyCase {
-        let t = &self.arrival_to_touchdown_s;
+        let mut t = self.arrival_to_touchdown_s.clone();
+        let p = deckwatch_common::stats::Percentiles::of(&mut t);
         SafetyCase {
             unsafe_rate: ratio(self.unsafe_touchdowns, self.touchdowns),
             unsafe_rate_upper_95: stats::upper_bound(self.unsafe_touchdowns, self.touchdowns, 0.95),
             landing_rate: ratio(self.touchdowns, self.approaches),
             landing_rate_95: stats::interval(self.touchdowns, self.approaches, 0.95),
             go_around_rate: self.aborts_per_commit(),
-            arrival_to_touchdown_s_p50_p90_p99: [0.5, 0.9, 0.99].map(|q| stats::percentile(t, q)),
+            arrival_to_touchdown_s_p50_p90_p99: p.map_or([f64::NAN; 3], |p| [p.p50, p.p90, p.p99]),
         }
     }
 

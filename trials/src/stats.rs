@@ -1,6 +1,7 @@
 //! What a safety case needs from a campaign of approaches: exact (Clopper-Pearson) binomial
-//! bounds on a rate, and time percentiles. Exact because the counts that matter are small (zero
-//! unsafe touchdowns in N): a normal approximation says nothing there.
+//! bounds on a rate. Exact because the counts that matter are small (zero
+//! unsafe touchdowns in N): a normal approximation says nothing there. (Percentiles are
+//! `deckwatch_common::stats::Percentiles`.)
 
 /// P(X <= k) for X ~ Binomial(n, p), summed in log space (n up to millions without overflow).
 fn binomial_cdf(k: u64, n: u64, p: f64) -> f64 {
@@ -78,17 +79,6 @@ pub fn interval(k: u64, n: u64, confidence: f64) -> [f64; 2] {
     [lower, upper]
 }
 
-/// The `q`-quantile (0..1) of `values` by the nearest rank; NaN when empty.
-pub fn percentile(values: &[f64], q: f64) -> f64 {
-    if values.is_empty() {
-        return f64::NAN;
-    }
-    let mut v = values.to_vec();
-    v.sort_by(f64::total_cmp);
-    let rank = ((q * v.len() as f64).ceil() as usize).clamp(1, v.len());
-    v[rank - 1]
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -118,14 +108,5 @@ mod tests {
         // Large n with many events stays finite and ordered.
         let [lo, hi] = interval(90_000, 100_000, 0.95);
         assert!(lo < 0.9 && 0.9 < hi && hi - lo < 0.005, "{lo} {hi}");
-    }
-
-    #[test]
-    fn percentiles_by_nearest_rank() {
-        let v: Vec<f64> = (1..=100).map(f64::from).collect();
-        assert_eq!(percentile(&v, 0.5), 50.0);
-        assert_eq!(percentile(&v, 0.99), 99.0);
-        assert_eq!(percentile(&v, 1.0), 100.0);
-        assert!(percentile(&[], 0.5).is_nan());
     }
 }

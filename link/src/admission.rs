@@ -119,7 +119,7 @@ pub struct Admitted {
     pub header: MavHeader,
     pub message: MavMessage,
     /// The frame as received (with its signature, if any), for the recorder.
-    pub frame: Vec<u8>,
+    pub frame: FrameBytes,
 }
 
 /// Why the signing key could not be used.
@@ -559,7 +559,7 @@ impl Admission {
                     sequence: raw.sequence(),
                 },
                 message,
-                frame: raw.raw_bytes().to_vec(),
+                frame: FrameBytes::of(raw.raw_bytes()),
             })
             .map_err(|_| Refusal::Malformed);
         Verdict {
@@ -581,11 +581,60 @@ enum Step {
     Incomplete,
 }
 
+/// One MAVLink frame's bytes, held without an allocation (a frame is 283 bytes at most).
+#[derive(Clone)]
+pub struct FrameBytes {
+    bytes: [u8; consts::MAX_FRAME_SIZE],
+    len: usize,
+}
+
+impl FrameBytes {
+    /// The first `MAX_FRAME_SIZE` bytes of `bytes`.
+    fn of(bytes: &[u8]) -> Self {
+        let mut out = Self {
+            bytes: [0; consts::MAX_FRAME_SIZE],
+            len: bytes.len().min(consts::MAX_FRAME_SIZE),
+        };
+        out.bytes[..out.len].copy_from_slice(&bytes[..out.len]);
+        out
+    }
+}
+
+impl std::ops::Deref for FrameBytes {
+    type Target = [u8];
+    fn deref(&self) -> &[u8] {
+        &self.bytes[..self.len]
+    }
+}
+
+impl std::ops::DerefMut for FrameBytes {
+    fn deref_mut(&mut self) -> &mut [u8] {
+        &mut self.bytes[..self.len]
+    }
+}
+
+impl PartialEq for FrameBytes {
+    fn eq(&self, other: &Self) -> bool {
+        **self == **other
+    }
+}
+
+impl std::fmt::Debug for FrameBytes {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "FrameBytes({:02x?})", &**self)
+    }
+}
+
 /// A message as the bytes the link sends: MAVLink 2, signed when the link signs.
-pub fn frame(header: MavHeader, message: &MavMessage, signing: Option<&Signing>) -> Vec<u8> {
-    let mut out = Vec::with_capacity(v2::FRAME_SIZE);
-    // Writing into a Vec cannot fail.
-    let _ = mavlink::write_v2_msg_signed(&mut out, header, message, signing.map(|s| &s.data));
+pub fn frame(header: MavHeader, message: &MavMessage, signing: Option<&Signing>) -> FrameBytes {
+    let mut out = FrameBytes {
+        bytes: [0; consts::MAX_FRAME_SIZE],
+        len: 0,
+    };
+    // A whole frame always fits its largest size.
+    out.len =
+        mavlink::write_v2_msg_signed(&mut &mut out.bytes[..], header, message, signing.map(|s| &s.data))
+            .unwrap_or(0);
     out
 }
 
@@ -637,16 +686,16 @@ mod tests {
         assert_eq!(a.reply_address(), Some(addr(5000)));
 
         let cases: [(Vec<u8>, Refusal); 5] = [
-            (frame(header(1, 1), &attitude(), None), Refusal::Unsigned),
+            (frame(header(1, 1), &attitude(), None).to_vec(), Refusal::Unsigned),
             (
-                frame(header(1, 1), &attitude(), Some(&Signing::new([9; 32], 3))),
+                frame(header(1, 1), &attitude(), Some(&Signing::new([9; 32], 3))).to_vec(),
                 Refusal::BadSignature,
             ),
             // The same bytes again: correctly signed, not newer than its stream's last.
-            (good.clone(), Refusal::Replay),
+            (good.to_vec(), Refusal::Replay),
             // Another system with the key (a second vehicle): not the pinned autopilot.
             (
-                frame(header(2, 1), &attitude(), Some(&Signing::new(KEY, 4))),
+                frame(header(2, 1), &attitude(), Some(&Signing::new(KEY, 4))).to_vec(),
                 Refusal::WrongSender,
             ),
             (
@@ -760,7 +809,7 @@ mod tests {
             &MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()),
             None,
         );
-        let mut bytes = hb.clone();
+        let mut bytes = hb.to_vec();
         bytes.extend_from_slice(&frame(header(1, 1), &attitude(), None));
         let (x, y) = bytes.split_at(hb.len() + 5);
         assert_eq!(a.stream(x, 0).len(), 1);

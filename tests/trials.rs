@@ -134,3 +134,53 @@ fn closed_loop_landings_touch_down_safely_in_one_process_and_through_the_process
         deckwatch_tests::assert_rrd_verifies(&rrd);
     }
 }
+
+/// The first unsafe touchdown any trial met (a 480-approach campaign on fresh seeds; BENCHMARKS
+/// "The first clearance after the warm-up"): sea state 6, seed 26, waves from ahead, approach
+/// 16. It cleared 0.2 s after the warm-up, on heave-rate bands not yet checked against what
+/// followed, and touched down into 0.678 m/s of heave rate. Flown again alone (the last of 17
+/// shards is that approach): it must not touch down unsafely.
+#[test]
+fn the_campaigns_unsafe_approach_waits_for_its_rate_bands_evidence() {
+    let out = Command::new(workspace_binary("deckwatch"))
+        .args([
+            "trials",
+            "--json",
+            "--rules",
+            "deckwatch",
+            "--sea-states",
+            "6",
+            "--seeds",
+            "26",
+            "--headings-deg",
+            "0",
+            "--approaches",
+            "17",
+            "--shard",
+            "17/17",
+            "--max-approach-s",
+            "60",
+        ])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let lines: Vec<serde_json::Value> = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let approach = lines
+        .iter()
+        .find_map(|l| l.get("approach"))
+        .unwrap_or_else(|| panic!("no approach record: {lines:?}"));
+    assert_eq!(approach["index"], 16, "{approach}");
+    let outcome = &approach["outcome"];
+    if let Some(touchdown) = outcome["touchdown"].as_object() {
+        assert_eq!(touchdown["violations"], serde_json::json!([]), "{approach}");
+    }
+    assert!(
+        lines.iter().all(|l| l.get("unsafe_touchdown").is_none()),
+        "{lines:?}"
+    );
+}

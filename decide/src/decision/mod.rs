@@ -1162,6 +1162,51 @@ mod tests {
         assert!(out.iter().filter(|(_, d)| d.new_commit).count() > 0);
     }
 
+    /// Until a rate's band has evidence of its own, it is taken to be as far off as its value's
+    /// has been measured to be (a campaign's sea cleared 0.2 s after the warm-up on the prior
+    /// scale alone, with the heave's value band 3.9 times too narrow, and touched down into
+    /// 0.678 m/s of heave rate; BENCHMARKS.md, "The first clearance after the warm-up"); once
+    /// it has its own, that stands.
+    #[test]
+    fn a_rate_band_without_evidence_is_as_far_off_as_its_value_band() {
+        let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
+        assert_eq!(d.channels, 3);
+        // The heave's values missed by three times their stated band; no rate measured yet.
+        let values_only = [1.0, 1.0, 3.0 * Z95, f64::NAN, f64::NAN, f64::NAN];
+        for k in 0..2 * MIN_BAND_EVIDENCE {
+            d.band_misses.push_back((0.1 * k as f64, values_only));
+        }
+        let (values, rates, checked) = d.band_scale();
+        assert_eq!(values[..2], [1.0; 2]);
+        assert!((values[2] - 3.0).abs() < 1e-12, "{values:?}");
+        assert_eq!(rates[..2], [PRIOR_BAND_SCALE; 2], "honest values: the prior");
+        assert!(
+            (rates[2] - 3.0).abs() < 1e-12,
+            "the heave's value scale: {rates:?}"
+        );
+        assert!(checked, "every value has its evidence");
+        // The rates' own evidence arrives: small misses, one short of enough for the heave rate.
+        for k in 0..MIN_BAND_EVIDENCE {
+            let heave_rate = if k + 1 < MIN_BAND_EVIDENCE { 0.5 } else { f64::NAN };
+            d.band_misses
+                .push_back((5.0 + 0.1 * k as f64, [1.0, 1.0, 3.0 * Z95, 0.5, 0.5, heave_rate]));
+        }
+        let (_, rates, _) = d.band_scale();
+        assert_eq!(
+            rates[..2],
+            [MIN_RATE_BAND_SCALE; 2],
+            "measured small: the least scale"
+        );
+        assert!(
+            (rates[2] - 3.0).abs() < 1e-12,
+            "one short: still the value's {rates:?}"
+        );
+        d.band_misses
+            .push_back((7.0, [1.0, 1.0, 3.0 * Z95, 0.5, 0.5, 0.5]));
+        let (_, rates, _) = d.band_scale();
+        assert_eq!(rates[2], MIN_RATE_BAND_SCALE, "its own evidence stands");
+    }
+
     /// The frozen camera: one image again and again, on a timeline that moves on. Never
     /// cleared; once the input moves again, the history is learnt afresh.
     #[test]

@@ -254,11 +254,11 @@ impl LandingDecider {
     /// (never below 1), and the same for its rate (never below `MIN_RATE_BAND_SCALE`); and
     /// whether every channel's value has that evidence (no clearance before). With fewer than
     /// `MIN_BAND_EVIDENCE` misses (the first seconds after a warm-up) there is no track record
-    /// yet: `PRIOR_BAND_SCALE`.
+    /// yet: `PRIOR_BAND_SCALE`, and for a rate at least its value's scale.
     pub(super) fn band_scale(&self) -> ([f64; 3], [f64; 3], bool) {
         let mut scale = [PRIOR_BAND_SCALE; 6];
         let mut checked = true;
-        for (k, s) in scale.iter_mut().enumerate() {
+        for k in 0..6 {
             if k % 3 >= self.channels {
                 continue;
             }
@@ -269,15 +269,24 @@ impl LandingDecider {
                 .filter(|z| z.is_finite())
                 .collect();
             if z.len() < MIN_BAND_EVIDENCE {
-                // The rates' evidence comes later (each needs a second of samples around it):
-                // their prior scale stands until then.
-                checked &= k >= 3;
+                if k < 3 {
+                    checked = false;
+                } else {
+                    // The rates' evidence comes later (each needs a second of samples around
+                    // it). Until then a rate's band is taken to be as far off as its value's
+                    // has been measured to be: on the prior scale alone a fresh sea cleared
+                    // 0.2 s after the warm-up with the heave's value band 3.9 times too
+                    // narrow and its rate's stated at 5 mm/s; 2 s later the deck fell at
+                    // 0.678 m/s against 0.6 (BENCHMARKS.md, "The first clearance after the
+                    // warm-up").
+                    scale[k] = scale[k].max(scale[k - 3]);
+                }
                 continue;
             }
             let i = ((z.len() as f64 * BAND_EVIDENCE_QUANTILE).ceil() as usize).min(z.len()) - 1;
             let (_, q95, _) = z.select_nth_unstable_by(i, f64::total_cmp);
             let least = if k < 3 { 1.0 } else { MIN_RATE_BAND_SCALE };
-            *s = (*q95 / Z95).max(least);
+            scale[k] = (*q95 / Z95).max(least);
         }
         (
             [scale[0], scale[1], scale[2]],

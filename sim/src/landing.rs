@@ -4,7 +4,7 @@
 //! takes effect from its own instant on, so a frame already rendered never changes.
 
 use crate::motion::{MotionProfile, MotionSample, VehicleSway};
-use deckwatch_common::Viewpoint;
+use deckwatch_common::{RotationMatrix, Viewpoint};
 use std::sync::{Arc, Mutex};
 
 /// One straight piece of the vehicle's height: from `t_s` at `from_m`, at `speed_mps` (signed)
@@ -125,8 +125,13 @@ impl<P: MotionProfile> MotionProfile for ClosedLoopScene<P> {
         let path = self.path.lock().unwrap_or_else(|e| e.into_inner());
         let altitude_m = path.over_deck_m(t_s, s.deck_heave_m);
         s.viewpoint = Viewpoint::level(self.offset_m[0], self.offset_m[1], altitude_m)
-            .with_vehicle_attitude(self.sway.attitude(t_s + self.sea_offset_s).to_matrix());
+            .with_vehicle_attitude(self.vehicle_attitude(t_s));
         s
+    }
+
+    /// The sway alone: the sea need not be summed for it.
+    fn vehicle_attitude(&self, t_s: f64) -> RotationMatrix {
+        self.sway.attitude(t_s + self.sea_offset_s).to_matrix()
     }
 }
 

@@ -2,7 +2,7 @@
 //! as functions of time. Deterministic for a seed.
 
 use crate::rng::SplitMix64;
-use deckwatch_common::{Rpy, Viewpoint};
+use deckwatch_common::{RotationMatrix, Rpy, Viewpoint};
 use std::f64::consts::TAU;
 
 /// The scene at one instant.
@@ -28,11 +28,22 @@ impl MotionSample {
 /// A deck-and-camera trajectory.
 pub trait MotionProfile {
     fn sample(&self, t_s: f64) -> MotionSample;
+
+    /// The vehicle's attitude (body to W) at `t_s`, as [`Self::sample`] gives it. A profile
+    /// that can give it alone, cheaper than the whole sample, says so here: the simulator
+    /// differentiates it six times a frame for the vehicle's rate.
+    fn vehicle_attitude(&self, t_s: f64) -> RotationMatrix {
+        self.sample(t_s).viewpoint.vehicle_attitude
+    }
 }
 
 impl<P: MotionProfile + ?Sized> MotionProfile for Box<P> {
     fn sample(&self, t_s: f64) -> MotionSample {
         (**self).sample(t_s)
+    }
+
+    fn vehicle_attitude(&self, t_s: f64) -> RotationMatrix {
+        (**self).vehicle_attitude(t_s)
     }
 }
 
@@ -509,15 +520,36 @@ pub fn sea_state_waves(sea_state: u32) -> Option<(f64, f64)> {
 /// about 60 deg), so roll and pitch trade places slowly.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SpectrumShipMotion {
-    /// (amplitude, encounter angular frequency rad/s, phase) per wave, for roll (deg per unit
-    /// sin of heading), pitch (deg per unit cos of heading) and heave (m).
-    roll: Vec<(f64, f64, f64)>,
-    pitch: Vec<(f64, f64, f64)>,
-    heave: Vec<(f64, f64, f64)>,
+    /// The waves as the ship meets them.
+    waves: Vec<EncounteredWave>,
     yaw_deg: Vec<Sinusoid>,
     /// The waves' mean heading off the bow (rad).
     mean_heading: f64,
     pub tracking: TrackingError,
+}
+
+/// One wave of a spectrum sea as the ship meets it: roll, pitch and heave answer it at its
+/// encounter frequency, each with its amplitude and a phase of its own; stored as the
+/// coefficients of `sin` and `cos` of the wave's phase, so a sample takes one `sin_cos` per
+/// wave rather than a `sin` per wave and motion (a trial samples the sea some 40 times a frame).
+#[derive(Debug, Clone, PartialEq)]
+struct EncounteredWave {
+    /// Encounter angular frequency (rad/s) and phase (rad).
+    rate: f64,
+    phase: f64,
+    /// Roll, deg per unit sin of the heading: `roll_deg sin(phase)`.
+    roll_deg: f64,
+    /// Pitch, deg per unit cos of the heading: `pitch_deg[0] sin + pitch_deg[1] cos`.
+    pitch_deg: [f64; 2],
+    /// Heave: `heave_m[0] sin + heave_m[1] cos`.
+    heave_m: [f64; 2],
+}
+
+impl EncounteredWave {
+    /// `amplitude sin(phase + offset)` as the coefficients of `sin(phase)` and `cos(phase)`.
+    fn shifted(amplitude: f64, offset: f64) -> [f64; 2] {
+        [amplitude * offset.cos(), amplitude * offset.sin()]
+    }
 }
 
 const COMPONENTS: usize = 300;
@@ -554,7 +586,7 @@ impl SpectrumShipMotion {
         let scale = (hs_m / 4.0).powi(2) / m0;
         let (speed_mps, mean_heading) = (5.0, mean_heading_deg.to_radians());
         let (wr, zeta, wpitch, wheave) = (TAU / 11.0, 0.1, TAU / 6.0, TAU / 8.0);
-        let (mut roll, mut pitch, mut heave) = (Vec::new(), Vec::new(), Vec::new());
+        let mut encountered = Vec::with_capacity(waves.len());
         for (w, e) in waves {
             let a = (2.0 * e * scale).sqrt();
             let k = w * w / GRAVITY;
@@ -565,15 +597,17 @@ impl SpectrumShipMotion {
             let resonance = 1.0 / ((1.0 - u * u).powi(2) + (2.0 * zeta * u).powi(2)).sqrt();
             let low_pass = |wc: f64| 1.0 / (1.0 + (we / wc).powi(4)).sqrt();
             let phase = TAU * rng.next_f64();
-            roll.push((slope_deg * resonance, we, phase));
-            pitch.push((0.6 * slope_deg * low_pass(wpitch), we, phase + 0.5));
-            heave.push((a * low_pass(wheave), we, phase - 0.3));
+            encountered.push(EncounteredWave {
+                rate: we,
+                phase,
+                roll_deg: slope_deg * resonance,
+                pitch_deg: EncounteredWave::shifted(0.6 * slope_deg * low_pass(wpitch), 0.5),
+                heave_m: EncounteredWave::shifted(a * low_pass(wheave), -0.3),
+            });
         }
         let yaw_deg = sinusoids(&mut rng, &SEA_STATE_6_YAW, hs_m / 5.0);
         Self {
-            roll,
-            pitch,
-            heave,
+            waves: encountered,
             yaw_deg,
             mean_heading,
             tracking: TrackingError::hover(5.0),
@@ -595,28 +629,40 @@ impl SpectrumShipMotion {
         self.mean_heading + (25.0 * (TAU * t_s / 600.0).sin()).to_radians()
     }
 
-    fn sum(c: &[(f64, f64, f64)], t_s: f64) -> f64 {
-        c.iter().map(|&(a, w, p)| a * (w * t_s + p).sin()).sum()
+    /// Roll (deg per unit sin of the heading), pitch (deg per unit cos of the heading) and heave
+    /// (m) at `t_s`.
+    fn motion(&self, t_s: f64) -> [f64; 3] {
+        let mut m = [0.0; 3];
+        for w in &self.waves {
+            let (sin, cos) = (w.rate * t_s + w.phase).sin_cos();
+            m[0] += w.roll_deg * sin;
+            m[1] += w.pitch_deg[0] * sin + w.pitch_deg[1] * cos;
+            m[2] += w.heave_m[0] * sin + w.heave_m[1] * cos;
+        }
+        m
     }
 
     /// The deck's heave (m).
     pub fn heave_m(&self, t_s: f64) -> f64 {
-        Self::sum(&self.heave, t_s)
+        self.waves
+            .iter()
+            .map(|w| {
+                let (sin, cos) = (w.rate * t_s + w.phase).sin_cos();
+                w.heave_m[0] * sin + w.heave_m[1] * cos
+            })
+            .sum()
     }
 }
 
 impl MotionProfile for SpectrumShipMotion {
     fn sample(&self, t_s: f64) -> MotionSample {
         let chi = self.heading(t_s);
+        let [roll, pitch, heave_m] = self.motion(t_s);
         MotionSample {
             t_s,
-            attitude: Rpy::from_degrees(
-                chi.sin() * Self::sum(&self.roll, t_s),
-                chi.cos() * Self::sum(&self.pitch, t_s),
-                sum(&self.yaw_deg, t_s),
-            ),
+            attitude: Rpy::from_degrees(chi.sin() * roll, chi.cos() * pitch, sum(&self.yaw_deg, t_s)),
             viewpoint: self.tracking.at(t_s),
-            deck_heave_m: self.heave_m(t_s),
+            deck_heave_m: heave_m,
         }
     }
 }

@@ -174,10 +174,11 @@ impl FrameSimulator {
         let deck = *self.renderer.deck();
         // Each marker where it appears: at its own row's instant (a fixed point: the row moves
         // by far less than a pixel per iteration).
+        let scene_t = self.scene_at(t);
         let markers: Vec<Option<[f64; 2]>> = (0..deck.marker_count())
             .map(|m| {
                 let p = deck.marker_position(m);
-                let mut uv = self.scene_at(t).project_deck_point(&camera, &p)?;
+                let mut uv = scene_t.project_deck_point(&camera, &p)?;
                 if camera.readout_s > 0.0 {
                     for _ in 0..4 {
                         uv = self
@@ -192,8 +193,8 @@ impl FrameSimulator {
         let rate_at = |t: f64| {
             let dt = 1e-3;
             let (a, b) = (
-                self.profile.sample(t - dt).viewpoint.vehicle_attitude,
-                self.profile.sample(t + dt).viewpoint.vehicle_attitude,
+                self.profile.vehicle_attitude(t - dt),
+                self.profile.vehicle_attitude(t + dt),
             );
             deckwatch_common::rotation::angular_velocity(&a, &b, 2.0 * dt)
         };

@@ -107,7 +107,7 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
     let mut out = ApproachOutcome::default();
     let mut next_vehicle_s = -0.05;
     let mut vehicle_seq = 0;
-    let heave = |t: f64| world.truth(t)[2];
+    let heave = |t: f64| world.heave_m(t);
     let judge = |t: f64| {
         let (r_d, r_v) = world.attitudes(t);
         TouchdownVerdict::judge(&|t| world.truth(t), &r_d, &r_v, t, capacity, model)
@@ -130,7 +130,7 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
             if out_now {
                 continue;
             }
-            let (_, r_v) = world.attitudes(tv);
+            let r_v = world.vehicle_attitude(tv);
             let height_m = path
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())

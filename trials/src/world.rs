@@ -117,6 +117,20 @@ impl ApproachWorld {
         [r, p, s.deck_heave_m]
     }
 
+    /// The deck's heave (m) at the approach's t (the sea's heave alone: the vehicle's height
+    /// follows it 100 times a second).
+    pub fn heave_m(&self, t: f64) -> f64 {
+        match &self.sea {
+            TrialSea::Spectrum(s) => s.heave_m(t + self.sea_offset_s),
+            TrialSea::Recorded(r) => r.sample(t + self.sea_offset_s).deck_heave_m,
+        }
+    }
+
+    /// The vehicle's attitude (body to W) at t: its sway alone.
+    pub fn vehicle_attitude(&self, t: f64) -> RotationMatrix {
+        self.sway.attitude(t + self.sea_offset_s).to_matrix()
+    }
+
     /// The deck's and the vehicle's attitudes (body to W) at t.
     pub fn attitudes(&self, t: f64) -> (RotationMatrix, RotationMatrix) {
         let deck = self.sea.sample(t + self.sea_offset_s).attitude.to_matrix();

@@ -196,7 +196,7 @@ fn fly_with(
     let mut follow = DecisionFollower::default();
     let mut faults = FrameFaults::new(&fault_model(a), a.rate, job.approach_seed());
     let mut out = ApproachOutcome::default();
-    let heave = |t: f64| world.truth(t)[2];
+    let heave = |t: f64| world.heave_m(t);
     let capacity = &config.decide;
     // Two seconds of the autopilot's stream before the first frame: the link comes up.
     let t_of = |ns: u64| (ns as f64 - start as f64) / 1e9;
@@ -325,7 +325,7 @@ fn stream(
         if now >= next_attitude {
             next_attitude = now + 10_000_000;
             if streaming {
-                let (_, r_v) = world.attitudes(t);
+                let r_v = world.vehicle_attitude(t);
                 send(MavMessage::ATTITUDE_QUATERNION(ATTITUDE_QUATERNION_DATA {
                     time_boot_ms: boot_ms,
                     ..quaternion(&r_v)
@@ -338,7 +338,7 @@ fn stream(
                 // Height and vertical speed, as an autopilot's estimator gives them (the link
                 // carries the height to each attitude sample by the speed).
                 let height_at = |t: f64| {
-                    let heave = world.truth(t)[2];
+                    let heave = world.heave_m(t);
                     path.lock().unwrap_or_else(|e| e.into_inner()).height_m(t, heave)
                 };
                 const DT_S: f64 = 0.005;

@@ -23,6 +23,18 @@ import sys
 import time
 
 
+def die_with_parent():
+    """In the shard's child, before exec: killed with its Ray worker. A worker that dies (a node
+    lost, a worker killed) has its task retried elsewhere; a `deckwatch` left running would fly
+    the same shard twice, on a core the retry needs."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+        import signal
+
+        PR_SET_PDEATHSIG = 1
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+
+
 def parse():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--deckwatch", required=True, help="the deckwatch binary (on every worker, or shipped)")
@@ -63,7 +75,7 @@ def main():
         started = time.time()
         run = subprocess.run(
             [exe, "trials", *trials, "--json", "--threads", "1", "--shard", f"{k}/{n}"],
-            capture_output=True, text=True,
+            capture_output=True, text=True, preexec_fn=die_with_parent,
         )
         if run.returncode != 0:
             raise RuntimeError(f"shard {k}/{n} failed ({run.returncode}): {run.stderr[-2000:]}")

@@ -51,6 +51,24 @@ impl LandingDecider {
         let heave = m.tracks.get(HEAVE);
         let [sr, sp, _] = m.band_scale;
         let [rr, rp, rh] = m.rate_band_scale;
+        // A channel whose band has been measured far too narrow (value or rate) has a forecast
+        // that is not the deck's motion: its rate is then also judged as the history knows it
+        // without a model (zero mean, the history's spread), and the larger risk counts. A
+        // campaign cleared on heave bands scaled 3.4-200 times, three times into more than
+        // 0.64 m/s of heave rate (BENCHMARKS.md, "A campaign of 2 016 approaches").
+        let climate = |k: usize, limit: f64| -> f64 {
+            let unreliable = m.band_scale[k] > MAX_BAND_SCALE || m.rate_band_scale[k] > MAX_BAND_SCALE;
+            if unreliable && k < m.tracks.len() {
+                outside_probability(0.0, m.rate_climate_std[k], limit)
+            } else {
+                0.0
+            }
+        };
+        let climate_tails = [
+            climate(ROLL, limits[3]),
+            climate(PITCH, limits[4]),
+            climate(HEAVE, limits[5]),
+        ];
         let mut worst = [0.0f64; 6];
         for t in times {
             let (rm, rs) = (roll.value(t), sr * roll.std(t));
@@ -68,6 +86,9 @@ impl LandingDecider {
             for (w, p) in worst.iter_mut().zip(tails) {
                 *w = w.max(p);
             }
+        }
+        for (w, c) in worst[3..].iter_mut().zip(climate_tails) {
+            *w = w.max(c);
         }
         worst.iter().sum()
     }

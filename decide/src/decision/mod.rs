@@ -111,6 +111,9 @@ const BAND_EVIDENCE_QUANTILE: f64 = 0.975;
 const BAND_MEMORY_S: f64 = 10.0;
 /// Held-out misses needed before the band's scale is measured rather than assumed.
 const MIN_BAND_EVIDENCE: usize = 20;
+/// The band scale (value or rate) beyond which a channel's forecast is taken to be unreliable,
+/// and its rate also judged by the history's spread (`LandingDecider::exceedance_risk`).
+const MAX_BAND_SCALE: f64 = 3.0;
 /// The band's scale before there is evidence (forecasts shown, never a clearance): the
 /// autoregressive predictor's raw 95 % band held about 87 % of the truths 2 s ahead on the
 /// development seas (BENCHMARKS "Deck-motion prediction"); 1.5 widens it to about what the

@@ -21,6 +21,29 @@ pub(super) struct Models {
     pub(super) rate_band_scale: [f64; 3],
     /// Every channel's band has been checked against what followed (`MIN_BAND_EVIDENCE`).
     pub(super) band_checked: bool,
+    /// Per channel, the spread of its rate over the fitted history (RMS of the samples' rates):
+    /// what is known of a rate to come without a model.
+    pub(super) rate_climate_std: [f64; 3],
+}
+
+/// The RMS of each channel's rate over samples `t` (s) and `y` (one series per channel), by
+/// central differences; NaN with fewer than three samples.
+fn rate_climate_std(t: &[f64], y: &[Vec<f64>]) -> [f64; 3] {
+    let mut out = [f64::NAN; 3];
+    for (k, yk) in y.iter().enumerate().take(3) {
+        let (mut sum_sq, mut n) = (0.0, 0usize);
+        for i in 1..t.len().saturating_sub(1) {
+            let dt = t[i + 1] - t[i - 1];
+            if dt > 0.0 {
+                sum_sq += ((yk[i + 1] - yk[i - 1]) / dt).powi(2);
+                n += 1;
+            }
+        }
+        if n > 0 {
+            out[k] = (sum_sq / n as f64).sqrt();
+        }
+    }
+    out
 }
 
 /// One channel's predictor.
@@ -246,6 +269,7 @@ impl LandingDecider {
             band_scale,
             rate_band_scale,
             band_checked,
+            rate_climate_std: rate_climate_std(&t, &y),
         })
     }
 

@@ -28,7 +28,7 @@ pub(super) struct Models {
 
 /// The RMS of each channel's rate over samples `t` (s) and `y` (one series per channel), by
 /// central differences; NaN with fewer than three samples.
-fn rate_climate_std(t: &[f64], y: &[Vec<f64>]) -> [f64; 3] {
+pub(super) fn rate_climate_std(t: &[f64], y: &[Vec<f64>]) -> [f64; 3] {
     let mut out = [f64::NAN; 3];
     for (k, yk) in y.iter().enumerate().take(3) {
         let (mut sum_sq, mut n) = (0.0, 0usize);

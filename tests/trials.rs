@@ -6,6 +6,15 @@
 use deckwatch_tests::{workspace_binary, PipelineGuard};
 use std::process::{Command, Stdio};
 
+/// `deckwatch trials --json`'s output, a value per line.
+fn json_lines(stdout: Vec<u8>) -> Vec<serde_json::Value> {
+    String::from_utf8(stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
 #[test]
 fn closed_loop_landings_touch_down_safely_in_one_process_and_through_the_processes() {
     let dir = tempfile::tempdir().unwrap();
@@ -55,11 +64,7 @@ fn closed_loop_landings_touch_down_safely_in_one_process_and_through_the_process
     let out = trials.wait_with_output();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
-    let lines: Vec<serde_json::Value> = String::from_utf8(out.stdout)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let lines = json_lines(out.stdout);
     let rule = |name: &str| {
         lines
             .iter()
@@ -165,11 +170,7 @@ fn the_campaigns_unsafe_approach_waits_for_its_rate_bands_evidence() {
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
-    let lines: Vec<serde_json::Value> = String::from_utf8(out.stdout)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let lines = json_lines(out.stdout);
     let approach = lines
         .iter()
         .find_map(|l| l.get("approach"))

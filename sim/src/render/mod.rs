@@ -742,16 +742,7 @@ impl Renderer {
         let o = &self.options;
         let (sea_dn, marker_dn) = (o.sea_dn as f32, o.marker_dn as f32);
         let halo_dn = (o.halo * o.marker_dn) as f32;
-        let tex = Textures {
-            half: o.deck_size_m / 2.0,
-            deck_scale: TEX as f64 / o.deck_size_m,
-            sea_scale: TEX as f64 / SEA_TILE_M,
-            deck: &self.deck_tex[..],
-            sea: &self.sea_tex[..],
-            deck_dn: o.deck_dn as f32,
-            sea_dn,
-            amp: o.texture as f32,
-        };
+        let tex = Textures::placed(o, &self.deck_tex, &self.sea_tex);
         let ray_h = ray_to_deck(scene);
         // Pixels per two texels at the image centre -> the interpolation step (1, 2, 4 or 8).
         let chunk = {
@@ -1196,16 +1187,7 @@ mod tests {
         r.render(&[s], 1, &mut img.view_mut()).unwrap();
         let hm = pixel_to_deck(&camera, &s).unwrap();
         let o = &clean;
-        let tex = Textures {
-            half: o.deck_size_m / 2.0,
-            deck_scale: TEX as f64 / o.deck_size_m,
-            sea_scale: TEX as f64 / SEA_TILE_M,
-            deck: &r.deck_tex[..],
-            sea: &r.sea_tex[..],
-            deck_dn: o.deck_dn as f32,
-            sea_dn: o.sea_dn as f32,
-            amp: o.texture as f32,
-        };
+        let tex = Textures::placed(o, &r.deck_tex, &r.sea_tex);
         let near_marker = |x: usize, y: usize| {
             r.patches.iter().any(|p| {
                 p.w > 0 && x + 2 >= p.x0 && x < p.x0 + p.w + 2 && y + 2 >= p.y0 && y < p.y0 + p.h + 2

@@ -169,7 +169,21 @@ pub(super) struct Textures<'a> {
     pub(super) amp: f32,
 }
 
-impl Textures<'_> {
+impl<'a> Textures<'a> {
+    /// The deck's and the sea's textures placed and lit as `o` says.
+    pub(super) fn placed(o: &RenderOptions, deck: &'a [u8], sea: &'a [u8]) -> Self {
+        Self {
+            half: o.deck_size_m / 2.0,
+            deck_scale: TEX as f64 / o.deck_size_m,
+            sea_scale: TEX as f64 / SEA_TILE_M,
+            deck,
+            sea,
+            deck_dn: o.deck_dn as f32,
+            sea_dn: o.sea_dn as f32,
+            amp: o.texture as f32,
+        }
+    }
+
     /// Albedo (DN) at a deck-plane point: the deck square's texture, or the sea's.
     #[inline(always)]
     pub(super) fn albedo(&self, x: f64, y: f64) -> f32 {

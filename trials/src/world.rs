@@ -134,6 +134,6 @@ impl ApproachWorld {
     /// The deck's and the vehicle's attitudes (body to W) at t.
     pub fn attitudes(&self, t: f64) -> (RotationMatrix, RotationMatrix) {
         let deck = self.sea.sample(t + self.sea_offset_s).attitude.to_matrix();
-        (deck, self.sway.attitude(t + self.sea_offset_s).to_matrix())
+        (deck, self.vehicle_attitude(t))
     }
 }

@@ -208,16 +208,6 @@ const MAX_CHUNK: usize = 8;
 /// finest octave (2 cm on the paper's deck, 3-4 px at 3 m over it at 640x480) is smoothed there,
 /// below the read noise.
 const BACKGROUND_STEP: usize = 8;
-/// 0, 1, ... `BACKGROUND_STEP - 1`: the offsets within a grid step.
-const STEP_RAMP: [f32; BACKGROUND_STEP] = {
-    let mut ramp = [0.0; BACKGROUND_STEP];
-    let mut i = 0;
-    while i < BACKGROUND_STEP {
-        ramp[i] = i as f32;
-        i += 1;
-    }
-    ramp
-};
 /// Least margin (pixels) around a marker's patch in which the background stays exact.
 const EXACT_MARGIN_PX: usize = 8;
 
@@ -343,6 +333,13 @@ fn edge_coverage(
         }
     }
     inside as f32 / (n * n) as f32
+}
+
+/// `out` from `left` in steps of `step` per pixel: the background between two exact samples.
+fn fill_linear(out: &mut [f32], left: f32, step: f32) {
+    for (i, a) in out.iter_mut().enumerate() {
+        *a = left + step * i as f32;
+    }
 }
 
 /// A signal (DN) as the nearest 8-bit value, clipped to 0-255. Rounded by adding 1.5 x 2^23,
@@ -843,16 +840,17 @@ impl Renderer {
             for (gx, x0) in (0..w).step_by(step_px).enumerate() {
                 let left = upper[gx] + (lower[gx] - upper[gx]) * ty;
                 let right = upper[gx + 1] + (lower[gx + 1] - upper[gx + 1]) * ty;
-                let d = (right - left) * (1.0 / step_px as f32);
                 let end = (x0 + step_px).min(w);
-                for (a, i) in self.row_signal[x0..end].iter_mut().zip(STEP_RAMP) {
-                    *a = left + d * i;
-                }
+                fill_linear(
+                    &mut self.row_signal[x0..end],
+                    left,
+                    (right - left) / step_px as f32,
+                );
             }
             // Near the markers: exact at every `chunk`-th pixel, linear in between. The chunk
             // spans at most two texels (a slight smoothing of the finest texture octave), and
             // the perspective map's curvature over it is far below a micrometre on the deck.
-            // The row's exact spans: the regions it crosses, merged where they overlap.
+            // The row's spans there: the regions it crosses, merged where they overlap.
             spans.clear();
             for r in near_markers.iter().filter(|r| y >= r[1] && y < r[3]) {
                 match spans.last_mut() {
@@ -868,10 +866,11 @@ impl Renderer {
                     while x < x_to {
                         let end = (x + chunk).min(x_to);
                         let right = albedo_at(end);
-                        let d = (right - left) / (end - x) as f32;
-                        for (i, a) in self.row_signal[x..end].iter_mut().enumerate() {
-                            *a = left + d * i as f32;
-                        }
+                        fill_linear(
+                            &mut self.row_signal[x..end],
+                            left,
+                            (right - left) / (end - x) as f32,
+                        );
                         left = right;
                         x = end;
                     }

@@ -17,18 +17,33 @@ pub(super) fn gaussian_kernel(sigma: f64) -> Vec<f32> {
 /// samples beyond the border count as 0.
 pub(super) fn convolve_axis(src: &[f32], dst: &mut [f32], w: usize, h: usize, k: &[f32], along_x: bool) {
     let r = k.len() / 2;
-    let (n, step) = if along_x { (w, 1) } else { (h, w) };
-    for y in 0..h {
-        for x in 0..w {
-            let (i0, pos) = (y * w + x, if along_x { x } else { y });
-            let mut acc = 0.0;
+    // The taps in the same order as a per-pixel sum, but a whole row or run of a row at a
+    // time, without a border test at every tap: the compiler vectorises these loops, which the
+    // per-tap test kept it from (the blur was a fortieth of a trial frame's time).
+    if along_x {
+        for (src_row, dst_row) in src.chunks_exact(w).zip(dst.chunks_exact_mut(w)).take(h) {
+            for (x, d) in dst_row.iter_mut().enumerate() {
+                let from = x.saturating_sub(r);
+                let to = (x + r + 1).min(w);
+                let taps = &k[from + r - x..to + r - x];
+                *d = taps
+                    .iter()
+                    .zip(&src_row[from..to])
+                    .fold(0.0, |acc, (kv, s)| acc + kv * s);
+            }
+        }
+    } else {
+        for y in 0..h {
+            let dst_row = &mut dst[y * w..(y + 1) * w];
+            dst_row.fill(0.0);
             for (i, kv) in k.iter().enumerate() {
-                let q = (pos + i).wrapping_sub(r);
-                if q < n {
-                    acc += kv * src[i0 + q * step - pos * step];
+                let q = (y + i).wrapping_sub(r);
+                if q < h {
+                    for (d, s) in dst_row.iter_mut().zip(&src[q * w..(q + 1) * w]) {
+                        *d += kv * s;
+                    }
                 }
             }
-            dst[i0] = acc;
         }
     }
 }
@@ -233,18 +248,18 @@ pub(super) fn sample_clamped(tex: &[u8], x: f64, y: f64) -> f32 {
 
 #[inline(always)]
 pub(super) fn sample_wrapped(tex: &[u8], x: f64, y: f64) -> f32 {
-    let (x, y) = (x.rem_euclid(TEX as f64), y.rem_euclid(TEX as f64));
-    let (x0, y0) = ((x as usize) % TEX, (y as usize) % TEX);
+    // The floor by truncation and a correction (`floor` and `%` on floats are calls into libm
+    // without SSE4.1); beyond +-2^63 texels the cast saturates, which only shifts the pattern.
+    let floor = |v: f64| (v as i64) - (v < (v as i64) as f64) as i64;
+    let (xf, yf) = (floor(x), floor(y));
+    let (x0, y0) = (
+        xf.rem_euclid(TEX as i64) as usize,
+        yf.rem_euclid(TEX as i64) as usize,
+    );
     let (x1, y1) = ((x0 + 1) % TEX, (y0 + 1) % TEX);
-    bilinear(
-        tex,
-        x0,
-        y0,
-        x1,
-        y1,
-        (x - x0 as f64) as f32,
-        (y - y0 as f64) as f32,
-    )
+    // Clamped: where the cast saturated, the difference is no fraction.
+    let frac = |v: f64, f: i64| (v - f as f64).clamp(0.0, 1.0) as f32;
+    bilinear(tex, x0, y0, x1, y1, frac(x, xf), frac(y, yf))
 }
 
 /// A tileable value-noise texture (`n` x `n`, values roughly in [-1, 1]): octaves of random

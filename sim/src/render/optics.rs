@@ -250,7 +250,7 @@ pub(super) fn sample_clamped(tex: &[u8], x: f64, y: f64) -> f32 {
 pub(super) fn sample_wrapped(tex: &[u8], x: f64, y: f64) -> f32 {
     // The floor by truncation and a correction (`floor` and `%` on floats are calls into libm
     // without SSE4.1); beyond +-2^63 texels the cast saturates, which only shifts the pattern.
-    let floor = |v: f64| (v as i64) - (v < (v as i64) as f64) as i64;
+    let floor = |v: f64| (v as i64).saturating_sub((v < (v as i64) as f64) as i64);
     let (xf, yf) = (floor(x), floor(y));
     let (x0, y0) = (
         xf.rem_euclid(TEX as i64) as usize,

@@ -1209,21 +1209,10 @@ mod tests {
     #[test]
     fn the_sea_texture_wraps_with_its_period_either_side_of_zero() {
         let (_, sea) = textures(9);
-        // The value a float modulo gives, and the texture's period either way.
-        let reference = |x: f64, y: f64| {
-            let (x, y) = (x.rem_euclid(TEX as f64), y.rem_euclid(TEX as f64));
-            let (x0, y0) = (x as usize % TEX, y as usize % TEX);
-            let (x1, y1) = ((x0 + 1) % TEX, (y0 + 1) % TEX);
-            bilinear(
-                &sea,
-                x0,
-                y0,
-                x1,
-                y1,
-                (x - x0 as f64) as f32,
-                (y - y0 as f64) as f32,
-            )
-        };
+        // The same as the point brought into the texture's first period by a float modulo (in
+        // there the floor is the truncation), and the texture's period either way.
+        let reference =
+            |x: f64, y: f64| sample_wrapped(&sea, x.rem_euclid(TEX as f64), y.rem_euclid(TEX as f64));
         for (x, y) in [
             (0.0, 0.0),
             (-0.25, 3.5),
@@ -1236,6 +1225,10 @@ mod tests {
             assert!((v - reference(x, y)).abs() < 1e-5, "({x}, {y})");
             assert!((v - sample_wrapped(&sea, x + TEX as f64, y - 3.0 * TEX as f64)).abs() < 1e-5);
         }
+        // On a texel: its byte; a texel before the first (-1, -2): the last column's.
+        let texel = |x: usize, y: usize| sea[y * TEX + x] as f32 / 127.0 - 1.0;
+        assert!((sample_wrapped(&sea, 3.0, 5.0) - texel(3, 5)).abs() < 1e-6);
+        assert!((sample_wrapped(&sea, -1.0, -2.0) - texel(TEX - 1, TEX - 2)).abs() < 1e-6);
         // Far beyond the horizon's texels: a value of the texture, no panic.
         for v in [1e30, -1e30, f64::MAX] {
             assert!(sample_wrapped(&sea, v, v).abs() <= 1.0);

@@ -5,10 +5,10 @@
 //! around it have a procedural albedo texture; the marker discs are bright. Near the markers
 //! (each disc's patch and a margin as wide as the detector's search around it) the background
 //! is mapped on a lattice of every pixel or two (at most two texels apart); elsewhere on a grid
-//! of `BACKGROUND_STEP` pixels; bilinear between. Disc edges are anti-aliased by supersampling each edge pixel (`supersample`^2
-//! samples, counted row by row on the pixel's affine map), averaged over the sub-exposures of the
-//! motion-blur window, then blurred by a Gaussian (optical blur). Illumination gradient,
-//! vignetting, shot and read noise are applied last. All of it happens in one pass over the
+//! of `BACKGROUND_STEP` pixels; bilinear between. Disc edges are anti-aliased by supersampling
+//! each edge pixel (`supersample`^2 samples, counted row by row on the pixel's affine map),
+//! averaged over the sub-exposures of the motion-blur window, then blurred by a Gaussian (optical
+//! blur). Illumination gradient, vignetting, shot and read noise are applied last. All of it happens in one pass over the
 //! caller's buffer; buffers are allocated when the renderer is made (or grow once when a marker
 //! appears larger than before), never per frame.
 //!
@@ -434,15 +434,26 @@ pub struct Renderer {
     /// The background's albedo on the two grid rows around the row being composited.
     grid_upper: Vec<f32>,
     grid_lower: Vec<f32>,
-    /// Per marker, the region (x0, y0, x1, y1; pixels) where the background stays exact...
-    near_markers: Vec<[usize; 4]>,
-    /// ...and the spans (x0, x1) of the row being composited within them.
-    exact_spans: Vec<(usize, usize)>,
-    /// The background's exact albedo there, on a lattice of every `chunk`-th pixel both ways
-    /// (row-major, `lattice_w` a row), each entry valid for the frame whose stamp it carries.
+    /// Per marker, the region where the background stays exact...
+    near_markers: Vec<ExactRegion>,
+    /// ...and the exact albedo there, each region's lattice after the one before. Grows to the
+    /// largest frame's need, then is reused: a frame-sized lattice would be 64 MB at full
+    /// resolution.
     lattice: Vec<f32>,
-    lattice_stamp: Vec<u32>,
-    frame_stamp: u32,
+}
+
+/// A region near a marker where the background's albedo is exact on a lattice of every
+/// `chunk`-th pixel both ways (the global lattice's points within it).
+#[derive(Debug, Clone, Copy)]
+struct ExactRegion {
+    /// x0, y0, x1, y1 (pixels; x1, y1 excluded).
+    rect: [usize; 4],
+    /// The lattice's first column and row, and its width (points).
+    first_gx: usize,
+    first_gy: usize,
+    lattice_w: usize,
+    /// Where its lattice starts in `Renderer::lattice` (row-major).
+    offset: usize,
 }
 
 impl Renderer {
@@ -487,10 +498,7 @@ impl Renderer {
             grid_upper: Vec::new(),
             grid_lower: Vec::new(),
             near_markers: Vec::new(),
-            exact_spans: Vec::new(),
             lattice: Vec::new(),
-            lattice_stamp: Vec::new(),
-            frame_stamp: 0,
         })
     }
 
@@ -823,50 +831,37 @@ impl Renderer {
         // `EXACT_MARGIN_PX`) around it.
         let mut near_markers = std::mem::take(&mut self.near_markers);
         near_markers.clear();
-        near_markers.extend(self.patches.iter().filter(|p| p.w > 0).map(|p| {
+        let mut lattice = std::mem::take(&mut self.lattice);
+        lattice.clear();
+        for p in self.patches.iter().filter(|p| p.w > 0) {
             let margin = EXACT_MARGIN_PX.max(p.w.max(p.h) / 2);
-            [
+            let rect = [
                 p.x0.saturating_sub(margin),
                 p.y0.saturating_sub(margin),
                 (p.x0 + p.w + margin).min(w),
                 (p.y0 + p.h + margin).min(h),
-            ]
-        }));
-        near_markers.sort_unstable_by_key(|r| r[0]);
-        // The exact albedo on the lattice of every `chunk`-th pixel both ways that covers
-        // them: the points each region needs, each point once (regions overlap). Between
-        // points, bilinear: the chunk spans at most two texels (a slight smoothing of the
-        // finest texture octave) and the perspective map's curvature over it is far below a
-        // micrometre on the deck. (Exact on every row, linear only along it, these samples
-        // were a fifth of the renderer's time.)
-        let lattice_w = w.div_ceil(chunk) + 1;
-        let lattice_len = lattice_w * (h.div_ceil(chunk) + 1);
-        let mut lattice = std::mem::take(&mut self.lattice);
-        let mut lattice_stamp = std::mem::take(&mut self.lattice_stamp);
-        if lattice_stamp.len() != lattice_len || self.frame_stamp == u32::MAX {
-            lattice.clear();
-            lattice.resize(lattice_len, 0.0);
-            lattice_stamp.clear();
-            lattice_stamp.resize(lattice_len, 0);
-            self.frame_stamp = 0;
-        }
-        self.frame_stamp += 1;
-        let stamp = self.frame_stamp;
-        for r in &near_markers {
-            for gy in r[1] / chunk..=r[3].div_ceil(chunk) {
+            ];
+            // The exact albedo on the lattice points that cover the region. Between them,
+            // bilinear: the chunk spans at most two texels (a slight smoothing of the finest
+            // texture octave) and the perspective map's curvature over it is far below a
+            // micrometre on the deck. (Exact on every row, linear only along it, these samples
+            // were a fifth of the renderer's time.) Where regions overlap, both compute the
+            // same points.
+            let region = ExactRegion {
+                rect,
+                first_gx: rect[0] / chunk,
+                first_gy: rect[1] / chunk,
+                lattice_w: rect[2].div_ceil(chunk) - rect[0] / chunk + 1,
+                offset: lattice.len(),
+            };
+            for gy in region.first_gy..=rect[3].div_ceil(chunk) {
                 let y = (gy * chunk).min(h);
-                let mut albedo_at = None;
-                for gx in r[0] / chunk..=r[2].div_ceil(chunk) {
-                    let i = gy * lattice_w + gx;
-                    if lattice_stamp[i] != stamp {
-                        let at = albedo_at.get_or_insert_with(|| row_sampler(maps_at(y), y));
-                        lattice[i] = at((gx * chunk).min(w));
-                        lattice_stamp[i] = stamp;
-                    }
-                }
+                let albedo_at = row_sampler(maps_at(y), y);
+                let columns = region.first_gx..region.first_gx + region.lattice_w;
+                lattice.extend(columns.map(|gx| albedo_at((gx * chunk).min(w))));
             }
+            near_markers.push(region);
         }
-        let mut spans = std::mem::take(&mut self.exact_spans);
         let noisy = o.read_noise_dn > 0.0 || o.shot_noise_dn > 0.0;
         let (read_var, shot_var_per_dn) =
             ((o.read_noise_dn * o.read_noise_dn) as f32, o.shot_noise_dn as f32);
@@ -895,26 +890,22 @@ impl Renderer {
                     (right - left) / step_px as f32,
                 );
             }
-            // Near the markers: bilinear between the lattice's exact points. The row's spans
-            // there: the regions it crosses, merged where they overlap.
-            spans.clear();
-            for r in near_markers.iter().filter(|r| y >= r[1] && y < r[3]) {
-                match spans.last_mut() {
-                    Some(last) if r[0] <= last.1 => last.1 = last.1.max(r[2]),
-                    _ => spans.push((r[0], r[2])),
-                }
-            }
-            let (ly, lty) = (y / chunk, (y % chunk) as f32 / chunk as f32);
-            let at = |gx: usize| {
-                let (a, b) = (lattice[ly * lattice_w + gx], lattice[(ly + 1) * lattice_w + gx]);
-                a + (b - a) * lty
-            };
-            for &(x_from, x_to) in &spans {
-                let mut x = x_from;
-                while x < x_to {
+            // Near the markers: bilinear between the lattice's exact points (where regions
+            // overlap, both write the same values).
+            let lty = (y % chunk) as f32 / chunk as f32;
+            for r in near_markers.iter().filter(|r| y >= r.rect[1] && y < r.rect[3]) {
+                let upper = r.offset + (y / chunk - r.first_gy) * r.lattice_w;
+                let (upper, lower) = (
+                    &lattice[upper..upper + r.lattice_w],
+                    &lattice[upper + r.lattice_w..upper + 2 * r.lattice_w],
+                );
+                let at = |i: usize| upper[i] + (lower[i] - upper[i]) * lty;
+                let mut x = r.rect[0];
+                while x < r.rect[2] {
                     let gx = x / chunk;
-                    let end = ((gx + 1) * chunk).min(x_to);
-                    let (left, right) = (at(gx), at(gx + 1));
+                    let end = ((gx + 1) * chunk).min(r.rect[2]);
+                    let i = gx - r.first_gx;
+                    let (left, right) = (at(i), at(i + 1));
                     let step = (right - left) / chunk as f32;
                     fill_linear(
                         &mut self.row_signal[x..end],
@@ -987,9 +978,7 @@ impl Renderer {
         self.grid_upper = upper;
         self.grid_lower = lower;
         self.near_markers = near_markers;
-        self.exact_spans = spans;
         self.lattice = lattice;
-        self.lattice_stamp = lattice_stamp;
     }
 }
 
@@ -1283,7 +1272,7 @@ mod tests {
                 let in_exact_region = r
                     .near_markers
                     .iter()
-                    .any(|q| x >= q[0] && x < q[2] && y >= q[1] && y < q[3]);
+                    .any(|q| x >= q.rect[0] && x < q.rect[2] && y >= q.rect[1] && y < q.rect[3]);
                 if in_exact_region {
                     worst_near = worst_near.max(err);
                 } else {

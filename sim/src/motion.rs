@@ -550,6 +550,16 @@ impl EncounteredWave {
     fn shifted(amplitude: f64, offset: f64) -> [f64; 2] {
         [amplitude * offset.cos(), amplitude * offset.sin()]
     }
+
+    /// `(sin, cos)` of the wave's phase at `t_s`.
+    fn phase_sin_cos(&self, t_s: f64) -> (f64, f64) {
+        (self.rate * t_s + self.phase).sin_cos()
+    }
+
+    /// Its heave (m), from `(sin, cos)` of its phase.
+    fn heave_m(&self, (sin, cos): (f64, f64)) -> f64 {
+        self.heave_m[0] * sin + self.heave_m[1] * cos
+    }
 }
 
 const COMPONENTS: usize = 300;
@@ -634,23 +644,17 @@ impl SpectrumShipMotion {
     fn motion(&self, t_s: f64) -> [f64; 3] {
         let mut m = [0.0; 3];
         for w in &self.waves {
-            let (sin, cos) = (w.rate * t_s + w.phase).sin_cos();
+            let (sin, cos) = w.phase_sin_cos(t_s);
             m[0] += w.roll_deg * sin;
             m[1] += w.pitch_deg[0] * sin + w.pitch_deg[1] * cos;
-            m[2] += w.heave_m[0] * sin + w.heave_m[1] * cos;
+            m[2] += w.heave_m((sin, cos));
         }
         m
     }
 
     /// The deck's heave (m).
     pub fn heave_m(&self, t_s: f64) -> f64 {
-        self.waves
-            .iter()
-            .map(|w| {
-                let (sin, cos) = (w.rate * t_s + w.phase).sin_cos();
-                w.heave_m[0] * sin + w.heave_m[1] * cos
-            })
-            .sum()
+        self.waves.iter().map(|w| w.heave_m(w.phase_sin_cos(t_s))).sum()
     }
 }
 

@@ -59,7 +59,11 @@ impl LandingDecider {
         let climate = |k: usize, limit: f64| -> f64 {
             let unreliable = m.band_scale[k] > MAX_BAND_SCALE || m.rate_band_scale[k] > MAX_BAND_SCALE;
             if unreliable && k < m.tracks.len() {
-                outside_probability(0.0, m.rate_climate_std[k], limit)
+                // No spread known (too few distinct sample times): nothing to clear on.
+                match m.rate_climate_std[k] {
+                    std if std.is_finite() => outside_probability(0.0, std, limit),
+                    _ => 1.0,
+                }
             } else {
                 0.0
             }

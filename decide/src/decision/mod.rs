@@ -1232,6 +1232,10 @@ mod tests {
         let spread_alone = outside_probability(0.0, 0.5, c.max_abs_heave_rate_mps);
         assert!(unreliable >= spread_alone, "{unreliable} < {spread_alone}");
         assert!(unreliable > c.risk_per_touchdown);
+        // Without a known spread, an unreliable channel clears nothing.
+        m.rate_climate_std[2] = f64::NAN;
+        assert!(d.exceedance_risk(&m, times(), &limits) >= 1.0);
+        m.rate_climate_std[2] = 0.5;
         // A scale of 3 or less is still a band to believe.
         m.band_scale[2] = MAX_BAND_SCALE;
         assert!(d.exceedance_risk(&m, times(), &limits) < c.risk_per_touchdown);

@@ -19,7 +19,7 @@
 
 use deckwatch_common::Rpy;
 use deckwatch_runtime::bus::domain_prefix;
-use deckwatch_tests::{pipeline_output, workspace_binary};
+use deckwatch_tests::{pipeline_output, workspace_binary, PipelineGuard};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -91,29 +91,29 @@ fn pymavlink_autopilot_and_ground_station() {
     .unwrap();
     let tlog = dir.path().join("session.tlog");
     let captured = dir.path().join("captured.hex");
-    let peer = Command::new(&python)
-        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/autopilot.py"))
-        .args(["--port", &port.to_string(), "--tilt-deg"])
-        .args(TILT_DEG.map(|a| a.to_string()))
-        .args(["--clock-offset-s", &CLOCK_OFFSET_S.to_string()])
-        .args(["--stop-after-s", "12", "--linger-s", "4", "--tlog"])
-        .arg(&tlog)
-        .args(["--key-hex", &key_hex, "--capture"])
-        .arg(&captured)
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("start the pymavlink autopilot");
+    let mut peer = PipelineGuard::spawn_peer(
+        Command::new(&python)
+            .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/autopilot.py"))
+            .args(["--port", &port.to_string(), "--tilt-deg"])
+            .args(TILT_DEG.map(|a| a.to_string()))
+            .args(["--clock-offset-s", &CLOCK_OFFSET_S.to_string()])
+            .args(["--stop-after-s", "12", "--linger-s", "4", "--tlog"])
+            .arg(&tlog)
+            .args(["--key-hex", &key_hex, "--capture"])
+            .arg(&captured)
+            .stdout(Stdio::piped()),
+    );
     // While the autopilot streams (from its 3rd to its 9th second).
-    let attacker = Command::new(&python)
-        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/attacker.py"))
-        .args(["--port", &port.to_string(), "--key-hex", &key_hex, "--tilt-deg"])
-        .args(TILT_DEG.map(|a| a.to_string()))
-        .args(["--bias-deg", "5", "--clock-offset-s", &CLOCK_OFFSET_S.to_string()])
-        .args(["--start-after-s", "3", "--duration-s", "6", "--replay"])
-        .arg(&captured)
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("start the pymavlink attacker");
+    let mut attacker = PipelineGuard::spawn_peer(
+        Command::new(&python)
+            .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/attacker.py"))
+            .args(["--port", &port.to_string(), "--key-hex", &key_hex, "--tilt-deg"])
+            .args(TILT_DEG.map(|a| a.to_string()))
+            .args(["--bias-deg", "5", "--clock-offset-s", &CLOCK_OFFSET_S.to_string()])
+            .args(["--start-after-s", "3", "--duration-s", "6", "--replay"])
+            .arg(&captured)
+            .stdout(Stdio::piped()),
+    );
     let decisions = dir.path().join("decisions.csv");
     let run = pipeline_output(
         Command::new(&deckwatch)
@@ -125,11 +125,11 @@ fn pymavlink_autopilot_and_ground_station() {
     );
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(run.status.success(), "deckwatch run failed:\n{stderr}");
-    let peer = peer.wait_with_output().unwrap();
+    let peer = peer.wait_with_output();
     assert!(peer.status.success(), "the pymavlink autopilot failed");
     let seen: serde_json::Value = serde_json::from_slice(&peer.stdout).expect("its JSON summary");
     let stop_ns = seen["stop_monotonic_ns"].as_u64().unwrap();
-    let attacker = attacker.wait_with_output().unwrap();
+    let attacker = attacker.wait_with_output();
     assert!(attacker.status.success(), "the pymavlink attacker failed");
     let attack: serde_json::Value = serde_json::from_slice(&attacker.stdout).expect("its JSON summary");
 

@@ -8,7 +8,7 @@
 //! Needs python3 with ray and matplotlib (`ci/peers.sh` installs them; `DECKWATCH_PYTHON` names
 //! the interpreter).
 
-use deckwatch_tests::{peer_python, workspace_binary};
+use deckwatch_tests::{peer_python, workspace_binary, PipelineGuard};
 use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -53,27 +53,27 @@ fn shards_on_a_local_ray_cluster_give_the_single_process_report() {
     let deckwatch = workspace_binary("deckwatch");
     let dir = tempfile::tempdir().unwrap();
     let out_dir = dir.path().join("campaign");
-    let mut driver = Command::new(&python)
-        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/cluster/run_trials.py"))
-        .arg("--deckwatch")
-        .arg(&deckwatch)
-        .args(["--shards", "3", "--workers", "2", "--out"])
-        .arg(&out_dir)
-        .arg("--")
-        .args(CAMPAIGN)
-        // Ray's own session files in the test's folder, not the user's /tmp/ray.
-        .env("RAY_TMPDIR", dir.path())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("start the Ray driver");
+    let mut driver = PipelineGuard::spawn_peer(
+        Command::new(&python)
+            .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/cluster/run_trials.py"))
+            .arg("--deckwatch")
+            .arg(&deckwatch)
+            .args(["--shards", "3", "--workers", "2", "--out"])
+            .arg(&out_dir)
+            .arg("--")
+            .args(CAMPAIGN)
+            // Ray's own session files in the test's folder, not the user's /tmp/ray.
+            .env("RAY_TMPDIR", dir.path())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped()),
+    );
     // Kill the Ray worker of the first shard seen flying.
     let (worker, shard) = loop {
         if let Some(found) = running_shard(&deckwatch) {
             break found;
         }
-        if let Some(status) = driver.try_wait().unwrap() {
-            let out = driver.wait_with_output().unwrap();
+        if let Some(status) = driver.child().try_wait().unwrap() {
+            let out = driver.wait_with_output();
             panic!(
                 "the driver ended ({status}) before a shard was seen flying:\n{}",
                 String::from_utf8_lossy(&out.stderr)
@@ -107,7 +107,7 @@ fn shards_on_a_local_ray_cluster_give_the_single_process_report() {
                 .is_some_and(|(_, r)| r.trim_start().starts_with('Z')),
         "the killed worker's deckwatch {shard} still runs: {shard_state}"
     );
-    let driver = driver.wait_with_output().unwrap();
+    let driver = driver.wait_with_output();
     let stderr = String::from_utf8_lossy(&driver.stderr);
     assert!(driver.status.success(), "the Ray driver failed:\n{stderr}");
     assert!(

@@ -28,7 +28,8 @@ impl From<PipelineOutput> for Output {
     }
 }
 
-/// A launcher (or any process that starts stages on `domain`) and what it may leave behind.
+/// A launcher (or any process that starts stages on `domain`) and what it may leave behind, or
+/// a peer process and what it started.
 pub struct PipelineGuard {
     child: Option<Child>,
     /// The iceoryx2 domains its stages run on.
@@ -40,6 +41,15 @@ impl PipelineGuard {
     /// so a test process killed outright takes it along; its stages follow the launcher by
     /// their own PR_SET_PDEATHSIG.
     pub fn spawn(cmd: &mut Command, domain: &str) -> Self {
+        let mut guard = Self::spawn_peer(cmd);
+        guard.domains.push(domain.to_string());
+        guard
+    }
+
+    /// Starts a process that runs no stages of its own (a pymavlink peer, the Ray driver and
+    /// the local cluster it starts): on drop it and every process under it are killed, so a
+    /// failed test leaves no peer streaming to a port or Ray cluster running.
+    pub fn spawn_peer(cmd: &mut Command) -> Self {
         use std::os::unix::process::CommandExt;
         let test = std::process::id() as libc::pid_t;
         // SAFETY: prctl and getppid are async-signal-safe.
@@ -57,7 +67,7 @@ impl PipelineGuard {
             .unwrap_or_else(|e| panic!("cannot start {:?}: {e}", cmd.get_program()));
         Self {
             child: Some(child),
-            domains: vec![domain.to_string()],
+            domains: Vec::new(),
         }
     }
 

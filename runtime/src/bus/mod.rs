@@ -200,11 +200,18 @@ const FRAME_LOANS: usize = 1;
 const MESSAGE_QUEUE: usize = 8;
 const MESSAGE_SUBSCRIBERS: usize = 8;
 
+// How long a stage keeps retrying to open a service that another stage is still creating.
+// iceoryx2's default (1 s) is too short when all stages start at once on a loaded 2-core
+// machine: a CI run saw the recorder give up with `SystemInFlux` while the creator was
+// descheduled. Waiting longer costs nothing when the service is ready.
+const SERVICE_CREATION_TIMEOUT: Duration = Duration::from_secs(10);
+
 fn domain_config(domain: &str) -> Result<Config, BusError> {
     validate_domain(domain).map_err(BusError::Settings)?;
     let mut config = Config::default();
     config.global.prefix =
         FileName::new(domain_prefix(domain).as_bytes()).map_err(context("domain prefix"))?;
+    config.global.creation_timeout = SERVICE_CREATION_TIMEOUT;
     Ok(config)
 }
 
@@ -659,6 +666,55 @@ mod tests {
             unsafe { libc::pthread_kill(thread, libc::SIGUSR1) };
         }
         assert_eq!(waiter.join().unwrap(), (LoopEnd::Stopped, true));
+        Bus::remove_idle_domain(&domain).unwrap();
+    }
+
+    /// Stages start at once and race to create the same services: every one of them opens
+    /// them (one creates, the others wait for it rather than fail with `SystemInFlux`), and
+    /// the domain's settings carry the longer creation timeout.
+    #[test]
+    fn stages_starting_together_all_open_the_services() {
+        quiet_logging();
+        let domain = format!("unit-race-{}", std::process::id());
+        assert_eq!(
+            domain_config(&domain).unwrap().global.creation_timeout,
+            SERVICE_CREATION_TIMEOUT
+        );
+        const STAGES: usize = 6;
+        let settings = BusConfig {
+            domain: domain.clone(),
+            frame_subscribers: STAGES,
+            ..Default::default()
+        }
+        .settings(64);
+        // Every stage joins, then all open at once; they stay open until every one has
+        // counted the others.
+        let start = std::sync::Arc::new(std::sync::Barrier::new(STAGES));
+        let opened = std::sync::Arc::new(std::sync::Barrier::new(STAGES));
+        let stages: Vec<_> = (0..STAGES)
+            .map(|i| {
+                let (settings, start, opened) = (settings.clone(), start.clone(), opened.clone());
+                std::thread::spawn(move || {
+                    let bus = Bus::join(&settings, &format!("race{i}"));
+                    start.wait();
+                    let ports = bus.and_then(|bus| {
+                        let sub = bus.subscriber::<LandingDecision>()?;
+                        let frames = bus.frame_subscriber()?;
+                        Ok((bus, sub, frames))
+                    });
+                    opened.wait();
+                    let counted = match &ports {
+                        Ok((bus, _, _)) => bus.subscriber_count(services::DECISION).ok(),
+                        Err(_) => None,
+                    };
+                    start.wait();
+                    ports.map(|_| counted).map_err(|e| e.to_string())
+                })
+            })
+            .collect();
+        for (i, stage) in stages.into_iter().enumerate() {
+            assert_eq!(stage.join().unwrap(), Ok(Some(STAGES)), "stage {i}");
+        }
         Bus::remove_idle_domain(&domain).unwrap();
     }
 

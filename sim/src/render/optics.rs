@@ -15,6 +15,7 @@ pub(super) fn gaussian_kernel(sigma: f64) -> Vec<f32> {
 
 /// `dst` = `src` (w x h, row-major) convolved with the odd-length kernel `k` along x or y;
 /// samples beyond the border count as 0.
+#[inline(always)]
 pub(super) fn convolve_axis(src: &[f32], dst: &mut [f32], w: usize, h: usize, k: &[f32], along_x: bool) {
     let r = k.len() / 2;
     // The taps in the same order as a per-pixel sum, but a whole row or run of a row at a
@@ -51,6 +52,7 @@ pub(super) fn convolve_axis(src: &[f32], dst: &mut [f32], w: usize, h: usize, k:
 /// The viewing ray (x, y, 1) of a pixel (distorted pixel coordinates) and its change per pixel
 /// along u and v: exact for a camera without distortion; with distortion, the lens model is
 /// linearised over +-1/2 pixel (second-order error ~1e-7 px for usual lenses).
+#[inline(always)]
 pub(super) fn pixel_ray(
     camera: &CameraModel,
     u: f64,
@@ -73,6 +75,7 @@ pub(super) fn pixel_ray(
     ))
 }
 
+#[inline(always)]
 pub(super) fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
     (a[0] - b[0]).hypot(a[1] - b[1])
 }
@@ -80,6 +83,7 @@ pub(super) fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
 /// Homography from a viewing ray (x, y, 1) (normalised camera coordinates) to the deck plane:
 /// `H (x, y, 1) = (X, Y, 1) / depth`. A deck point (X, Y, 0) is at
 /// `p_cam = R_CW (R (X, Y, 0) - C) = A (X, Y, 1)` with `A = [R_CW R e1, R_CW R e2, -R_CW C]`.
+#[inline(always)]
 pub(super) fn ray_to_deck(s: &SceneGeometry) -> Option<Matrix3<f64>> {
     let a = Matrix3::from_columns(&[
         s.deck_to_camera(&Vector3::x()) - s.deck_to_camera(&Vector3::zeros()),

@@ -93,7 +93,9 @@ fn main() {
     let t: Vec<f64> = (0..1200).map(|k| k as f64 * 0.1).collect();
     let y: Vec<f64> = t.iter().map(|&t| deck_at(t).roll_deg).collect();
     group.bench_function("whole_fit_one_channel", |b| {
-        b.iter(|| deckwatch_decide::predict::ArModel::fit(black_box(&t), black_box(&y), ORDER, 0.2, 25.0))
+        b.iter(|| {
+            deckwatch_decide::predict::ArModel::fit(black_box(&t), black_box(&y), ORDER, 0.2, 25.0, 0.5)
+        })
     });
     group.finish();
     c.final_summary();

@@ -32,8 +32,8 @@ pub struct DecisionConfig {
     pub max_age_ms: f64,
     /// A longer interval between valid attitudes is a gap.
     pub max_gap_ms: f64,
-    /// After a gap, no clearance for this long (with the autoregressive predictor at least its
-    /// lags' span, `(ar_order + 3) x 0.2 s`: its forecast must not start from a gap).
+    /// After a gap, no clearance for this long (the autoregressive forecast's band carries the
+    /// gap's unmeasured lags itself).
     pub gap_recovery_s: f64,
     /// A change between consecutive attitudes faster than this is a jump (a bad estimate).
     pub max_plausible_rate_dps: f64,

@@ -508,12 +508,6 @@ impl LandingDecider {
         Ok(())
     }
 
-    /// The span of samples the autoregressive forecast starts from: its lags (and a few more for
-    /// the interpolation onto its grid).
-    fn ar_lag_span_s(&self) -> f64 {
-        (self.config.ar_order as f64 + 3.0) * FIT_SPACING_S
-    }
-
     /// Whether measurement `sample` at `t` is further from the model than the configured
     /// limits and than `INNOVATION_Z` of the model's own standard deviations: the model is
     /// wrong.
@@ -528,25 +522,21 @@ impl LandingDecider {
             || (m.tracks.len() > HEAVE && outside(HEAVE, c.max_heave_innovation_m))
     }
 
-    /// No clearance for this long after a gap: `gap_recovery_s`, and with the autoregressive
-    /// predictor until its lags no longer bridge the gap. Its forecast starts from the samples
-    /// of the last `ar_lag_span_s`, put on its grid by interpolation; across a gap that
-    /// interpolation is not the deck's motion, and the forecast from it is not either (held-out
-    /// seed 21, sea state 4, a 2 s frozen camera: cleared 1.3 s after it on a roll-rate forecast
-    /// of -3.3 deg/s while the deck's went to -5.0).
+    /// No clearance for this long after a gap. The autoregressive forecast does not bridge the
+    /// gap by interpolation: its lags inside it are unmeasured, and the band it states carries
+    /// what its filter does not know of them (`ArModel`). Interpolated lags once cleared 1.3 s
+    /// after a 2 s frozen camera on a roll-rate forecast of -3.3 deg/s while the deck's went to
+    /// -5.0 (held-out seed 21, sea state 4); until the filter, the whole lag span (10.2 s) was
+    /// held after every gap.
     fn gap_recovery_s(&self) -> f64 {
-        let c = &self.config;
-        match c.predictor {
-            Predictor::Ar => c.gap_recovery_s.max(self.ar_lag_span_s()),
-            Predictor::Sinusoids => c.gap_recovery_s,
-        }
+        self.config.gap_recovery_s
     }
 
     /// Runs the autoregressive models forward from the newest samples (the coefficients and
     /// the stated variance stay those of the last fit): the forecast starts from the deck as
     /// just measured, not as it was at the last refit.
     fn advance_models(&mut self) {
-        let span_s = self.ar_lag_span_s();
+        let span_s = ArModel::state_span_s(self.config.ar_order, FIT_SPACING_S);
         let Some(m) = self.models.as_mut() else { return };
         let Some(&(newest, _)) = self.history.back() else {
             return;
@@ -1072,29 +1062,62 @@ mod tests {
         assert_ne!(r.state, DecisionState::ClearToLand);
     }
 
-    /// After a gap the autoregressive forecast starts from interpolated lags: no clearance until
-    /// they are all measured again, then the sea clears as before.
+    /// After a gap the autoregressive forecast carries its unmeasured lags: right after the
+    /// gap its stated band is wider than that of the same decider fed without the gap, the
+    /// deck's motion stays inside it, and the sea clears again once `gap_recovery_s` has passed
+    /// and the band allows, well within the lag span the decision used to wait out.
     #[test]
-    fn no_clearance_until_the_lags_no_longer_bridge_a_gap() {
-        let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
-        let before = run(&mut d, 0.0, 80.0, |t| Some(sea(t, 0.3)));
+    fn a_gap_widens_the_band_and_no_longer_waits_out_the_lags() {
+        let observe = |t: f64| Some(measured(sea(t, 0.3), t));
+        let mut gapped = LandingDecider::new(DecisionConfig::default()).unwrap();
+        let mut steady = LandingDecider::new(DecisionConfig::default()).unwrap();
+        let before = run(&mut gapped, 0.0, 80.0, observe);
         assert!(before.iter().any(|(_, r)| r.state == DecisionState::ClearToLand));
-        // 2 s without a valid attitude (a frozen camera refused upstream), then the sea again.
-        let after = run(&mut d, 82.0, 140.0, |t| Some(sea(t, 0.3)));
-        let lag_span_s = (d.config().ar_order as f64 + 3.0) * 0.2;
+        run(&mut steady, 0.0, 82.0, observe);
+        // 2 s without a valid attitude for one of them (a frozen camera refused upstream).
+        let first = gapped.update(82.0, observe(82.0), 82.005);
+        assert_eq!(first.reason, DecisionReason::Gap);
+        steady.update(82.0, observe(82.0), 82.005);
+        // The gap's recovery over (the models are run forward again from here on).
+        let recovery = run(&mut gapped, 82.1, 83.05, observe);
+        assert!(recovery.iter().all(|(_, r)| r.reason == DecisionReason::Gap));
+        run(&mut steady, 82.1, 83.05, observe);
+        let resumed = gapped.update(83.1, observe(83.1), 83.105);
+        assert_ne!(resumed.reason, DecisionReason::Gap);
+        steady.update(83.1, observe(83.1), 83.105);
+        let stated = |d: &LandingDecider, k: usize, t: f64| match &d.models.as_ref().unwrap().tracks[k] {
+            Track::Autoregressive(m) => (m.value(t), m.std(t), m.rate_std(t)),
+            Track::Sinusoids(_) => unreachable!("the default predictor is autoregressive"),
+        };
+        for k in 0..3 {
+            for ahead_s in [0.0, 1.0, 2.0] {
+                let t = 83.1 + ahead_s;
+                let (value, std, rate_std) = stated(&gapped, k, t);
+                let (steady_value, steady_std, steady_rate_std) = stated(&steady, k, t);
+                assert!(
+                    std > steady_std && rate_std > steady_rate_std,
+                    "channel {k}, {ahead_s} s ahead: {std} / {rate_std} against {steady_std} / {steady_rate_std}"
+                );
+                // What the gap hid is within the widening: the forecast from the filtered
+                // lags is the one from the measured lags to within the band's extra width.
+                let extra = (std * std - steady_std * steady_std).sqrt();
+                assert!(
+                    (value - steady_value).abs() < 3.0 * extra,
+                    "channel {k}, {ahead_s} s ahead: {value} against {steady_value} (extra std {extra})"
+                );
+            }
+        }
+        let after = run(&mut gapped, 83.2, 140.0, observe);
         let first_clear = after
             .iter()
             .find(|(_, r)| r.state == DecisionState::ClearToLand)
             .map(|(t, _)| *t)
             .expect("the sea clears again");
+        let lag_span_s = (gapped.config().ar_order as f64 + 3.0) * FIT_SPACING_S;
         assert!(
-            first_clear >= 82.0 + lag_span_s - 1e-9,
+            first_clear >= 82.0 + gapped.config().gap_recovery_s - 1e-9 && first_clear < 82.0 + lag_span_s,
             "cleared at {first_clear}"
         );
-        assert!(after
-            .iter()
-            .take_while(|(t, _)| *t < 82.0 + lag_span_s - 1e-9)
-            .all(|(_, r)| r.reason == DecisionReason::Gap));
         // The sinusoid fit has no lags: its recovery is `gap_recovery_s`.
         let mut d = LandingDecider::new(sinusoid_config()).unwrap();
         run(&mut d, 0.0, 80.0, |t| Some(sea(t, 0.3)));

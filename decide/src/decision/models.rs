@@ -164,7 +164,10 @@ impl LandingDecider {
         } else {
             let horizon = c.horizon_s + c.touchdown_s + c.holdout_s;
             y.iter()
-                .map(|yk| ArModel::fit(&t, yk, c.ar_order, FIT_SPACING_S, horizon).map(Track::Autoregressive))
+                .map(|yk| {
+                    ArModel::fit(&t, yk, c.ar_order, FIT_SPACING_S, horizon, c.max_gap_ms / 1e3)
+                        .map(Track::Autoregressive)
+                })
                 .collect::<Option<Vec<_>>>()?
         };
         // How well did the fit of `holdout_s` ago predict the samples since? (angles, heave)

@@ -97,6 +97,26 @@ fn main() {
             deckwatch_decide::predict::ArModel::fit(black_box(&t), black_box(&y), ORDER, 0.2, 25.0, 0.5)
         })
     });
+    // The same with a 2 s gap ending 1 s before the newest sample: the forecast starts from
+    // the Kalman filter across the gap (`ArModel`'s notes).
+    let (t_gap, y_gap): (Vec<f64>, Vec<f64>) = t
+        .iter()
+        .zip(&y)
+        .filter(|(&t, _)| !(117.0..119.0).contains(&t))
+        .map(|(&t, &y)| (t, y))
+        .unzip();
+    group.bench_function("whole_fit_one_channel_across_a_gap", |b| {
+        b.iter(|| {
+            deckwatch_decide::predict::ArModel::fit(
+                black_box(&t_gap),
+                black_box(&y_gap),
+                ORDER,
+                0.2,
+                25.0,
+                0.5,
+            )
+        })
+    });
     group.finish();
     c.final_summary();
 }

@@ -352,6 +352,9 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
                     smart.update_us[1],
                     smart.update_us[2]
                 );
+                for u in &smart.unsafe_commit_details {
+                    println!("{:<10} UNSAFE commit at {u}", "");
+                }
                 println!("{:<10} {}", "", row("naive", &naive));
             }
             for (t, o) in [(&mut total_smart, &smart), (&mut total_naive, &naive)] {

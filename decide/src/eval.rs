@@ -13,8 +13,8 @@ pub struct RuleOutcome {
     pub commits: u64,
     /// Commits during whose touchdown the true deck left the capacity.
     pub unsafe_commits: u64,
-    /// When they were made (s on the series' timeline), to look into.
-    pub unsafe_commit_times_s: Vec<f64>,
+    /// Each of them: when it was made and what the true deck broke (to look into).
+    pub unsafe_commit_details: Vec<UnsafeCommit>,
     /// Commits later aborted (the state machine only).
     pub aborts: u64,
     /// Truly calm windows (at least one touchdown long).
@@ -29,6 +29,31 @@ pub struct RuleOutcome {
     pub decisions: std::collections::BTreeMap<String, u64>,
     /// Cost of one decision (us): p50, p99, max (state machine only).
     pub update_us: [f64; 3],
+}
+
+/// An unsafe commit: when it was made, and the limit the true deck went furthest beyond during
+/// its touchdown (by its share of the limit).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct UnsafeCommit {
+    /// When the commit was made (s on the series' timeline).
+    pub t_s: f64,
+    /// `roll`, `pitch`, `tilt`, `roll-rate`, `pitch-rate` or `heave-rate`.
+    pub limit: &'static str,
+    /// The true value at its worst (deg, deg/s or m/s; signed) and the limit it broke.
+    pub worst: f64,
+    pub limit_value: f64,
+    /// When the worst came, after the commit (s).
+    pub after_s: f64,
+}
+
+impl std::fmt::Display for UnsafeCommit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{:.1} s: {} {:.3} (limit {}) {:.2} s into the touchdown",
+            self.t_s, self.limit, self.worst, self.limit_value, self.after_s
+        )
+    }
 }
 
 impl RuleOutcome {
@@ -78,6 +103,15 @@ impl TrueDeckState {
             .filter(|(_, value, limit)| !(value.abs() <= *limit))
             .map(|(name, _, _)| name)
             .collect()
+    }
+
+    /// The limit this state goes furthest beyond, by its share of the limit: name, value and
+    /// limit (None: within capacity).
+    pub fn worst_violation(&self, c: &DecisionConfig) -> Option<(&'static str, f64, f64)> {
+        self.limits(c)
+            .into_iter()
+            .filter(|(_, value, limit)| !(value.abs() <= *limit))
+            .max_by(|a, b| (a.1.abs() / a.2).total_cmp(&(b.1.abs() / b.2)))
     }
 
     pub fn within(&self, c: &DecisionConfig) -> bool {
@@ -140,11 +174,24 @@ fn judge(truth: TrueDeck, c: &DecisionConfig, commits: &[f64], outcome: &mut Rul
     let mut used = vec![false; calm.len()];
     for &tc in commits {
         let steps = (c.touchdown_s / TRUTH_STEP_S).ceil() as usize;
-        let safe =
-            (0..=steps).all(|k| truly_within(truth, c, tc + (k as f64 * TRUTH_STEP_S).min(c.touchdown_s)));
-        if !safe {
+        // The worst violation over the touchdown, if any (a NaN state counts as beyond).
+        let worst = (0..=steps)
+            .filter_map(|k| {
+                let after_s = (k as f64 * TRUTH_STEP_S).min(c.touchdown_s);
+                let (limit, worst, limit_value) =
+                    TrueDeckState::at(truth, tc + after_s).worst_violation(c)?;
+                Some(UnsafeCommit {
+                    t_s: tc,
+                    limit,
+                    worst,
+                    limit_value,
+                    after_s,
+                })
+            })
+            .max_by(|a, b| (a.worst.abs() / a.limit_value).total_cmp(&(b.worst.abs() / b.limit_value)));
+        if let Some(unsafe_commit) = worst {
             outcome.unsafe_commits += 1;
-            outcome.unsafe_commit_times_s.push(tc);
+            outcome.unsafe_commit_details.push(unsafe_commit);
             continue;
         }
         if let Some(i) = calm
@@ -309,5 +356,13 @@ mod tests {
         let (smart, naive) = evaluate(&rough, &c, &stream).unwrap();
         assert_eq!(smart.unsafe_commits, 0);
         assert!(naive.unsafe_commits > 0);
+        // Each unsafe commit says what the true deck broke, beyond its limit.
+        assert_eq!(naive.unsafe_commit_details.len() as u64, naive.unsafe_commits);
+        for u in &naive.unsafe_commit_details {
+            assert!(
+                u.worst.abs() > u.limit_value && (0.0..=c.touchdown_s).contains(&u.after_s),
+                "{u}"
+            );
+        }
     }
 }

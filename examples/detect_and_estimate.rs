@@ -7,11 +7,11 @@
 //!
 //! (default: the repository's `tests/data/ship-640x480`, frame 0).
 
-use deckwatch_common::recording::Recording;
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::RotationMatrix;
 use deckwatch_detect::{Detector, DetectorConfig};
 use deckwatch_estimate::{PaperEstimator, PaperVariant, PoseConfig, PoseEstimator};
+use deckwatch_formats::recording::Recording;
 use std::error::Error;
 use std::path::Path;
 

@@ -1,7 +1,8 @@
 //! The command-line tools end to end: the marker-table pipe (`sim markers | estimate-table`), bad input rows, recording
 //! checks and the sweep.
 
-use deckwatch_common::{CameraModel, DeckLayout, GrayImage, GroundTruth, RecordingWriter};
+use deckwatch_common::{CameraModel, DeckLayout, GrayImage, GroundTruth};
+use deckwatch_formats::RecordingWriter;
 use deckwatch_tests::workspace_binary;
 use std::io::Write;
 use std::process::{Command, Stdio};
@@ -104,7 +105,7 @@ fn recording_check_reads_every_image_and_names_bad_ones() {
         &rec,
         &cam,
         &DeckLayout::paper(),
-        deckwatch_common::recording::LEVEL_TRUTH,
+        deckwatch_formats::recording::LEVEL_TRUTH,
     )
     .unwrap();
     let img = GrayImage::new(32, 24);

@@ -376,7 +376,7 @@ fn a_recording_folder_converts_to_mcap_and_back() {
             .unwrap(),
         "deckwatch convert DIR FILE.mcap",
     );
-    let original = deckwatch_common::Recording::open(&data).unwrap();
+    let original = deckwatch_formats::Recording::open(&data).unwrap();
     let n = original.frames.len() as u64;
     let v = mcap_check(&m);
     assert_eq!(
@@ -396,7 +396,7 @@ fn a_recording_folder_converts_to_mcap_and_back() {
             .unwrap(),
         "deckwatch convert FILE.mcap DIR",
     );
-    let copy = deckwatch_common::Recording::open(&back).unwrap();
+    let copy = deckwatch_formats::Recording::open(&back).unwrap();
     assert_eq!(copy.camera, original.camera);
     assert_eq!(copy.deck, original.deck);
     assert_eq!(copy.frames.len(), original.frames.len());

@@ -69,7 +69,7 @@ const CELLS: &[&str] = &[
 /// list), and one it does not know.
 fn frame_columns() -> Vec<&'static str> {
     let mut c = vec!["index", "timestamp_ns", "file", "extra"];
-    c.extend(deckwatch_common::recording::TRUTH_COLUMNS);
+    c.extend(deckwatch_formats::recording::TRUTH_COLUMNS);
     c
 }
 
@@ -211,7 +211,7 @@ fn toml_text() -> impl Strategy<Value = String> {
 
 fn parsers_hold(n_text: u32) {
     fuzz("frames.csv", n_text, csv_text(frame_columns()), |text| {
-        let _ = deckwatch_common::recording::parse_frames_csv(Path::new("f.csv"), Cursor::new(text));
+        let _ = deckwatch_formats::recording::parse_frames_csv(Path::new("f.csv"), Cursor::new(text));
         Ok(())
     });
     fuzz(
@@ -228,7 +228,7 @@ fn parsers_hold(n_text: u32) {
             "x",
         ]),
         |text| {
-            if let Ok(mut r) = deckwatch_common::marker_table::MarkerTableReader::new(
+            if let Ok(mut r) = deckwatch_formats::marker_table::MarkerTableReader::new(
                 "m.csv",
                 Cursor::new(text.into_bytes()),
                 9,
@@ -253,20 +253,20 @@ fn parsers_hold(n_text: u32) {
         "vehicle.csv",
         n_text / 4,
         csv_text({
-            use deckwatch_common::recording::{VEHICLE_COLUMNS, VEHICLE_HEIGHT_COLUMN};
+            use deckwatch_formats::recording::{VEHICLE_COLUMNS, VEHICLE_HEIGHT_COLUMN};
             let mut c = VEHICLE_COLUMNS.to_vec();
             c.extend([VEHICLE_HEIGHT_COLUMN, "x"]);
             c
         }),
         |text| {
             std::fs::write(&vehicle, text).unwrap();
-            let _ = deckwatch_common::recording::read_vehicle_csv(&vehicle);
+            let _ = deckwatch_formats::recording::read_vehicle_csv(&vehicle);
             Ok(())
         },
     );
     fuzz("camera.json", n_text / 4, camera_json_text(), |text| {
         std::fs::write(dir.path().join("camera.json"), text).unwrap();
-        if let Ok((camera, deck)) = deckwatch_common::recording::read_camera_json(dir.path()) {
+        if let Ok((camera, deck)) = deckwatch_formats::recording::read_camera_json(dir.path()) {
             // Whatever it accepted is a camera the rest of the pipeline can size buffers for.
             prop_assert!(camera.validate().is_ok() && deck.validate().is_ok());
         }

@@ -6,7 +6,7 @@
 //! the frames with `deckwatch sim record --virtual-camera`, installs the virtual camera's yaml in
 //! a Debian 13 chroot and names the recording in DECKWATCH_VIRTUAL_CAMERA_RECORDING).
 
-use deckwatch_common::Recording;
+use deckwatch_formats::Recording;
 use deckwatch_tests::workspace_binary;
 use std::collections::HashMap;
 use std::path::PathBuf;

@@ -3,9 +3,9 @@
 
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::ErrorStats;
-use deckwatch_common::Recording;
 use deckwatch_detect::{identify, marker_pixels};
 use deckwatch_estimate::{PaperEstimator, PaperVariant};
+use deckwatch_formats::Recording;
 use deckwatch_tests::{reference_blobs, workspace_binary};
 use std::path::{Path, PathBuf};
 

@@ -102,7 +102,7 @@ fn a_recording_of_a_swaying_vehicle_is_compensated_end_to_end() {
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let recording = deckwatch_common::Recording::open(&rec).unwrap();
+    let recording = deckwatch_formats::Recording::open(&rec).unwrap();
     let tilts: Vec<f64> = recording
         .frames
         .iter()
@@ -173,12 +173,12 @@ fn a_recording_of_a_swaying_vehicle_is_compensated_end_to_end() {
             }
         })
         .collect();
-    deckwatch_common::recording::write_vehicle_csv(&rec, &biased).unwrap();
+    deckwatch_formats::recording::write_vehicle_csv(&rec, &biased).unwrap();
     let [(_, pose), _] = eval();
     assert!((pose[0] - 2.0).abs() < 0.3 && pose[1] < 0.3, "{pose:?}");
     // A stream that ends halfway: the frames after it are not compensated, so not estimated.
     let half = samples.len() / 2;
-    deckwatch_common::recording::write_vehicle_csv(&rec, &samples[..half]).unwrap();
+    deckwatch_formats::recording::write_vehicle_csv(&rec, &samples[..half]).unwrap();
     let [(missed, rmse), _] = eval();
     assert!((8..=11).contains(&missed), "{missed} frames missed");
     assert!(rmse.iter().all(|e| *e < 0.2), "{rmse:?}");

@@ -127,7 +127,7 @@ fn frame_bytes(c: &PipelineConfig) -> (u64, &'static str) {
             .recording
             .as_deref()
             .filter(|p| p.is_dir())
-            .and_then(|p| deckwatch_common::Recording::open(p).ok())
+            .and_then(|p| deckwatch_formats::Recording::open(p).ok())
             .map(|r| (r.camera.width, r.camera.height)),
     };
     match size {

@@ -108,7 +108,7 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
             ..ReplayConfig::default()
         };
         let rolling =
-            deckwatch_common::recording::read_camera_json(dir).is_ok_and(|(c, _)| c.readout_s > 0.0);
+            deckwatch_formats::recording::read_camera_json(dir).is_ok_and(|(c, _)| c.readout_s > 0.0);
         let rows = rows(rolling);
         config.estimate = rows[0].1.clone();
         let mut chain = StageChain::new(&config).map_err(|e| e.to_string())?;

@@ -19,8 +19,9 @@ use clap::{Parser, Subcommand};
 use deckwatch_capture::virtual_camera::VirtualCameraWriter;
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::{ErrorStats, Percentiles};
-use deckwatch_common::{GrayImage, Recording, RecordingWriter};
+use deckwatch_common::GrayImage;
 use deckwatch_estimate::{PaperEstimator, PaperVariant};
+use deckwatch_formats::{Recording, RecordingWriter};
 use deckwatch_sim::scenario::SimulationArgs;
 use deckwatch_sim::sim::ImageArgs;
 use deckwatch_sim::{FrameSimulator, Renderer};
@@ -236,7 +237,7 @@ fn record(a: RecordArgs) -> Result<(), String> {
             .autopilot
             .samples(a.sim.profile().as_ref(), end_s, a.sim.seed);
         if !samples.is_empty() {
-            deckwatch_common::recording::write_vehicle_csv(&a.out, &samples).map_err(|e| e.to_string())?;
+            deckwatch_formats::recording::write_vehicle_csv(&a.out, &samples).map_err(|e| e.to_string())?;
             eprintln!(
                 "vehicle.csv: {} autopilot samples at {} Hz (noise {} deg, bias {:?} deg, time error {} ms)",
                 samples.len(),
@@ -278,7 +279,7 @@ fn camera_record(
     let mut source = c.capture().open().map_err(|e| e.to_string())?;
     eprintln!("{}", source.describe());
     let (camera, deck) = (*source.camera(), *source.deck());
-    let mut writer = RecordingWriter::create(out, &camera, &deck, deckwatch_common::recording::NO_TRUTH)
+    let mut writer = RecordingWriter::create(out, &camera, &deck, deckwatch_formats::recording::NO_TRUTH)
         .map_err(|e| e.to_string())?;
     let mut img = GrayImage::new(camera.width as usize, camera.height as usize);
     let (mut k, mut bad) = (0, 0);

@@ -1,14 +1,14 @@
 //! The offline marker-table tools: `deckwatch sim markers` writes simulated marker pixels with
-//! ground truth (a marker table, `deckwatch_common::marker_table`), and `deckwatch
+//! ground truth (a marker table, `deckwatch_formats::marker_table`), and `deckwatch
 //! estimate-table` runs the paper's estimator on such a table, one attitude row per frame. A bad
 //! row is reported (file, line, column), counted and skipped; the stream goes on.
 
-use deckwatch_common::marker_table::{MarkerTableReader, MarkerTableWriter};
-use deckwatch_common::recording::read_camera_json;
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::Percentiles;
 use deckwatch_common::{CameraModel, DeckLayout};
 use deckwatch_estimate::{PaperEstimator, PaperVariant};
+use deckwatch_formats::marker_table::{MarkerTableReader, MarkerTableWriter};
+use deckwatch_formats::recording::read_camera_json;
 use deckwatch_sim::scenario::SimulationArgs;
 use std::collections::BTreeMap;
 use std::io::{BufRead, Write};

@@ -117,3 +117,14 @@ impl MarkerSet {
             .collect()
     }
 }
+
+/// One frame's markers: a row of the marker table (`deckwatch_formats::marker_table`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MarkerRow {
+    pub index: u64,
+    pub timestamp_ns: u64,
+    /// Pixel centres by marker index (None = not seen).
+    pub markers: Vec<Option<[f64; 2]>>,
+    /// Ground truth; `alt_m` doubles as the altimeter reading.
+    pub truth: crate::truth::GroundTruth,
+}

@@ -7,7 +7,7 @@ use crate::reader::{read_frames, FlightReader, FlightRecord};
 use crate::writer::{FlightWriter, WriterOptions};
 use crate::FlightError;
 use deckwatch_common::image::GrayView;
-use deckwatch_common::recording::{FrameRecord, Recording, RecordingWriter, TruthColumns, NO_TRUTH};
+use deckwatch_formats::recording::{FrameRecord, Recording, RecordingWriter, TruthColumns, NO_TRUTH};
 use std::path::Path;
 
 /// What a conversion wrote.
@@ -108,7 +108,7 @@ pub fn mcap_to_folder(mcap: &Path, dir: &Path, max_bytes: u64) -> Result<Convert
         images,
         ended_early,
     } = recording_of(mcap, max_bytes)?;
-    let err = |e: deckwatch_common::recording::RecordingError| FlightError::file(dir, e);
+    let err = |e: deckwatch_formats::recording::RecordingError| FlightError::file(dir, e);
     let mut writer = RecordingWriter::create(dir, &rec.camera, &rec.deck, rec.truth_columns).map_err(err)?;
     let (w, h) = (rec.camera.width as usize, rec.camera.height as usize);
     for (f, px) in rec.frames.iter().zip(&images) {

@@ -6,7 +6,7 @@ use crate::motion::{
     TrackingError,
 };
 use crate::rng::SplitMix64;
-use deckwatch_common::marker_table::MarkerRow;
+use deckwatch_common::markers::MarkerRow;
 use deckwatch_common::InvalidOption;
 use deckwatch_common::{CameraModel, DeckLayout, GroundTruth, SceneGeometry};
 
@@ -276,8 +276,8 @@ impl SimulationArgs {
 
     /// The ground-truth columns a recording of this simulation has: the vehicle's attitude only
     /// when it is not level, its height and the heave when it is not level or the deck heaves.
-    pub fn truth_columns(&self) -> deckwatch_common::recording::TruthColumns {
-        use deckwatch_common::recording::{with_heave_truth, ALL_TRUTH, LEVEL_TRUTH};
+    pub fn truth_columns(&self) -> deckwatch_common::truth::TruthColumns {
+        use deckwatch_common::truth::{with_heave_truth, ALL_TRUTH, LEVEL_TRUTH};
         match self.vehicle {
             VehicleMotion::Level if self.heave => with_heave_truth(LEVEL_TRUTH),
             VehicleMotion::Level => LEVEL_TRUTH,

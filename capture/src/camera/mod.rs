@@ -8,8 +8,8 @@ mod device;
 #[cfg(feature = "libcamera")]
 pub use device::{list_cameras, LibcameraSource};
 
-use deckwatch_common::recording::read_camera_json;
 use deckwatch_common::{CameraModel, DeckLayout};
+use deckwatch_formats::recording::read_camera_json;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -164,10 +164,10 @@ impl CameraConfig {
             return Ok(None);
         };
         let (dir, file) = if path.is_dir() {
-            (path.clone(), path.join(deckwatch_common::recording::CAMERA_FILE))
+            (path.clone(), path.join(deckwatch_formats::recording::CAMERA_FILE))
         } else if path
             .file_name()
-            .is_some_and(|n| n == deckwatch_common::recording::CAMERA_FILE)
+            .is_some_and(|n| n == deckwatch_formats::recording::CAMERA_FILE)
         {
             (
                 path.parent().unwrap_or(Path::new(".")).to_path_buf(),
@@ -177,7 +177,7 @@ impl CameraConfig {
             return Err(format!(
                 "libcamera.calibration: {}: give a `{}` or a recording folder",
                 path.display(),
-                deckwatch_common::recording::CAMERA_FILE
+                deckwatch_formats::recording::CAMERA_FILE
             ));
         };
         if !file.exists() {
@@ -596,7 +596,7 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("dw-cal-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let model = CameraModel::centred(320, 240, 300.0, 300.0);
-        deckwatch_common::recording::write_camera_json(&dir, &model, &DeckLayout::paper()).unwrap();
+        deckwatch_formats::recording::write_camera_json(&dir, &model, &DeckLayout::paper()).unwrap();
         let c = CameraConfig {
             calibration: Some(dir.clone()),
             ..Default::default()

@@ -8,19 +8,9 @@
 //! ignored. Errors name the source, line and column.
 
 use crate::recording::{GroundTruth, RecordingError};
+pub use deckwatch_common::markers::MarkerRow;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
-
-/// One frame's markers.
-#[derive(Debug, Clone, PartialEq)]
-pub struct MarkerRow {
-    pub index: u64,
-    pub timestamp_ns: u64,
-    /// Pixel centres by marker index (None = not seen).
-    pub markers: Vec<Option<[f64; 2]>>,
-    /// Ground truth; `alt_m` doubles as the altimeter reading.
-    pub truth: GroundTruth,
-}
 
 fn u_col(i: usize) -> String {
     format!("m{i}_u")

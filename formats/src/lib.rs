@@ -1,0 +1,10 @@
+//! deckwatch's file formats: a flight recording's folder (`camera.json`, `frames.csv` with its
+//! optional ground-truth columns, the PNG frames, `vehicle.csv`) and the marker table that
+//! `deckwatch sim markers` writes and `deckwatch estimate-table` reads. Every error names the
+//! file and, where it applies, the line and the field. Apart from the algorithms: detection,
+//! estimation and the decision compile none of this.
+
+pub mod marker_table;
+pub mod recording;
+
+pub use recording::{Recording, RecordingError, RecordingWriter};

@@ -5,8 +5,9 @@
 
 use crate::camera::CameraConfig;
 use deckwatch_common::messages::{FrameSource, VehicleAttitude};
-use deckwatch_common::vehicle::{VehicleConfig, VehicleTrack};
+use deckwatch_common::vehicle::VehicleConfig;
 use deckwatch_common::{CameraModel, DeckLayout, GrayViewMut, GroundTruth};
+use deckwatch_estimate::VehicleTrack;
 use deckwatch_formats::{Recording, RecordingError};
 use deckwatch_sim::scenario::SimulationArgs;
 use deckwatch_sim::sim::ImageArgs;

@@ -4,6 +4,7 @@
 //! height, the rolling shutter's motion, and a frozen image told from a still deck.
 
 use crate::config::paper_variant;
+use crate::vehicle_track::{MeanHeading, VehicleTrack};
 use crate::{
     DeckMotionHistory, EstimateConfig, FrameMotion, NotEstimable, PaperEstimator, PaperVariant, PoseConfig,
     PoseError, PoseEstimator,
@@ -14,9 +15,7 @@ use deckwatch_common::messages::{
     VehicleSample, FROZEN_IMAGE_REPEATS,
 };
 use deckwatch_common::rotation::rot_z;
-use deckwatch_common::vehicle::{
-    Compensation, MeanHeading, VehicleAttitudeSource, VehicleConfig, VehicleStateSample, VehicleTrack,
-};
+use deckwatch_common::vehicle::{Compensation, VehicleAttitudeSource, VehicleConfig, VehicleStateSample};
 use deckwatch_common::{Attitude, RotationMatrix, Rpy};
 
 fn paper_failure(e: &NotEstimable) -> AttitudeFailure {

@@ -12,6 +12,7 @@ pub mod ellipse;
 pub mod motion;
 pub mod paper;
 pub mod pose;
+pub mod vehicle_track;
 
 pub use config::EstimateConfig;
 pub use deck_estimator::DeckEstimator;
@@ -19,3 +20,4 @@ pub use ellipse::{Ellipse, EllipseFit, EllipseFitError};
 pub use motion::DeckMotionHistory;
 pub use paper::{NotEstimable, PaperEstimate, PaperEstimator, PaperVariant};
 pub use pose::{FrameMotion, PoseConfig, PoseError, PoseEstimate, PoseEstimator};
+pub use vehicle_track::{MeanHeading, TrackAttitude, TrackMiss, VehicleTrack};

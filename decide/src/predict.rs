@@ -665,11 +665,18 @@ impl ArModel {
         // of the state; run through the recursion it gives a deviation of every forecast, and
         // the variance of the value h steps ahead is the sum of their squares (of the rate's
         // central difference likewise). `O(rank p H)`: cheaper than carrying P forward.
-        let jitter = 1e-12 * cov.trace().max(f64::MIN_POSITIVE);
-        for i in 0..order {
-            cov[(i, i)] += jitter;
-        }
-        let factor = nalgebra::linalg::Cholesky::new(cov)?.unpack();
+        // P is positive semi-definite (the measured lags' part is all but zero); rounding can
+        // leave it a hair indefinite. A jitter on the diagonal, grown until the factor exists,
+        // only widens the band. None (no forecast) if even the largest does not do.
+        let trace = cov.trace().max(f64::MIN_POSITIVE);
+        let factor = [1e-12, 1e-9, 1e-6].iter().find_map(|share| {
+            let mut jittered = cov.clone();
+            for i in 0..order {
+                jittered[(i, i)] += share * trace;
+            }
+            nalgebra::linalg::Cholesky::new(jittered)
+        })?;
+        let factor = factor.unpack();
         let steps = model.variance.len();
         let negligible = 1e-9 * innovation_var;
         let dt2 = 4.0 * self.dt * self.dt;

@@ -892,6 +892,24 @@ fn resample(t: &[f64], y: &[f64], dt: f64, n: usize, max_bridge_s: f64) -> (Vec<
 mod ar_tests {
     use super::*;
 
+    /// `n` values of the AR(2) process `x_k = a_1 x_{k-1} + a_2 x_{k-2} + sigma e_k`, its
+    /// Gaussian innovations from a fixed stream (Box-Muller over SplitMix64's output function
+    /// of the index plus `offset`: independent-looking values for consecutive indices).
+    fn ar2_process(n: usize, [a1, a2]: [f64; 2], sigma: f64, offset: u64) -> Vec<f64> {
+        let uniform = |k: u64| {
+            let mut z = (k + offset).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64 + 0.5 / (1u64 << 53) as f64
+        };
+        let gaussian = |k: u64| (-2.0 * uniform(2 * k).ln()).sqrt() * (TAU * uniform(2 * k + 1)).cos();
+        let mut x = vec![0.0; n];
+        for k in 2..n {
+            x[k] = a1 * x[k - 1] + a2 * x[k - 2] + sigma * gaussian(k as u64);
+        }
+        x
+    }
+
     #[test]
     fn ar_predicts_a_sum_of_sinusoids() {
         let f = |t: f64| 4.0 * (TAU * t / 11.0).sin() + 2.0 * (TAU * t / 8.3 + 1.0).sin();
@@ -918,20 +936,8 @@ mod ar_tests {
     #[test]
     fn ar_states_the_forecast_variance_of_an_ar_process() {
         let (a1, a2, sigma, dt) = (1.6, -0.8, 0.1, 0.2);
-        // Gaussian innovations from a fixed stream (Box-Muller over a hash of the index).
-        let uniform = |k: u64| {
-            // SplitMix64's output function: independent-looking values for consecutive k.
-            let mut z = k.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64 + 0.5 / (1u64 << 53) as f64
-        };
-        let gaussian = |k: u64| (-2.0 * uniform(2 * k).ln()).sqrt() * (TAU * uniform(2 * k + 1)).cos();
         let n = 60_000usize;
-        let mut x = vec![0.0; n];
-        for k in 2..n {
-            x[k] = a1 * x[k - 1] + a2 * x[k - 2] + sigma * gaussian(k as u64);
-        }
+        let x = ar2_process(n, [a1, a2], sigma, 1);
         // Exact: psi_0 = 1, psi_1 = a1, psi_j = a1 psi_{j-1} + a2 psi_{j-2}.
         let mut psi = vec![1.0, a1];
         for j in 2..10 {
@@ -977,18 +983,8 @@ mod ar_tests {
     #[test]
     fn a_forecast_across_a_gap_states_the_band_the_gap_leaves() {
         let (a1, a2, sigma, dt) = (1.6, -0.8, 0.1, 0.2);
-        let uniform = |k: u64| {
-            let mut z = (k + 7_000_000).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64 + 0.5 / (1u64 << 53) as f64
-        };
-        let gaussian = |k: u64| (-2.0 * uniform(2 * k).ln()).sqrt() * (TAU * uniform(2 * k + 1)).cos();
         let n = 60_000usize;
-        let mut x = vec![0.0; n];
-        for k in 2..n {
-            x[k] = a1 * x[k - 1] + a2 * x[k - 2] + sigma * gaussian(k as u64);
-        }
+        let x = ar2_process(n, [a1, a2], sigma, 7_000_000);
         // Grid points start-6 ..= start-1 are not measured.
         let in_gap = |k: usize, start: usize| (start - 6..start).contains(&k);
         let (mut inside_filtered, mut inside_bridged, mut total) = (0, 0, 0);

@@ -94,8 +94,9 @@ fn closed_loop_landings_touch_down_safely_in_one_process_and_through_the_process
     // calm spell. Not to the frame: the processes run at real time, the chain on a simulated
     // clock, and the vehicle's attitude reaches them through the link's clock estimate (the
     // compensated deck differed by up to 0.2 deg during the descent); the decision, without
-    // fixed margins, then commits a frame or a second earlier or later (six runs: 17.9, 19.3,
-    // 15.5, 17.8, 17.8 and 17.8 s against 17.8 s).
+    // fixed margins, then commits a frame or a second earlier or later (the chain lands at
+    // 13.7 s on this seed; before the gap filter, six runs through the processes gave 15.5 to
+    // 19.3 s against the chain's 17.8 s).
     let agreement = lines
         .iter()
         .find_map(|l| l.get("agreement"))
@@ -107,10 +108,24 @@ fn closed_loop_landings_touch_down_safely_in_one_process_and_through_the_process
         processes.is_some(),
         "through the processes: {agreement}\n{stderr}"
     );
-    assert!(
-        (in_process.unwrap() - processes.unwrap()).abs() <= 3.0,
-        "the processes land within 3 s of the chain: {agreement}"
-    );
+    // The processes keep real time only when the machine keeps up with them: a loaded machine
+    // (CI beside another build) makes frames late, the decision then rightly refuses
+    // ("NO-DECK stale-data") and lands in a later calm spell. That is the safety rule working,
+    // not a disagreement, so the times are compared only on a run that never went stale; the
+    // safe contact above and below is asserted either way.
+    let went_stale = agreement["processes"]["decisions_by_reason"]
+        .as_object()
+        .is_some_and(|reasons| reasons.keys().any(|r| r.ends_with("stale-data")));
+    if went_stale {
+        eprintln!(
+            "the processes fell behind real time (stale data refused); contact times not compared: {agreement}"
+        );
+    } else {
+        assert!(
+            (in_process.unwrap() - processes.unwrap()).abs() <= 3.0,
+            "the processes land within 3 s of the chain: {agreement}"
+        );
+    }
     for side in ["in_process", "processes"] {
         assert_eq!(
             agreement[side]["touchdown"]["violations"],

@@ -15,6 +15,7 @@ pub mod homography;
 pub mod image;
 pub mod markers;
 pub mod messages;
+pub mod names;
 pub mod rotation;
 pub mod scene;
 pub mod stats;

@@ -118,18 +118,11 @@ pub enum Compensation {
     Missing = 3,
 }
 
-crate::wire_enum!(Compensation, on_bad_code: Missing, [Level, Frame, Stream, Missing]);
-
-impl Compensation {
-    pub fn name(&self) -> &'static str {
-        match self {
-            Self::Level => "level",
-            Self::Frame => "frame",
-            Self::Stream => "stream",
-            Self::Missing => "missing",
-        }
-    }
-}
+crate::wire_enum!(
+    Compensation,
+    on_bad_code: Missing,
+    [Level => "level", Frame => "frame", Stream => "stream", Missing => "missing"]
+);
 
 /// One sample of the vehicle's state on one clock: its attitude `R_V` and, when known, its
 /// height in W (a row of `vehicle.csv`; what the autopilot streams).

@@ -54,8 +54,15 @@ pub trait WireEnum: Copy + 'static {
 
 /// Implements [`WireEnum`] and `TryFrom<u32>` for a fieldless enum with explicit discriminants;
 /// the variant list must name every variant (checked by an exhaustive match).
+///
+/// With `Variant => "name"` in the list it also declares the names ([`crate::named_enum!`]):
+/// one list for the codes, the names and `ALL`.
 #[macro_export]
 macro_rules! wire_enum {
+    ($ty:ident, on_bad_code: $fallback:ident, [$($variant:ident => $name:literal),+ $(,)?]) => {
+        $crate::wire_enum!($ty, on_bad_code: $fallback, [$($variant),+]);
+        $crate::named_enum!($ty, [$($variant => $name),+]);
+    };
     ($ty:ident, on_bad_code: $fallback:ident, [$($variant:ident),+ $(,)?]) => {
         impl $crate::wire::WireEnum for $ty {
             const NAME: &'static str = stringify!($ty);

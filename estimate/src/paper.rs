@@ -37,21 +37,12 @@ pub enum PaperVariant {
     Atan2,
 }
 
+deckwatch_common::named_enum!(
+    PaperVariant,
+    [Printed => "printed", FittedMajorAxis => "fitted-major-axis", Atan2 => "atan2"]
+);
+
 impl PaperVariant {
-    pub const ALL: [Self; 3] = [Self::Printed, Self::FittedMajorAxis, Self::Atan2];
-
-    pub fn name(&self) -> &'static str {
-        match self {
-            Self::Printed => "printed",
-            Self::FittedMajorAxis => "fitted-major-axis",
-            Self::Atan2 => "atan2",
-        }
-    }
-
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|v| v.name() == name)
-    }
-
     /// Whether the variant needs the altimeter reading (the others are scale-free).
     pub fn needs_altitude(&self) -> bool {
         matches!(self, Self::Printed)

@@ -48,33 +48,20 @@ pub enum Refusal {
     RateLimited,
 }
 
-impl Refusal {
-    pub const ALL: [Refusal; 9] = [
-        Refusal::Malformed,
-        Refusal::BadCrc,
-        Refusal::Mavlink1,
-        Refusal::Unknown,
-        Refusal::Unsigned,
-        Refusal::BadSignature,
-        Refusal::Replay,
-        Refusal::WrongSender,
-        Refusal::RateLimited,
-    ];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Refusal::Malformed => "malformed",
-            Refusal::BadCrc => "bad-crc",
-            Refusal::Mavlink1 => "mavlink1",
-            Refusal::Unknown => "unknown-message",
-            Refusal::Unsigned => "unsigned",
-            Refusal::BadSignature => "bad-signature",
-            Refusal::Replay => "replay",
-            Refusal::WrongSender => "wrong-sender",
-            Refusal::RateLimited => "rate-limited",
-        }
-    }
-}
+deckwatch_common::named_enum!(
+    Refusal,
+    [
+        Malformed => "malformed",
+        BadCrc => "bad-crc",
+        Mavlink1 => "mavlink1",
+        Unknown => "unknown-message",
+        Unsigned => "unsigned",
+        BadSignature => "bad-signature",
+        Replay => "replay",
+        WrongSender => "wrong-sender",
+        RateLimited => "rate-limited",
+    ]
+);
 
 /// Refused frames, by cause.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]

@@ -33,31 +33,19 @@ pub enum Scenario {
     Approach,
 }
 
+deckwatch_common::named_enum!(
+    Scenario,
+    [
+        Case1 => "case1",
+        Ship => "ship",
+        Lulls => "lulls",
+        Offset => "offset",
+        NoDeck => "nodeck",
+        Approach => "approach",
+    ]
+);
+
 impl Scenario {
-    pub const ALL: [Self; 6] = [
-        Self::Case1,
-        Self::Ship,
-        Self::Lulls,
-        Self::Offset,
-        Self::NoDeck,
-        Self::Approach,
-    ];
-
-    pub fn name(&self) -> &'static str {
-        match self {
-            Self::Case1 => "case1",
-            Self::Ship => "ship",
-            Self::Lulls => "lulls",
-            Self::Offset => "offset",
-            Self::NoDeck => "nodeck",
-            Self::Approach => "approach",
-        }
-    }
-
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|s| s.name() == name)
-    }
-
     /// The scenario's motion; `seed` sets the sea's phases (Case 1 has none), `sea_scale`
     /// multiplies the sea-state-6 amplitudes (1: sea state 6; Case 1 has no sea).
     pub fn profile(&self, seed: u64, sea_scale: f64) -> Box<dyn MotionProfile + Send + Sync> {

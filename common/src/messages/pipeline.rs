@@ -194,21 +194,11 @@ pub enum DecisionState {
     Abort = 3,
 }
 
-wire_enum!(DecisionState, on_bad_code: NoDeck, [NoDeck, Hold, ClearToLand, Abort]);
-
-impl DecisionState {
-    /// Every state, in the order of their values.
-    pub const ALL: [DecisionState; 4] = [Self::NoDeck, Self::Hold, Self::ClearToLand, Self::Abort];
-
-    pub fn name(&self) -> &'static str {
-        match self {
-            Self::NoDeck => "NO-DECK",
-            Self::Hold => "HOLD",
-            Self::ClearToLand => "CLEAR",
-            Self::Abort => "ABORT",
-        }
-    }
-}
+wire_enum!(
+    DecisionState,
+    on_bad_code: NoDeck,
+    [NoDeck => "NO-DECK", Hold => "HOLD", ClearToLand => "CLEAR", Abort => "ABORT"]
+);
 
 /// Why the decision is what it is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -253,43 +243,22 @@ wire_enum!(
     DecisionReason,
     on_bad_code: InvalidAttitude,
     [
-        WithinCapacity,
-        InvalidAttitude,
-        StaleData,
-        Gap,
-        Jump,
-        OutsideCapacity,
-        Warmup,
-        PredictionUnreliable,
-        PredictedOutside,
-        NoVehicleAttitude,
-        NoDeckHeave,
-        FrozenInput,
-        ClockJump,
-        RideThrough,
+        WithinCapacity => "within-capacity",
+        InvalidAttitude => "invalid-attitude",
+        StaleData => "stale-data",
+        Gap => "gap",
+        Jump => "jump",
+        OutsideCapacity => "outside-capacity",
+        Warmup => "warmup",
+        PredictionUnreliable => "prediction-unreliable",
+        PredictedOutside => "predicted-outside",
+        NoVehicleAttitude => "no-vehicle-attitude",
+        NoDeckHeave => "no-deck-heave",
+        FrozenInput => "frozen-input",
+        ClockJump => "clock-jump",
+        RideThrough => "ride-through",
     ]
 );
-
-impl DecisionReason {
-    pub fn name(&self) -> &'static str {
-        match self {
-            Self::WithinCapacity => "within-capacity",
-            Self::InvalidAttitude => "invalid-attitude",
-            Self::StaleData => "stale-data",
-            Self::Gap => "gap",
-            Self::Jump => "jump",
-            Self::OutsideCapacity => "outside-capacity",
-            Self::Warmup => "warmup",
-            Self::PredictionUnreliable => "prediction-unreliable",
-            Self::PredictedOutside => "predicted-outside",
-            Self::NoVehicleAttitude => "no-vehicle-attitude",
-            Self::NoDeckHeave => "no-deck-heave",
-            Self::FrozenInput => "frozen-input",
-            Self::ClockJump => "clock-jump",
-            Self::RideThrough => "ride-through",
-        }
-    }
-}
 
 /// How a vehicle sample's autopilot time was put on this machine's clock.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

@@ -80,27 +80,17 @@ pub enum LatencyInterval {
     EndToEnd,
 }
 
-impl LatencyInterval {
-    pub const ALL: [LatencyInterval; 6] = [
-        Self::Capture,
-        Self::CaptureToDetect,
-        Self::Detect,
-        Self::Estimate,
-        Self::Decide,
-        Self::EndToEnd,
-    ];
-
-    pub fn name(&self) -> &'static str {
-        match self {
-            Self::Capture => "capture",
-            Self::CaptureToDetect => "capture->detect",
-            Self::Detect => "detect",
-            Self::Estimate => "estimate",
-            Self::Decide => "decide",
-            Self::EndToEnd => "end-to-end",
-        }
-    }
-}
+crate::named_enum!(
+    LatencyInterval,
+    [
+        Capture => "capture",
+        CaptureToDetect => "capture->detect",
+        Detect => "detect",
+        Estimate => "estimate",
+        Decide => "decide",
+        EndToEnd => "end-to-end",
+    ]
+);
 
 impl StageTimes {
     /// The interval in nanoseconds, when both of its ends are stamped and in order.

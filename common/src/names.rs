@@ -1,0 +1,65 @@
+//! Fieldless enums' names, declared once beside the variants: the list, each variant's name
+//! (command line, reports, recordings' text) and the way back from a name.
+
+/// Implements `ALL` (every value, in the order listed), `name()` and `from_name()` for a
+/// fieldless enum from one list of `Variant => "name"`. The list must name every variant:
+/// `name()` is an exhaustive match, so a variant added to the enum and not here fails to
+/// compile. Names must be distinct (`named_enum_tests` checks the ones declared here).
+#[macro_export]
+macro_rules! named_enum {
+    ($ty:ident, [$($variant:ident => $name:literal),+ $(,)?]) => {
+        impl $ty {
+            /// Every value, in the order of its declaration's list.
+            pub const ALL: [Self; <[&str]>::len(&[$($name),+])] = [$(Self::$variant),+];
+
+            /// The value's name, as the command line, reports and recordings write it.
+            pub fn name(&self) -> &'static str {
+                match self {
+                    $(Self::$variant => $name,)+
+                }
+            }
+
+            /// The value [`Self::name`] calls `name`.
+            pub fn from_name(name: &str) -> Option<Self> {
+                Self::ALL.into_iter().find(|v| v.name() == name)
+            }
+        }
+    };
+}
+
+#[cfg(test)]
+mod named_enum_tests {
+    use crate::messages::{DecisionReason, DecisionState, LatencyInterval};
+    use crate::vehicle::Compensation;
+
+    fn distinct_and_round_trip<T: Copy + PartialEq + std::fmt::Debug>(
+        all: &[T],
+        name: fn(&T) -> &'static str,
+        from_name: fn(&str) -> Option<T>,
+    ) {
+        let mut names: Vec<&str> = all.iter().map(name).collect();
+        for v in all {
+            assert_eq!(from_name(name(v)), Some(*v));
+        }
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), all.len(), "a name used twice");
+        assert_eq!(from_name("no-such-name"), None);
+    }
+
+    #[test]
+    fn every_name_is_distinct_and_reads_back() {
+        distinct_and_round_trip(&DecisionState::ALL, DecisionState::name, DecisionState::from_name);
+        distinct_and_round_trip(
+            &DecisionReason::ALL,
+            DecisionReason::name,
+            DecisionReason::from_name,
+        );
+        distinct_and_round_trip(&Compensation::ALL, Compensation::name, Compensation::from_name);
+        distinct_and_round_trip(
+            &LatencyInterval::ALL,
+            LatencyInterval::name,
+            LatencyInterval::from_name,
+        );
+    }
+}

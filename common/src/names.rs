@@ -29,7 +29,7 @@ macro_rules! named_enum {
 
 #[cfg(test)]
 mod named_enum_tests {
-    use crate::messages::{DecisionReason, DecisionState, LatencyInterval};
+    use crate::messages::{DecisionReason, DecisionState, FrameSource, LatencyInterval};
     use crate::vehicle::Compensation;
 
     fn distinct_and_round_trip<T: Copy + PartialEq + std::fmt::Debug>(

@@ -14,17 +14,11 @@ pub enum FrameSource {
     Libcamera = 2,
 }
 
-wire_enum!(FrameSource, on_bad_code: Simulator, [Simulator, Replay, Libcamera]);
-
-impl FrameSource {
-    pub fn name(&self) -> &'static str {
-        match self {
-            Self::Simulator => "sim",
-            Self::Replay => "replay",
-            Self::Libcamera => "libcamera",
-        }
-    }
-}
+wire_enum!(
+    FrameSource,
+    on_bad_code: Simulator,
+    [Simulator => "sim", Replay => "replay", Libcamera => "libcamera"]
+);
 
 /// Layout of a frame's pixels.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

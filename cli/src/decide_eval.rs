@@ -299,7 +299,9 @@ pub(crate) fn measure(
 pub fn run(a: DecideEvalArgs) -> Result<(), String> {
     let (pipeline, file) = crate::pipeline::load(a.config.as_deref())?;
     let config: DecisionConfig = pipeline.decide;
-    config.validate().map_err(|e| format!("{file}: decide.{e}"))?;
+    config
+        .validate()
+        .map_err(|e| format!("{file}: decide.{}: {}", e.field, e.problem))?;
     let model = stream_model(&a)?;
     let minutes = minutes(&a)?;
     let n = frames(&a, minutes);

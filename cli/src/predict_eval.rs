@@ -37,12 +37,12 @@ fn forecaster(name: &str, config: &DecisionConfig) -> Result<Box<dyn Forecaster>
             ..config.clone()
         };
         Ok(Box::new(
-            LandingDecider::new(c).map_err(|e| format!("decide.{e}"))?,
+            LandingDecider::new(c).map_err(|e| format!("decide.{}: {}", e.field, e.problem))?,
         ))
     };
     let own = |c: DecisionConfig| -> Result<Box<dyn Forecaster>, String> {
         Ok(Box::new(
-            LandingDecider::new(c).map_err(|e| format!("decide.{e}"))?,
+            LandingDecider::new(c).map_err(|e| format!("decide.{}: {}", e.field, e.problem))?,
         ))
     };
     // Each predictor with the settings it was measured with, unless the configuration chose it
@@ -91,7 +91,9 @@ fn print_report(label: &str, predictor: &str, r: &ForecastReport, touchdown_s: f
 pub fn run(a: PredictEvalArgs) -> Result<(), String> {
     let (pipeline, file) = crate::pipeline::load(a.stream.config.as_deref())?;
     let config: DecisionConfig = pipeline.decide;
-    config.validate().map_err(|e| format!("{file}: decide.{e}"))?;
+    config
+        .validate()
+        .map_err(|e| format!("{file}: decide.{}: {}", e.field, e.problem))?;
     let model = stream_model(&a.stream)?;
     let minutes = minutes(&a.stream)?;
     if a.horizons.is_empty()

@@ -209,7 +209,7 @@ fn judge(truth: TrueDeck, c: &DecisionConfig, commits: &[f64], outcome: &mut Rul
 pub fn decide_stream(
     config: &DecisionConfig,
     stream: &[FrameInput],
-) -> Result<Vec<Decision>, crate::DecisionConfigError> {
+) -> Result<Vec<Decision>, deckwatch_common::InvalidField> {
     let mut decider = LandingDecider::new(config.clone())?;
     Ok(stream
         .iter()
@@ -238,7 +238,7 @@ pub fn evaluate(
     truth: TrueDeck,
     config: &DecisionConfig,
     stream: &[FrameInput],
-) -> Result<(RuleOutcome, RuleOutcome), crate::DecisionConfigError> {
+) -> Result<(RuleOutcome, RuleOutcome), deckwatch_common::InvalidField> {
     let (Some(first), Some(last)) = (stream.first(), stream.last()) else {
         return Ok(Default::default());
     };

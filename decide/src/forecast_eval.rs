@@ -315,7 +315,7 @@ pub fn judge_forecasts(
 }
 
 /// The decider configured as `config` (its predictor), as a forecaster.
-pub fn decider(config: &DecisionConfig) -> Result<LandingDecider, crate::DecisionConfigError> {
+pub fn decider(config: &DecisionConfig) -> Result<LandingDecider, deckwatch_common::InvalidField> {
     LandingDecider::new(config.clone())
 }
 

@@ -10,7 +10,6 @@ pub mod frame;
 pub mod predict;
 
 pub use decision::{
-    Decision, DecisionConfig, DecisionConfigError, DeckForecast, DeckObservation, HeaveUse, LandingDecider,
-    Predictor,
+    Decision, DecisionConfig, DeckForecast, DeckObservation, HeaveUse, LandingDecider, Predictor,
 };
 pub use frame::FrameInput;

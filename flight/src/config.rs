@@ -1,5 +1,6 @@
 //! `[record]` of the pipeline configuration: the flight recorder (`deckwatch run --record`).
 
+use deckwatch_common::InvalidField;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
@@ -87,35 +88,38 @@ impl RecordConfig {
         self.enabled() && self.frames != FrameEncoding::None
     }
 
-    /// The first bad value as (key, problem).
-    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+    /// The first bad value: its key (without the section) and what is wrong.
+    pub fn validate(&self) -> Result<(), InvalidField> {
         if self.frame_every == 0 {
-            return Err(("frame_every", "must be at least 1".into()));
+            return Err(InvalidField::new("frame_every", "must be at least 1"));
         }
         if !(1..=100).contains(&self.jpeg_quality) {
-            return Err((
+            return Err(InvalidField::new(
                 "jpeg_quality",
                 format!("must be 1..=100, got {}", self.jpeg_quality),
             ));
         }
         if !(1..=1024).contains(&self.chunk_mib) {
-            return Err(("chunk_mib", format!("must be 1..=1024, got {}", self.chunk_mib)));
+            return Err(InvalidField::new(
+                "chunk_mib",
+                format!("must be 1..=1024, got {}", self.chunk_mib),
+            ));
         }
         if !(1..=256).contains(&self.queue_frames) {
-            return Err((
+            return Err(InvalidField::new(
                 "queue_frames",
                 format!("must be 1..=256, got {}", self.queue_frames),
             ));
         }
         if !(10..=60_000).contains(&self.flush_interval_ms) {
-            return Err((
+            return Err(InvalidField::new(
                 "flush_interval_ms",
                 format!("must be 10..=60000, got {}", self.flush_interval_ms),
             ));
         }
         if let Some(p) = &self.path {
             if p.as_os_str().is_empty() {
-                return Err(("path", "must not be empty".into()));
+                return Err(InvalidField::new("path", "must not be empty"));
             }
         }
         Ok(())

@@ -10,6 +10,7 @@ use deckwatch_capture::camera::CameraConfig;
 use deckwatch_capture::source::{CaptureConfig, ReplayConfig, SourceConfig, SourceError};
 use deckwatch_common::messages::{EstimatorKind, FrameSource};
 use deckwatch_common::vehicle::{VehicleAttitudeSource, VehicleConfig};
+use deckwatch_common::InvalidField;
 use deckwatch_decide::{DecisionConfig, HeaveUse};
 use deckwatch_estimate::EstimateConfig;
 use deckwatch_flight::RecordConfig;
@@ -188,23 +189,19 @@ impl PipelineConfig {
             key,
             problem,
         };
-        self.bus
-            .settings(1)
-            .validate()
-            .map_err(|e| invalid(format!("bus.{}", e.field), e.problem))?;
+        // Every section states a bad value the same way (`InvalidField`, its key without the
+        // section); here it gets the section and the file.
+        let in_section = |section: &'static str| {
+            move |e: InvalidField| invalid(format!("{section}.{}", e.field), e.problem)
+        };
+        self.bus.settings(1).validate().map_err(in_section("bus"))?;
         self.capture().check().map_err(|source| ConfigError::Source {
             file: file.to_string(),
             source,
         })?;
-        self.decide
-            .validate()
-            .map_err(|e| invalid(format!("decide.{}", e.key), e.problem))?;
-        self.vehicle
-            .validate()
-            .map_err(|e| invalid(format!("vehicle.{}", e.field), e.problem))?;
-        self.link
-            .validate()
-            .map_err(|e| invalid(format!("link.{}", e.field), e.problem))?;
+        self.decide.validate().map_err(in_section("decide"))?;
+        self.vehicle.validate().map_err(in_section("vehicle"))?;
+        self.link.validate().map_err(in_section("link"))?;
         if self.source.kind == FrameSource::Libcamera
             && self.vehicle.attitude == VehicleAttitudeSource::Frames
         {
@@ -232,9 +229,7 @@ impl PipelineConfig {
             deckwatch_viz::VizError::Config { key, problem } => invalid(format!("rerun.{key}"), problem),
             other => invalid("rerun".into(), other.to_string()),
         })?;
-        self.record
-            .validate()
-            .map_err(|(key, problem)| invalid(format!("record.{key}"), problem))?;
+        self.record.validate().map_err(in_section("record"))?;
         if self.record.records_frames() && self.bus.frame_subscribers < 2 {
             return Err(invalid(
                 "bus.frame_subscribers".into(),

@@ -349,7 +349,9 @@ fn trial_pipeline(a: &TrialsArgs) -> Result<PipelineConfig, String> {
     }
     p.vehicle.attitude = VehicleAttitudeSource::Autopilot;
     p.rerun.sink = deckwatch_viz::RerunSink::Off;
-    p.decide.validate().map_err(|e| format!("{file}: decide.{e}"))?;
+    p.decide
+        .validate()
+        .map_err(|e| format!("{file}: decide.{}: {}", e.field, e.problem))?;
     Ok(p)
 }
 

@@ -1,6 +1,7 @@
 //! The decision's configuration (`[decide]`): the vehicle's capacity, the touchdown, the
 //! accepted risk, the predictor and its settings, and their checks.
 
+use deckwatch_common::InvalidField;
 use serde::{Deserialize, Serialize};
 
 /// What the decision needs to know (the `[decide]` section of the pipeline configuration).
@@ -180,19 +181,10 @@ pub enum HeaveUse {
     Off,
 }
 
-/// A `[decide]` value out of range: the key and what is wrong.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{key}: {problem}")]
-pub struct DecisionConfigError {
-    pub key: &'static str,
-    pub problem: String,
-}
-
-fn invalid(key: &'static str, problem: impl Into<String>) -> DecisionConfigError {
-    DecisionConfigError {
-        key,
-        problem: problem.into(),
-    }
+/// A `[decide]` value out of range: the key (without the section) and what is wrong; the same
+/// error as every other section's.
+fn invalid(key: &'static str, problem: impl Into<String>) -> InvalidField {
+    InvalidField::new(key, problem)
 }
 
 impl DecisionConfig {
@@ -249,7 +241,7 @@ impl DecisionConfig {
     }
 
     /// Checks every field; the error names it.
-    pub fn validate(&self) -> Result<(), DecisionConfigError> {
+    pub fn validate(&self) -> Result<(), InvalidField> {
         let positive = [
             ("max_abs_roll_deg", self.max_abs_roll_deg),
             ("max_abs_pitch_deg", self.max_abs_pitch_deg),

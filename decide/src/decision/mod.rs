@@ -24,9 +24,7 @@ mod config;
 mod envelope;
 mod models;
 
-pub use config::{
-    DecisionConfig, DecisionConfigError, HeaveUse, Predictor, MAX_FROZEN_INPUT_COUNT, SAFETY_BOUNDS,
-};
+pub use config::{DecisionConfig, HeaveUse, Predictor, MAX_FROZEN_INPUT_COUNT, SAFETY_BOUNDS};
 pub use envelope::tilt_deg;
 use models::{fit_line, Margins, Models, Track};
 
@@ -183,7 +181,7 @@ const MAX_FUTURE_S: f64 = 0.05;
 const STEP_S: f64 = 0.05;
 
 impl LandingDecider {
-    pub fn new(config: DecisionConfig) -> Result<Self, DecisionConfigError> {
+    pub fn new(config: DecisionConfig) -> Result<Self, deckwatch_common::InvalidField> {
         config.validate()?;
         Ok(Self {
             unexplained_at: f64::NEG_INFINITY,
@@ -1019,7 +1017,7 @@ mod tests {
             ride_through_ms: 2500.0,
             ..Default::default()
         };
-        assert_eq!(too_long.validate().unwrap_err().key, "ride_through_ms");
+        assert_eq!(too_long.validate().unwrap_err().field, "ride_through_ms");
     }
 
     #[test]
@@ -1331,7 +1329,7 @@ mod tests {
             frozen_input_count: 1,
             ..Default::default()
         };
-        assert_eq!(c.validate().unwrap_err().key, "frozen_input_count");
+        assert_eq!(c.validate().unwrap_err().field, "frozen_input_count");
     }
 
     /// One frame stamped far in the future, then the true timeline again: held with
@@ -1362,7 +1360,7 @@ mod tests {
             touchdown_s: -1.0,
             ..Default::default()
         };
-        assert_eq!(c.validate().unwrap_err().key, "touchdown_s");
+        assert_eq!(c.validate().unwrap_err().field, "touchdown_s");
         // Bounded above too: these size loops, buffers and timers.
         for (c, key) in [
             (
@@ -1387,7 +1385,7 @@ mod tests {
                 "max_age_ms",
             ),
         ] {
-            assert_eq!(c.validate().unwrap_err().key, key);
+            assert_eq!(c.validate().unwrap_err().field, key);
         }
     }
 
@@ -1463,7 +1461,7 @@ mod tests {
                 let mut c = DecisionConfig::default();
                 *c.field_mut(key).unwrap() = bad;
                 let e = c.validate().unwrap_err();
-                assert_eq!(e.key, key, "{key} = {bad}: {e}");
+                assert_eq!(e.field, key, "{key} = {bad}: {e}");
             }
         }
         for (c, key) in [
@@ -1505,7 +1503,7 @@ mod tests {
                 "ride_through_ms",
             ),
         ] {
-            assert_eq!(c.validate().unwrap_err().key, key);
+            assert_eq!(c.validate().unwrap_err().field, key);
         }
         // The defaults and both predictors' own settings are within every bound.
         DecisionConfig::default().validate().unwrap();

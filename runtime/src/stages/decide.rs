@@ -30,10 +30,7 @@ pub struct DecideStage {
 
 impl DecideStage {
     /// `joined_late`: the pipeline was already running (see [`GapCounter::new`]).
-    pub fn new(
-        config: DecisionConfig,
-        joined_late: bool,
-    ) -> Result<Self, deckwatch_decide::DecisionConfigError> {
+    pub fn new(config: DecisionConfig, joined_late: bool) -> Result<Self, deckwatch_common::InvalidField> {
         let view =
             deckwatch_viz::entities::DecisionView::new(config.max_abs_roll_deg, config.max_abs_pitch_deg);
         Ok(Self {
@@ -102,7 +99,7 @@ impl Stage for DecideStage {
     fn from_config(config: &PipelineConfig, joined_late: bool) -> Result<Self, ConfigError> {
         Self::new(config.decide.clone(), joined_late).map_err(|e| ConfigError::Invalid {
             file: "the pipeline configuration".into(),
-            key: format!("decide.{}", e.key),
+            key: format!("decide.{}", e.field),
             problem: e.problem,
         })
     }

@@ -225,10 +225,7 @@ impl PipelineConfig {
                 ));
             }
         }
-        self.rerun.validate().map_err(|e| match e {
-            deckwatch_viz::VizError::Config { key, problem } => invalid(format!("rerun.{key}"), problem),
-            other => invalid("rerun".into(), other.to_string()),
-        })?;
+        self.rerun.validate().map_err(in_section("rerun"))?;
         self.record.validate().map_err(in_section("record"))?;
         if self.record.records_frames() && self.bus.frame_subscribers < 2 {
             return Err(invalid(

@@ -53,8 +53,8 @@ pub const DEFAULT_ADDRESS: &str = "rerun+http://127.0.0.1:9876/proxy";
 #[derive(Debug, thiserror::Error)]
 pub enum VizError {
     /// A `[rerun]` value: the key (without the section) and what is wrong with it.
-    #[error("rerun.{key}: {problem}")]
-    Config { key: &'static str, problem: String },
+    #[error("rerun.{}: {}", .0.field, .0.problem)]
+    Config(#[from] deckwatch_common::InvalidField),
     /// The rerun SDK refused (a viewer that cannot be spawned or reached, a file that cannot
     /// be written, ...).
     #[error("rerun ({sink}): {message}")]
@@ -132,8 +132,9 @@ impl Default for RerunConfig {
 }
 
 impl RerunConfig {
-    pub fn validate(&self) -> Result<(), VizError> {
-        let invalid = |key, problem: String| Err(VizError::Config { key, problem });
+    /// The first bad value: its key (without the section) and what is wrong.
+    pub fn validate(&self) -> Result<(), deckwatch_common::InvalidField> {
+        let invalid = |key, problem: String| Err(deckwatch_common::InvalidField::new(key, problem));
         if self.sink == RerunSink::Save && self.path.is_none() {
             return invalid("path", "required with sink = \"save\"".into());
         }

@@ -6,6 +6,7 @@ use crate::{
 };
 use crossbeam_channel::Receiver;
 use deckwatch_common::messages::{EstimatorKind, LatencyInterval, TimeBase};
+use deckwatch_common::InvalidField;
 use rerun::{RecordingStream, RecordingStreamBuilder};
 use std::path::Path;
 use std::thread::JoinHandle;
@@ -24,10 +25,10 @@ pub(crate) fn spawn_logging_thread(
     stage: &str,
     rx: Receiver<Item>,
 ) -> Result<JoinHandle<()>, VizError> {
-    let rec = open_stream(config, stage)?.ok_or(VizError::Config {
-        key: "sink",
-        problem: "off: nothing to log to".into(),
-    })?;
+    let rec = open_stream(config, stage)?.ok_or(VizError::Config(InvalidField::new(
+        "sink",
+        "off: nothing to log to",
+    )))?;
     let downscale = config.image_downscale as f32;
     // Every process measures the offset itself: they agree to microseconds.
     let clock = TimeBase::measure();
@@ -91,10 +92,10 @@ fn open_stream(config: &RerunConfig, stage: &str) -> Result<Option<RecordingStre
             .connect_grpc_opts(config.address.clone().unwrap_or_else(|| DEFAULT_ADDRESS.into()))
             .map_err(err)?,
         RerunSink::Save => {
-            let path = config.path.as_ref().ok_or(VizError::Config {
-                key: "path",
-                problem: "required with sink = \"save\"".into(),
-            })?;
+            let path = config.path.as_ref().ok_or(VizError::Config(InvalidField::new(
+                "path",
+                "required with sink = \"save\"",
+            )))?;
             builder.save(RerunConfig::part_path(path, stage)).map_err(err)?
         }
     };

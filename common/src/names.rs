@@ -61,5 +61,6 @@ mod named_enum_tests {
             LatencyInterval::name,
             LatencyInterval::from_name,
         );
+        distinct_and_round_trip(&FrameSource::ALL, FrameSource::name, FrameSource::from_name);
     }
 }

@@ -28,8 +28,8 @@ pub enum SourceError {
     #[error("{0}")]
     Simulator(String),
     /// The camera failed (libcamera), or this build has no camera support.
-    #[error("{0}")]
-    Camera(String),
+    #[error(transparent)]
+    Camera(#[from] crate::camera::CameraError),
     /// One frame could not be read (it is counted and skipped; the source goes on).
     #[error("{0}")]
     BadFrame(String),
@@ -129,10 +129,9 @@ impl CaptureConfig {
                 Ok(())
             }
             FrameSource::Libcamera => {
-                let camera = |e: String| SourceError::Camera(e);
-                self.libcamera.validate().map_err(camera)?;
-                if let Some(size) = self.libcamera.requested_size().map_err(camera)? {
-                    self.libcamera.camera_model(size.0, size.1).map_err(camera)?;
+                self.libcamera.validate()?;
+                if let Some(size) = self.libcamera.requested_size()? {
+                    self.libcamera.camera_model(size.0, size.1)?;
                 }
                 if !crate::camera::LIBCAMERA_BUILT_IN {
                     return Err(not_built());
@@ -235,17 +234,14 @@ impl CaptureConfig {
 
     #[cfg(not(feature = "libcamera"))]
     fn open_camera(&self) -> Result<CaptureSource, SourceError> {
-        self.libcamera.validate().map_err(SourceError::Camera)?;
+        self.libcamera.validate()?;
         Err(not_built())
     }
 
     #[cfg(feature = "libcamera")]
     fn open_camera(&self) -> Result<CaptureSource, SourceError> {
-        let camera = crate::camera::LibcameraSource::open(&self.libcamera).map_err(SourceError::Camera)?;
-        let (model, deck) = self
-            .libcamera
-            .camera_model(camera.width(), camera.height())
-            .map_err(SourceError::Camera)?;
+        let camera = crate::camera::LibcameraSource::open(&self.libcamera)?;
+        let (model, deck) = self.libcamera.camera_model(camera.width(), camera.height())?;
         Ok(CaptureSource {
             camera: model,
             deck,
@@ -365,10 +361,10 @@ fn recorded_offset_ns(rec: &Recording, k: u64) -> u64 {
 
 /// The error of a build without the `libcamera` feature asked for a camera.
 fn not_built() -> SourceError {
-    SourceError::Camera(format!(
-        "source.kind = \"libcamera\": {}",
-        crate::camera::NOT_BUILT
-    ))
+    config_error(
+        "source.kind",
+        format!("\"libcamera\": {}", crate::camera::NOT_BUILT),
+    )
 }
 
 /// Frame rates a source accepts (Hz), the simulator's: defined with the simulation options.
@@ -507,7 +503,7 @@ impl CaptureSource {
     pub fn wait_ready(&mut self, wait: Duration) -> Result<bool, SourceError> {
         match &mut self.inner {
             #[cfg(feature = "libcamera")]
-            Inner::Camera { camera, .. } => camera.wait(wait).map_err(SourceError::Camera),
+            Inner::Camera { camera, .. } => Ok(camera.wait(wait)?),
             _ => {
                 let _ = wait;
                 Ok(true)
@@ -610,7 +606,7 @@ impl CaptureSource {
             #[cfg(feature = "libcamera")]
             Inner::Camera { camera, .. } => {
                 let _ = altimeter;
-                let f = camera.take(out, stride)?;
+                let f = camera.take(out, stride).map_err(|e| e.to_string())?;
                 // The sensor's start of frame -> the frame's instant (the vehicle's attitude
                 // is taken there); a completion time is left as it is.
                 let instant_ns = if f.sensor_timestamp {

@@ -230,7 +230,7 @@ fn camera(c: &PipelineConfig) -> Vec<Finding> {
             .iter()
             .map(|d| Finding::Ok(format!("camera {}: {} ({}; libcamera {version})", d.index, d.model, d.id)))
             .collect(),
-        Err(e) => vec![Finding::Fix("camera".into(), e)],
+        Err(e) => vec![Finding::Fix("camera".into(), e.to_string())],
     }
 }
 

@@ -310,7 +310,7 @@ fn camera_record(
 }
 
 fn cameras(json: bool) -> Result<(), String> {
-    let (version, cameras) = deckwatch_capture::camera::list_cameras()?;
+    let (version, cameras) = deckwatch_capture::camera::list_cameras().map_err(|e| e.to_string())?;
     if json {
         let doc = serde_json::json!({ "libcamera": version, "cameras": cameras });
         println!(

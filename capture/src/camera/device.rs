@@ -5,7 +5,7 @@
 //! buffer) travels to the capture thread through a channel; capture copies the luminance plane
 //! straight into its loaned shared-memory sample and sends the request back to be queued again.
 
-use super::{select_camera, CameraConfig, CameraDescription, LumaLayout, SequenceTracker};
+use super::{select_camera, CameraConfig, CameraDescription, CameraError, LumaLayout, SequenceTracker};
 use deckwatch_common::messages::monotonic_ns;
 use libcamera::{
     camera::{ActiveCamera, CameraConfigurationStatus},
@@ -90,7 +90,7 @@ pub struct LibcameraSource {
 
 impl LibcameraSource {
     /// Opens, configures and starts the camera of `config`.
-    pub fn open(config: &CameraConfig) -> Result<Self, String> {
+    pub fn open(config: &CameraConfig) -> Result<Self, CameraError> {
         config.validate()?;
         let requested = config.requested_size()?;
         quiet_libcamera(&config.log_level);
@@ -105,7 +105,7 @@ impl LibcameraSource {
                     let _ = started_tx.send(Err(e));
                 }
             })
-            .map_err(|e| format!("libcamera: cannot start the camera thread: {e}"))?;
+            .map_err(|e| libcamera_error("starting the camera thread", e))?;
         let started = match started_rx.recv() {
             Ok(Ok(s)) => s,
             Ok(Err(e)) => {
@@ -114,7 +114,10 @@ impl LibcameraSource {
             }
             Err(_) => {
                 let _ = thread.join();
-                return Err("libcamera: the camera thread ended before the camera started".into());
+                return Err(libcamera_error(
+                    "starting the camera",
+                    "the camera thread ended before the camera started",
+                ));
             }
         };
         Ok(Self {
@@ -151,11 +154,14 @@ impl LibcameraSource {
 
     /// Waits up to `wait` for the next frame: Ok(false) if none came yet; an error when the
     /// camera delivered nothing for `timeout_ms` or its thread ended.
-    pub fn wait(&mut self, wait: Duration) -> Result<bool, String> {
+    pub fn wait(&mut self, wait: Duration) -> Result<bool, CameraError> {
         if self.ready.is_some() {
             return Ok(true);
         }
-        let frames = self.frames.as_ref().ok_or("libcamera: the camera is closed")?;
+        let stopped = || CameraError::Stopped {
+            camera: self.started.id.clone(),
+        };
+        let frames = self.frames.as_ref().ok_or_else(stopped)?;
         match frames.recv_timeout(wait) {
             Ok(c) => {
                 self.ready = Some(c);
@@ -163,21 +169,21 @@ impl LibcameraSource {
                 Ok(true)
             }
             Err(RecvTimeoutError::Timeout) if self.last_frame.elapsed() < self.timeout => Ok(false),
-            Err(RecvTimeoutError::Timeout) => Err(format!(
-                "camera `{}` delivered no frame for {} ms (libcamera.timeout_ms)",
-                self.started.id,
-                self.timeout.as_millis()
-            )),
-            Err(RecvTimeoutError::Disconnected) => {
-                Err(format!("camera `{}`: the camera thread stopped", self.started.id))
-            }
+            Err(RecvTimeoutError::Timeout) => Err(CameraError::Timeout {
+                camera: self.started.id.clone(),
+                waited_ms: self.timeout.as_millis() as u64,
+            }),
+            Err(RecvTimeoutError::Disconnected) => Err(stopped()),
         }
     }
 
     /// Copies the waiting frame's luminance into `out` (`stride` bytes a row) and gives its
     /// buffer back to the camera. An error is a bad frame (counted and skipped by the caller).
-    pub fn take(&mut self, out: &mut [u8], stride: usize) -> Result<CameraFrame, String> {
-        let c = self.ready.take().ok_or("libcamera: no frame is waiting")?;
+    pub fn take(&mut self, out: &mut [u8], stride: usize) -> Result<CameraFrame, CameraError> {
+        let c = self
+            .ready
+            .take()
+            .ok_or_else(|| CameraError::BadFrame("no frame is waiting (take before wait)".into()))?;
         let result = self.copy(&c, out, stride);
         let mut request = c.request;
         request.reuse(ReuseFlag::REUSE_BUFFERS);
@@ -189,13 +195,17 @@ impl LibcameraSource {
         result
     }
 
-    fn copy(&mut self, c: &Completed, out: &mut [u8], stride: usize) -> Result<CameraFrame, String> {
+    fn copy(&mut self, c: &Completed, out: &mut [u8], stride: usize) -> Result<CameraFrame, CameraError> {
         let s = &self.started;
         if c.request.status() != RequestStatus::Complete {
-            return Err(format!("request {:?} (not complete)", c.request.status()));
+            return Err(CameraError::BadFrame(format!(
+                "request {:?} (not complete)",
+                c.request.status()
+            )));
         }
-        let (planes, meta) = mapped_planes(&c.request, &s.stream)
-            .ok_or("the completed request carries no buffer for the stream")?;
+        let (planes, meta) = mapped_planes(&c.request, &s.stream).ok_or_else(|| {
+            CameraError::BadFrame("the completed request carries no buffer for the stream".into())
+        })?;
         let mut frame = CameraFrame {
             sequence: None,
             timestamp_ns: c.completed_ns,
@@ -209,7 +219,9 @@ impl LibcameraSource {
             self.unreported_drops += gap;
             frame.sequence = Some(sequence);
             if status != FrameMetadataStatus::Success {
-                return Err(format!("the camera marked frame {sequence} {status:?}"));
+                return Err(CameraError::BadFrame(format!(
+                    "the camera marked frame {sequence} {status:?}"
+                )));
             }
             if plausible(timestamp, c.completed_ns) {
                 frame.timestamp_ns = timestamp;
@@ -227,7 +239,9 @@ impl LibcameraSource {
         if let Ok(t) = c.request.metadata().get::<controls::ExposureTime>() {
             frame.exposure_us = u32::try_from(t.0).ok();
         }
-        let first = planes.first().ok_or("the buffer has no planes")?;
+        let first = planes
+            .first()
+            .ok_or_else(|| CameraError::BadFrame("the buffer has no planes".into()))?;
         s.layout.extract(
             first,
             s.stride as usize,
@@ -305,12 +319,47 @@ fn control_id(infos: &ControlInfoMap, name: &str) -> Option<u32> {
         .find(|&id| ControlId::try_from(id).is_ok_and(|c| c.name() == name))
 }
 
-fn io_context(what: &str, id: &str, e: std::io::Error) -> String {
+/// A libcamera call on camera `id` that failed with `e`, while `doing`: busy and gone told
+/// apart (the two a user can act on).
+fn io_context(doing: &'static str, id: &str, e: std::io::Error) -> CameraError {
+    let camera = id.to_string();
     match e.raw_os_error() {
-        Some(libc::EBUSY) => format!("camera `{id}` is busy: another process has it open ({what}: {e})"),
-        Some(libc::ENODEV) => format!("camera `{id}` is gone ({what}: {e})"),
-        _ => format!("camera `{id}`: {what}: {e}"),
+        Some(libc::EBUSY) => CameraError::Busy {
+            camera,
+            doing,
+            source: e,
+        },
+        Some(libc::ENODEV) => CameraError::Gone {
+            camera,
+            doing,
+            source: e,
+        },
+        _ => CameraError::Libcamera {
+            doing,
+            message: format!("camera `{id}`: {e}"),
+        },
     }
+}
+
+/// A libcamera call that failed while `doing`.
+fn libcamera_error(doing: &'static str, message: impl std::fmt::Display) -> CameraError {
+    CameraError::Libcamera {
+        doing,
+        message: message.to_string(),
+    }
+}
+
+/// What camera `id` cannot do.
+fn unsupported(id: &str, problem: impl Into<String>) -> CameraError {
+    CameraError::Unsupported {
+        camera: id.to_string(),
+        problem: problem.into(),
+    }
+}
+
+/// A `[libcamera]` key this camera cannot meet.
+fn not_met(key: &str, problem: impl Into<String>) -> CameraError {
+    CameraError::Config(deckwatch_common::InvalidField::new(key, problem))
 }
 
 /// memfd-backed buffers, for machines whose kernel has no dma-buf provider (no dma-heap, no
@@ -359,16 +408,16 @@ fn make_requests<T: AsFrameBuffer + Any + 'static>(
     cam: &mut ActiveCamera<'_>,
     stream: &Stream,
     buffers: Vec<MemoryMappedFrameBuffer<T>>,
-) -> Result<Vec<Request>, String> {
+) -> Result<Vec<Request>, CameraError> {
     buffers
         .into_iter()
         .enumerate()
         .map(|(i, b)| {
             let mut r = cam
                 .create_request(Some(i as u64))
-                .ok_or("libcamera: cannot create a request")?;
+                .ok_or_else(|| libcamera_error("creating a request", "no request"))?;
             r.add_buffer(stream, b)
-                .map_err(|e| format!("libcamera: adding a buffer to a request: {e}"))?;
+                .map_err(|e| libcamera_error("adding a buffer to a request", e))?;
             Ok(r)
         })
         .collect()
@@ -379,25 +428,28 @@ fn make_requests<T: AsFrameBuffer + Any + 'static>(
 fn run_camera(
     config: &CameraConfig,
     requested: Option<(u32, u32)>,
-    started_tx: &mpsc::SyncSender<Result<Started, String>>,
+    started_tx: &mpsc::SyncSender<Result<Started, CameraError>>,
     done_tx: mpsc::Sender<Completed>,
     recycle_rx: mpsc::Receiver<Request>,
-) -> Result<(), String> {
-    let manager =
-        CameraManager::new().map_err(|e| format!("libcamera: cannot start the camera manager: {e}"))?;
+) -> Result<(), CameraError> {
+    let manager = CameraManager::new().map_err(|e| libcamera_error("starting the camera manager", e))?;
     let cameras = manager.cameras();
     let ids: Vec<String> = cameras.iter().map(|c| c.id().to_string()).collect();
     let index = select_camera(&config.camera, &ids)?;
     let id = ids[index].clone();
-    let camera = cameras.get(index).ok_or("libcamera: the camera list changed")?;
+    let camera = cameras
+        .get(index)
+        .ok_or_else(|| libcamera_error("listing the cameras", "the camera list changed"))?;
     let mut cam = camera.acquire().map_err(|e| io_context("acquire", &id, e))?;
 
     // Mode: pixel format and size.
     let mut cfgs = cam
         .generate_configuration(&[StreamRole::VideoRecording])
-        .ok_or_else(|| format!("camera `{id}` has no video stream configuration"))?;
+        .ok_or_else(|| unsupported(&id, "has no video stream configuration"))?;
     let offered: Vec<String> = {
-        let c = cfgs.get(0).ok_or("libcamera: empty configuration")?;
+        let c = cfgs
+            .get(0)
+            .ok_or_else(|| unsupported(&id, "gave an empty configuration"))?;
         c.formats()
             .pixel_formats()
             .into_iter()
@@ -407,30 +459,40 @@ fn run_camera(
     let format = if config.pixel_format == "auto" {
         LumaLayout::pick(offered.iter().map(String::as_str))
             .ok_or_else(|| {
-                format!(
-                    "camera `{id}` offers no pixel format deckwatch reads (it offers {}; deckwatch reads {})",
-                    offered.join(", "),
-                    LumaLayout::FORMATS.join(", ")
+                unsupported(
+                    &id,
+                    format!(
+                        "offers no pixel format deckwatch reads (it offers {}; deckwatch reads {})",
+                        offered.join(", "),
+                        LumaLayout::FORMATS.join(", ")
+                    ),
                 )
             })?
             .to_string()
     } else if offered.contains(&config.pixel_format) {
         config.pixel_format.clone()
     } else {
-        return Err(format!(
-            "libcamera.pixel_format: camera `{id}` does not offer {} (it offers {})",
-            config.pixel_format,
-            offered.join(", ")
+        return Err(not_met(
+            "pixel_format",
+            format!(
+                "camera `{id}` does not offer {} (it offers {})",
+                config.pixel_format,
+                offered.join(", ")
+            ),
         ));
     };
-    let pixel_format =
-        PixelFormat::parse(&format).ok_or_else(|| format!("libcamera does not know the format {format}"))?;
+    let pixel_format = PixelFormat::parse(&format)
+        .ok_or_else(|| libcamera_error("parsing a pixel format", format!("unknown format {format}")))?;
     let sizes_offered = {
-        let c = cfgs.get(0).ok_or("libcamera: empty configuration")?;
+        let c = cfgs
+            .get(0)
+            .ok_or_else(|| unsupported(&id, "gave an empty configuration"))?;
         offered_sizes(&c.formats(), pixel_format).join(", ")
     };
     {
-        let mut s = cfgs.get_mut(0).ok_or("libcamera: empty configuration")?;
+        let mut s = cfgs
+            .get_mut(0)
+            .ok_or_else(|| unsupported(&id, "gave an empty configuration"))?;
         s.set_pixel_format(pixel_format);
         if let Some((width, height)) = requested {
             s.set_size(Size { width, height });
@@ -440,24 +502,32 @@ fn run_camera(
         }
     }
     if let CameraConfigurationStatus::Invalid = cfgs.validate() {
-        return Err(format!(
-            "camera `{id}` rejected the configuration {}",
-            cfgs.to_string_repr()
+        return Err(unsupported(
+            &id,
+            format!("rejected the configuration {}", cfgs.to_string_repr()),
         ));
     }
     {
-        let s = cfgs.get(0).ok_or("libcamera: empty configuration")?;
+        let s = cfgs
+            .get(0)
+            .ok_or_else(|| unsupported(&id, "gave an empty configuration"))?;
         if s.get_pixel_format() != pixel_format {
-            return Err(format!(
-                "libcamera.pixel_format: camera `{id}` cannot deliver {format} in this mode (it adjusted to {})",
-                s.get_pixel_format()
+            return Err(not_met(
+                "pixel_format",
+                format!(
+                    "camera `{id}` cannot deliver {format} in this mode (it adjusted to {})",
+                    s.get_pixel_format()
+                ),
             ));
         }
         if let Some((width, height)) = requested {
             let got = s.get_size();
             if (got.width, got.height) != (width, height) {
-                return Err(format!(
-                    "libcamera.width/height: camera `{id}` has no {width}x{height} {format} mode (it offers {sizes_offered})"
+                return Err(not_met(
+                    "width/height",
+                    format!(
+                        "camera `{id}` has no {width}x{height} {format} mode (it offers {sizes_offered})"
+                    ),
                 ));
             }
         }
@@ -465,14 +535,18 @@ fn run_camera(
     cam.configure(&mut cfgs)
         .map_err(|e| io_context("configure", &id, e))?;
     let (stream, size, stride) = {
-        let s = cfgs.get(0).ok_or("libcamera: empty configuration")?;
+        let s = cfgs
+            .get(0)
+            .ok_or_else(|| unsupported(&id, "gave an empty configuration"))?;
         (
-            s.stream().ok_or("libcamera: the configured stream is missing")?,
+            s.stream()
+                .ok_or_else(|| unsupported(&id, "lost the configured stream"))?,
             s.get_size(),
             s.get_stride(),
         )
     };
-    let layout = LumaLayout::for_format(&format).ok_or("unreachable: format checked")?;
+    let layout = LumaLayout::for_format(&format)
+        .ok_or_else(|| not_met("pixel_format", format!("deckwatch does not read {format}")))?;
 
     // Buffers: the camera's own (dma-buf) first, memfd where the kernel has no provider.
     let mut allocator = FrameBufferAllocator::new(&cam);
@@ -482,7 +556,7 @@ fn run_camera(
                 .into_iter()
                 .map(MemoryMappedFrameBuffer::new)
                 .collect::<Result<Vec<_>, _>>()
-                .map_err(|e| format!("libcamera: mapping a buffer: {e:?}"))?;
+                .map_err(|e| libcamera_error("mapping a buffer", format!("{e:?}")))?;
             (make_requests(&mut cam, &stream, mapped)?, "dma-buf")
         }
         Err(e) => {
@@ -490,10 +564,12 @@ fn run_camera(
             let lens = LumaLayout::plane_lengths(&format, stride, size.height);
             let mapped = (0..count)
                 .map(|i| {
-                    let fb = memfd_buffer(&lens, i as u64).map_err(|e| format!("memfd buffer: {e}"))?;
-                    MemoryMappedFrameBuffer::new(fb).map_err(|e| format!("mapping a memfd buffer: {e:?}"))
+                    let fb = memfd_buffer(&lens, i as u64)
+                        .map_err(|e| libcamera_error("making a memfd buffer", e))?;
+                    MemoryMappedFrameBuffer::new(fb)
+                        .map_err(|e| libcamera_error("mapping a memfd buffer", format!("{e:?}")))
                 })
-                .collect::<Result<Vec<_>, String>>()?;
+                .collect::<Result<Vec<_>, CameraError>>()?;
             deckwatch_common::say!(
                 "deckwatch-capture: camera `{id}`: no dma-buf buffers ({e}); using memfd buffers"
             );
@@ -511,7 +587,7 @@ fn run_camera(
             let us = (period / 1000) as i64;
             start_controls
                 .set(controls::FrameDurationLimits([us, us]))
-                .map_err(|e| format!("FrameDurationLimits: {e:?}"))?;
+                .map_err(|e| libcamera_error("setting FrameDurationLimits", format!("{e:?}")))?;
             Pacing::Camera(Duration::from_nanos(period))
         }
         Some(period) => Pacing::Triggered(Duration::from_nanos(period)),
@@ -658,10 +734,9 @@ fn run_camera(
 
 /// The libcamera version and the cameras it sees, with their video formats and the controls
 /// deckwatch uses.
-pub fn list_cameras() -> Result<(String, Vec<CameraDescription>), String> {
+pub fn list_cameras() -> Result<(String, Vec<CameraDescription>), CameraError> {
     quiet_libcamera("error");
-    let manager =
-        CameraManager::new().map_err(|e| format!("libcamera: cannot start the camera manager: {e}"))?;
+    let manager = CameraManager::new().map_err(|e| libcamera_error("starting the camera manager", e))?;
     let version = manager.version().to_string();
     let cameras = manager.cameras();
     let mut out = Vec::new();

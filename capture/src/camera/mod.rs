@@ -8,8 +8,8 @@ mod device;
 #[cfg(feature = "libcamera")]
 pub use device::{list_cameras, LibcameraSource};
 
-use deckwatch_common::{CameraModel, DeckLayout};
-use deckwatch_formats::recording::read_camera_json;
+use deckwatch_common::{CameraModel, DeckLayout, InvalidField};
+use deckwatch_formats::recording::{read_camera_json, RecordingError};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -31,6 +31,65 @@ pub const LIBCAMERA_BUILT_IN: bool = cfg!(feature = "libcamera");
 /// What a build without the feature says when asked for a camera.
 pub const NOT_BUILT: &str = "this build has no libcamera support: rebuild with `--features libcamera` \
      (needs libcamera >= 0.4, e.g. Raspberry Pi OS or Debian 13: see README, \"Real camera\")";
+
+/// What went wrong with a camera, and where: its configuration, a libcamera call, a frame.
+#[derive(Debug, thiserror::Error)]
+pub enum CameraError {
+    /// A `[libcamera]` value that cannot work, or that this camera cannot meet: its key
+    /// (without the section) and why.
+    #[error("libcamera.{}: {}", .0.field, .0.problem)]
+    Config(#[from] InvalidField),
+    /// The calibration (`libcamera.calibration`) cannot be read.
+    #[error("libcamera.calibration: {0}")]
+    Calibration(#[from] RecordingError),
+    /// libcamera sees no camera.
+    #[error(
+        "no camera found by libcamera (is it connected and enabled? `deckwatch cameras` lists what libcamera sees)"
+    )]
+    NoCamera,
+    /// Another process has the camera open.
+    #[error("camera `{camera}` is busy: another process has it open ({doing}: {source})")]
+    Busy {
+        camera: String,
+        doing: &'static str,
+        source: std::io::Error,
+    },
+    /// The camera went away (unplugged, its driver unbound).
+    #[error("camera `{camera}` is gone ({doing}: {source})")]
+    Gone {
+        camera: String,
+        doing: &'static str,
+        source: std::io::Error,
+    },
+    /// A libcamera call failed: what deckwatch was doing, and what libcamera said.
+    #[error("libcamera: {doing}: {message}")]
+    Libcamera { doing: &'static str, message: String },
+    /// The camera cannot deliver what deckwatch needs (no video stream, no format it reads, a
+    /// configuration it rejects).
+    #[error("camera `{camera}` {problem}")]
+    Unsupported { camera: String, problem: String },
+    /// The camera delivered no frame for `libcamera.timeout_ms`.
+    #[error("camera `{camera}` delivered no frame for {waited_ms} ms (libcamera.timeout_ms)")]
+    Timeout { camera: String, waited_ms: u64 },
+    /// The camera's thread ended (the camera stopped or was closed).
+    #[error("camera `{camera}`: the camera thread stopped")]
+    Stopped { camera: String },
+    /// One frame is not usable: the caller counts and skips it, the camera goes on.
+    #[error("{0}")]
+    BadFrame(String),
+    /// A plane or frame buffer shorter than `height` rows of `row_bytes` at `stride` need.
+    #[error("{what} buffer too small: {bytes} bytes for {height} rows of {row_bytes} (stride {stride})")]
+    BufferTooSmall {
+        what: &'static str,
+        bytes: usize,
+        height: usize,
+        row_bytes: usize,
+        stride: usize,
+    },
+    /// This build has no libcamera (the `libcamera` cargo feature is off).
+    #[error("{}", NOT_BUILT)]
+    NotBuilt,
+}
 
 /// `[libcamera]`: the camera, its mode and controls, and the calibration of that mode.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
@@ -88,14 +147,15 @@ impl Default for CameraConfig {
     }
 }
 
+/// A `[libcamera]` key's bad value.
+fn invalid(key: &str, problem: impl Into<String>) -> CameraError {
+    CameraError::Config(InvalidField::new(key, problem))
+}
+
 /// Which camera of a list of ids `selector` names.
-pub fn select_camera(selector: &str, ids: &[String]) -> Result<usize, String> {
+pub fn select_camera(selector: &str, ids: &[String]) -> Result<usize, CameraError> {
     if ids.is_empty() {
-        return Err(
-            "no camera found by libcamera (is it connected and enabled? `deckwatch cameras` \
-                    lists what libcamera sees)"
-                .into(),
-        );
+        return Err(CameraError::NoCamera);
     }
     if selector.is_empty() {
         return Ok(0);
@@ -105,61 +165,73 @@ pub fn select_camera(selector: &str, ids: &[String]) -> Result<usize, String> {
     }
     match selector.parse::<usize>() {
         Ok(i) if i < ids.len() => Ok(i),
-        _ => Err(format!(
-            "libcamera.camera: no camera `{selector}` (cameras: {})",
-            ids.iter()
-                .enumerate()
-                .map(|(i, id)| format!("{i}: {id}"))
-                .collect::<Vec<_>>()
-                .join(", ")
+        _ => Err(invalid(
+            "camera",
+            format!(
+                "no camera `{selector}` (cameras: {})",
+                ids.iter()
+                    .enumerate()
+                    .map(|(i, id)| format!("{i}: {id}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
         )),
     }
 }
 
 impl CameraConfig {
     /// Checks the values that need no camera; errors name the key.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), CameraError> {
         if (self.width == 0) != (self.height == 0) {
-            return Err("libcamera.width/height: give both or neither".into());
+            return Err(invalid("width/height", "give both or neither"));
         }
         if self.pixel_format != "auto" && LumaLayout::for_format(&self.pixel_format).is_none() {
-            return Err(format!(
-                "libcamera.pixel_format: `{}` is not one deckwatch reads (auto, {})",
-                self.pixel_format,
-                LumaLayout::FORMATS.join(", ")
+            return Err(invalid(
+                "pixel_format",
+                format!(
+                    "`{}` is not one deckwatch reads (auto, {})",
+                    self.pixel_format,
+                    LumaLayout::FORMATS.join(", ")
+                ),
             ));
         }
         if !(self.frame_rate.is_finite() && (0.0..=1000.0).contains(&self.frame_rate)) {
-            return Err(format!(
-                "libcamera.frame_rate: must be 0..=1000, got {}",
-                self.frame_rate
+            return Err(invalid(
+                "frame_rate",
+                format!("must be 0..=1000, got {}", self.frame_rate),
             ));
         }
         if self.exposure_us == Some(0) {
-            return Err("libcamera.exposure_us: must be > 0 (leave it out for automatic exposure)".into());
+            return Err(invalid(
+                "exposure_us",
+                "must be > 0 (leave it out for automatic exposure)",
+            ));
         }
         if let Some(g) = self.gain {
             if !(g.is_finite() && g >= 1.0) {
-                return Err(format!("libcamera.gain: must be >= 1.0, got {g}"));
+                return Err(invalid("gain", format!("must be >= 1.0, got {g}")));
             }
         }
         if self.buffers > 32 {
-            return Err(format!("libcamera.buffers: must be 0..=32, got {}", self.buffers));
+            return Err(invalid(
+                "buffers",
+                format!("must be 0..=32, got {}", self.buffers),
+            ));
         }
         if self.timeout_ms == 0 {
-            return Err("libcamera.timeout_ms: must be > 0".into());
+            return Err(invalid("timeout_ms", "must be > 0"));
         }
         if !["debug", "info", "warn", "error", "fatal"].contains(&self.log_level.as_str()) {
-            return Err(format!(
-                "libcamera.log_level: unknown `{}` (debug, info, warn, error, fatal)",
-                self.log_level
+            return Err(invalid(
+                "log_level",
+                format!("unknown `{}` (debug, info, warn, error, fatal)", self.log_level),
             ));
         }
         Ok(())
     }
 
     /// The calibration (camera model and deck) when one is configured.
-    pub fn read_calibration(&self) -> Result<Option<(CameraModel, DeckLayout)>, String> {
+    pub fn read_calibration(&self) -> Result<Option<(CameraModel, DeckLayout)>, CameraError> {
         let Some(path) = &self.calibration else {
             return Ok(None);
         };
@@ -174,20 +246,26 @@ impl CameraConfig {
                 path.clone(),
             )
         } else {
-            return Err(format!(
-                "libcamera.calibration: {}: give a `{}` or a recording folder",
-                path.display(),
-                deckwatch_formats::recording::CAMERA_FILE
+            return Err(invalid(
+                "calibration",
+                format!(
+                    "{}: give a `{}` or a recording folder",
+                    path.display(),
+                    deckwatch_formats::recording::CAMERA_FILE
+                ),
             ));
         };
         if !file.exists() {
-            return Err(format!("libcamera.calibration: {}: no such file", file.display()));
+            return Err(invalid(
+                "calibration",
+                format!("{}: no such file", file.display()),
+            ));
         }
-        read_camera_json(&dir).map(Some).map_err(|e| e.to_string())
+        Ok(Some(read_camera_json(&dir)?))
     }
 
     /// The size to ask the camera for (None: the camera's default).
-    pub fn requested_size(&self) -> Result<Option<(u32, u32)>, String> {
+    pub fn requested_size(&self) -> Result<Option<(u32, u32)>, CameraError> {
         let calibration = self.read_calibration()?;
         Ok(match (self.width, calibration) {
             (0, Some((c, _))) => Some((c.width, c.height)),
@@ -198,22 +276,28 @@ impl CameraConfig {
 
     /// The camera model and deck for frames of `width` x `height`: the calibration (which must
     /// be of that size), else the preset scaled to it.
-    pub fn camera_model(&self, width: u32, height: u32) -> Result<(CameraModel, DeckLayout), String> {
+    pub fn camera_model(&self, width: u32, height: u32) -> Result<(CameraModel, DeckLayout), CameraError> {
         if let Some((camera, deck)) = self.read_calibration()? {
             if (camera.width, camera.height) != (width, height) {
-                return Err(format!(
-                    "libcamera.calibration: it is for {}x{} images but the camera delivers {width}x{height}; \
-                     calibrate this mode or set libcamera.width/height to the calibrated size",
-                    camera.width, camera.height
+                return Err(invalid(
+                    "calibration",
+                    format!(
+                        "it is for {}x{} images but the camera delivers {width}x{height}; \
+                         calibrate this mode or set libcamera.width/height to the calibrated size",
+                        camera.width, camera.height
+                    ),
                 ));
             }
             return Ok((camera, deck));
         }
         let preset = CameraModel::preset(&self.preset).ok_or_else(|| {
-            format!(
-                "libcamera.preset: unknown `{}` ({})",
-                self.preset,
-                deckwatch_common::camera::CAMERA_PRESETS.join(", ")
+            invalid(
+                "preset",
+                format!(
+                    "unknown `{}` ({})",
+                    self.preset,
+                    deckwatch_common::camera::CAMERA_PRESETS.join(", ")
+                ),
             )
         })?;
         let camera = if (preset.width, preset.height) == (width, height) {
@@ -335,16 +419,25 @@ impl LumaLayout {
         height: usize,
         out: &mut [u8],
         out_stride: usize,
-    ) -> Result<(), String> {
+    ) -> Result<(), CameraError> {
         let row = self.row_bytes(width);
         if height > 0 && (src_stride < row || src.len() < (height - 1) * src_stride + row) {
-            return Err(format!(
-                "camera buffer too small: {} bytes for {height} rows of {row} (stride {src_stride})",
-                src.len()
-            ));
+            return Err(CameraError::BufferTooSmall {
+                what: "camera",
+                bytes: src.len(),
+                height,
+                row_bytes: row,
+                stride: src_stride,
+            });
         }
         if height > 0 && (out_stride < width || out.len() < (height - 1) * out_stride + width) {
-            return Err(format!("frame buffer too small for {width}x{height}"));
+            return Err(CameraError::BufferTooSmall {
+                what: "frame",
+                bytes: out.len(),
+                height,
+                row_bytes: width,
+                stride: out_stride,
+            });
         }
         for y in 0..height {
             let s = &src[y * src_stride..y * src_stride + row];
@@ -436,8 +529,8 @@ impl std::fmt::Display for CameraDescription {
 
 #[cfg(not(feature = "libcamera"))]
 /// Lists the cameras libcamera sees (this build has no libcamera: an error saying so).
-pub fn list_cameras() -> Result<(String, Vec<CameraDescription>), String> {
-    Err(NOT_BUILT.into())
+pub fn list_cameras() -> Result<(String, Vec<CameraDescription>), CameraError> {
+    Err(CameraError::NotBuilt)
 }
 
 #[cfg(test)]
@@ -523,11 +616,22 @@ mod tests {
         let l = LumaLayout::for_format("YUYV").unwrap();
         let mut out = [0u8; 16];
         let e = l.extract(&[0u8; 10], 8, 4, 2, &mut out, 4).unwrap_err();
-        assert!(e.contains("too small"), "{e}");
+        assert!(
+            matches!(
+                e,
+                CameraError::BufferTooSmall {
+                    what: "camera",
+                    bytes: 10,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        assert!(e.to_string().contains("too small"), "{e}");
         let e = LumaLayout::Plane
             .extract(&[0u8; 16], 4, 4, 4, &mut out[..8], 4)
             .unwrap_err();
-        assert!(e.contains("frame buffer"), "{e}");
+        assert!(e.to_string().contains("frame buffer"), "{e}");
     }
 
     #[test]
@@ -562,13 +666,14 @@ mod tests {
     #[test]
     fn camera_selection_by_index_or_id() {
         let ids = vec!["/base/imx219@10".to_string(), "Virtual0".to_string()];
-        assert_eq!(select_camera("", &ids), Ok(0));
-        assert_eq!(select_camera("1", &ids), Ok(1));
-        assert_eq!(select_camera("Virtual0", &ids), Ok(1));
-        let e = select_camera("2", &ids).unwrap_err();
+        assert_eq!(select_camera("", &ids).unwrap(), 0);
+        assert_eq!(select_camera("1", &ids).unwrap(), 1);
+        assert_eq!(select_camera("Virtual0", &ids).unwrap(), 1);
+        let e = select_camera("2", &ids).unwrap_err().to_string();
         assert!(e.contains("libcamera.camera") && e.contains("1: Virtual0"), "{e}");
         let e = select_camera("", &[]).unwrap_err();
-        assert!(e.contains("no camera"), "{e}");
+        assert!(matches!(e, CameraError::NoCamera), "{e}");
+        assert!(e.to_string().contains("no camera"), "{e}");
     }
 
     #[test]
@@ -578,7 +683,7 @@ mod tests {
         let bad = |f: &dyn Fn(&mut CameraConfig)| {
             let mut c = CameraConfig::default();
             f(&mut c);
-            c.validate().unwrap_err()
+            c.validate().unwrap_err().to_string()
         };
         assert!(bad(&|c| c.pixel_format = "MJPEG".into()).contains("libcamera.pixel_format"));
         assert!(bad(&|c| c.width = 640).contains("libcamera.width/height"));
@@ -603,8 +708,11 @@ mod tests {
         };
         assert_eq!(c.requested_size().unwrap(), Some((320, 240)));
         assert_eq!(c.camera_model(320, 240).unwrap().0, model);
-        let e = c.camera_model(640, 480).unwrap_err();
-        assert!(e.contains("320x240") && e.contains("640x480"), "{e}");
+        let e = c.camera_model(640, 480).unwrap_err().to_string();
+        assert!(
+            e.contains("libcamera.calibration") && e.contains("320x240") && e.contains("640x480"),
+            "{e}"
+        );
         let c = CameraConfig {
             calibration: Some(dir.join("nothing.json")),
             ..Default::default()
@@ -612,6 +720,7 @@ mod tests {
         assert!(c
             .read_calibration()
             .unwrap_err()
+            .to_string()
             .contains("libcamera.calibration"));
         std::fs::remove_dir_all(dir).unwrap();
     }

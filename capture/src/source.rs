@@ -361,10 +361,7 @@ fn recorded_offset_ns(rec: &Recording, k: u64) -> u64 {
 
 /// The error of a build without the `libcamera` feature asked for a camera.
 fn not_built() -> SourceError {
-    config_error(
-        "source.kind",
-        format!("\"libcamera\": {}", crate::camera::NOT_BUILT),
-    )
+    SourceError::Camera(crate::camera::CameraError::NotBuilt)
 }
 
 /// Frame rates a source accepts (Hz), the simulator's: defined with the simulation options.

@@ -6,6 +6,7 @@
 use deckwatch_decide::decision::DecisionConfig;
 use deckwatch_decide::eval::{evaluate, RuleOutcome};
 use deckwatch_decide::FrameInput;
+use deckwatch_runtime::config::ConfigError;
 use deckwatch_sim::motion::{DeckHeave, MotionProfile, ShipMotion, SpectrumShipMotion};
 use deckwatch_sim::motion_file::RecordedShipMotion;
 use deckwatch_trials::AttitudeStreamModel;
@@ -301,7 +302,7 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
     let config: DecisionConfig = pipeline.decide;
     config
         .validate()
-        .map_err(|e| format!("{file}: decide.{}: {}", e.field, e.problem))?;
+        .map_err(|e| ConfigError::in_section(&file, "decide", e).to_string())?;
     let model = stream_model(&a)?;
     let minutes = minutes(&a)?;
     let n = frames(&a, minutes);

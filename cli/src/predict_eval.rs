@@ -9,6 +9,7 @@ use crate::decide_eval::{measure, minutes, series, series_name, stream_model, De
 use deckwatch_decide::decision::{DecisionConfig, Predictor};
 use deckwatch_decide::forecast_eval::{judge_forecasts, ForecastReport, Forecaster, Persistence, QUANTITIES};
 use deckwatch_decide::LandingDecider;
+use deckwatch_runtime::config::ConfigError;
 
 #[derive(clap::Args)]
 pub struct PredictEvalArgs {
@@ -36,14 +37,14 @@ fn forecaster(name: &str, config: &DecisionConfig) -> Result<Box<dyn Forecaster>
             predictor,
             ..config.clone()
         };
-        Ok(Box::new(
-            LandingDecider::new(c).map_err(|e| format!("decide.{}: {}", e.field, e.problem))?,
-        ))
+        Ok(Box::new(LandingDecider::new(c).map_err(|e| {
+            ConfigError::in_section("the configuration", "decide", e).to_string()
+        })?))
     };
     let own = |c: DecisionConfig| -> Result<Box<dyn Forecaster>, String> {
-        Ok(Box::new(
-            LandingDecider::new(c).map_err(|e| format!("decide.{}: {}", e.field, e.problem))?,
-        ))
+        Ok(Box::new(LandingDecider::new(c).map_err(|e| {
+            ConfigError::in_section("the configuration", "decide", e).to_string()
+        })?))
     };
     // Each predictor with the settings it was measured with, unless the configuration chose it
     // (`DecisionConfig::ar_defaults`, `sinusoid_defaults`).
@@ -93,7 +94,7 @@ pub fn run(a: PredictEvalArgs) -> Result<(), String> {
     let config: DecisionConfig = pipeline.decide;
     config
         .validate()
-        .map_err(|e| format!("{file}: decide.{}: {}", e.field, e.problem))?;
+        .map_err(|e| ConfigError::in_section(&file, "decide", e).to_string())?;
     let model = stream_model(&a.stream)?;
     let minutes = minutes(&a.stream)?;
     if a.horizons.is_empty()

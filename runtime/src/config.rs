@@ -106,6 +106,18 @@ pub enum ConfigError {
     Bus(#[from] BusError),
 }
 
+impl ConfigError {
+    /// A section's bad value in `file`: every section states one as an `InvalidField` (its key
+    /// without the section), and this is where the section and the file are put on it.
+    pub fn in_section(file: &str, section: &str, e: InvalidField) -> Self {
+        ConfigError::Invalid {
+            file: file.to_string(),
+            key: format!("{section}.{}", e.field),
+            problem: e.problem,
+        }
+    }
+}
+
 /// The name configuration errors give a configuration that came from no file.
 pub const DEFAULTS: &str = "(defaults)";
 
@@ -189,11 +201,8 @@ impl PipelineConfig {
             key,
             problem,
         };
-        // Every section states a bad value the same way (`InvalidField`, its key without the
-        // section); here it gets the section and the file.
-        let in_section = |section: &'static str| {
-            move |e: InvalidField| invalid(format!("{section}.{}", e.field), e.problem)
-        };
+        let in_section =
+            |section: &'static str| move |e: InvalidField| ConfigError::in_section(file, section, e);
         self.bus.settings(1).validate().map_err(in_section("bus"))?;
         self.capture().check().map_err(|source| ConfigError::Source {
             file: file.to_string(),

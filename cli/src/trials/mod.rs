@@ -10,7 +10,7 @@
 use deckwatch_common::messages::{FrameSource, LandingDecision, VehicleSample};
 use deckwatch_common::vehicle::VehicleAttitudeSource;
 use deckwatch_runtime::chain::{SimulatedClock, StageChain};
-use deckwatch_runtime::config::PipelineConfig;
+use deckwatch_runtime::config::{ConfigError, PipelineConfig};
 use deckwatch_sim::landing::SharedFlightPath;
 use deckwatch_sim::motion::SpectrumShipMotion;
 use deckwatch_sim::motion_file::RecordedShipMotion;
@@ -351,7 +351,7 @@ fn trial_pipeline(a: &TrialsArgs) -> Result<PipelineConfig, String> {
     p.rerun.sink = deckwatch_viz::RerunSink::Off;
     p.decide
         .validate()
-        .map_err(|e| format!("{file}: decide.{}: {}", e.field, e.problem))?;
+        .map_err(|e| ConfigError::in_section(&file, "decide", e).to_string())?;
     Ok(p)
 }
 

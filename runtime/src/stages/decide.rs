@@ -97,11 +97,8 @@ impl Stage for DecideStage {
     type Output = LandingDecision;
 
     fn from_config(config: &PipelineConfig, joined_late: bool) -> Result<Self, ConfigError> {
-        Self::new(config.decide.clone(), joined_late).map_err(|e| ConfigError::Invalid {
-            file: "the pipeline configuration".into(),
-            key: format!("decide.{}", e.field),
-            problem: e.problem,
-        })
+        Self::new(config.decide.clone(), joined_late)
+            .map_err(|e| ConfigError::in_section("the pipeline configuration", "decide", e))
     }
 
     fn step(&mut self, a: &AttitudeMessage, received_ns: u64) -> LandingDecision {

@@ -24,19 +24,21 @@ while [ $# -gt 0 ]; do
   esac
 done
 ROOT="${DESTDIR:-}"
+# The launcher and a binary per process of the pipeline (runtime/src/bin: one file each).
+BINARIES="deckwatch $(for f in runtime/src/bin/deckwatch-*.rs; do basename "$f" .rs; done | tr '\n' ' ')"
 if [ -z "$BIN_DIR" ]; then
   # shellcheck disable=SC2086
   cargo build --release --locked --workspace --bins $FEATURES
   BIN_DIR="${CARGO_TARGET_DIR:-target}/release"
 fi
-for b in deckwatch deckwatch-capture deckwatch-detect deckwatch-estimate deckwatch-decide deckwatch-link deckwatch-record; do
+for b in $BINARIES; do
   [ -x "$BIN_DIR/$b" ] || { echo "install.sh: $BIN_DIR/$b is missing" >&2; exit 1; }
 done
 if [ -z "$ROOT" ] && ! id deckwatch >/dev/null 2>&1; then
   useradd --system --home-dir /var/lib/deckwatch --shell /usr/sbin/nologin deckwatch
 fi
 install -d "$ROOT/opt/deckwatch/bin" "$ROOT/etc/deckwatch" "$ROOT/var/lib/deckwatch" "$ROOT/etc/systemd/system"
-for b in deckwatch deckwatch-capture deckwatch-detect deckwatch-estimate deckwatch-decide deckwatch-link deckwatch-record; do
+for b in $BINARIES; do
   install -m 0755 "$BIN_DIR/$b" "$ROOT/opt/deckwatch/bin/$b"
 done
 install -m 0644 README.md "$ROOT/opt/deckwatch/README.md"

@@ -637,9 +637,10 @@ struct Repair {
 }
 
 impl Repair {
-    fn code<E: WireEnum>(&mut self, c: &mut WireCode<E>, values: u32) {
+    fn code<E: WireEnum>(&mut self, c: &mut WireCode<E>) {
         if self.at != self.spare {
-            *c = WireCode::from_code(c.code() % values);
+            let values = E::VARIANTS;
+            *c = values[c.code() as usize % values.len()].into();
         }
         self.at += 1;
     }
@@ -650,20 +651,20 @@ impl Repair {
         self.at += 1;
     }
     fn context(&mut self, c: &mut FrameContext) {
-        self.code(&mut c.source, 3);
+        self.code(&mut c.source);
         self.flag(&mut c.truth.known);
-        self.code(&mut c.vehicle.compensation, 4);
+        self.code(&mut c.vehicle.compensation);
     }
     fn attitude(&mut self, a: &mut AttitudeMessage) {
         self.context(&mut a.context);
-        self.code(&mut a.estimator, 4);
+        self.code(&mut a.estimator);
         self.flag(&mut a.valid);
-        self.code(&mut a.failure, 6);
+        self.code(&mut a.failure);
         self.flag(&mut a.has_image_ellipse);
         self.flag(&mut a.alternative.present);
-        self.code(&mut a.alternative.estimator, 4);
+        self.code(&mut a.alternative.estimator);
         self.flag(&mut a.alternative.valid);
-        self.code(&mut a.vehicle.compensation, 4);
+        self.code(&mut a.vehicle.compensation);
     }
 }
 
@@ -691,7 +692,7 @@ fn shared_memory_holds(n: u32) {
             // A frame header: random sizes against a short payload.
             let mut h: FrameHeader = message_from_bytes(&raw);
             let mut r = Repair { spare, at: 0 };
-            r.code(&mut h.pixel_format, 1);
+            r.code(&mut h.pixel_format);
             r.context(&mut h.context);
             let checked = h.check_wire();
             // Only the spare code can be bad.
@@ -704,7 +705,7 @@ fn shared_memory_holds(n: u32) {
             let mut m: MarkerMessage = message_from_bytes(&raw);
             let mut r = Repair { spare, at: 0 };
             r.context(&mut m.context);
-            r.code(&mut m.markers.status, 4);
+            r.code(&mut m.markers.status);
             r.flag(&mut m.markers.tracked);
             r.flag(&mut m.markers.perspective_corrected);
             for k in 0..m.markers.markers.len() {
@@ -738,8 +739,8 @@ fn shared_memory_holds(n: u32) {
             // A decision, as the link and the viewer take it.
             let mut d: LandingDecision = message_from_bytes(&raw);
             let mut r = Repair { spare, at: 0 };
-            r.code(&mut d.state, 4);
-            r.code(&mut d.reason, 13);
+            r.code(&mut d.state);
+            r.code(&mut d.reason);
             r.flag(&mut d.watchdog);
             r.context(&mut d.context);
             r.attitude(&mut d.attitude);
@@ -755,7 +756,7 @@ fn shared_memory_holds(n: u32) {
             // A vehicle sample, as estimate takes it.
             let mut v: VehicleSample = message_from_bytes(&raw);
             let mut r = Repair { spare, at: 0 };
-            r.code(&mut v.clock_method, 3);
+            r.code(&mut v.clock_method);
             r.flag(&mut v.link_up);
             let checked = v.check_wire();
             prop_assert!(spare < r.at || checked.is_ok(), "{checked:?}");
@@ -769,7 +770,7 @@ fn shared_memory_holds(n: u32) {
             // UTF-8.
             let mut l: deckwatch_common::messages::StageLog = message_from_bytes(&raw);
             let mut r = Repair { spare, at: 0 };
-            r.code(&mut l.level, 5);
+            r.code(&mut l.level);
             if l.check_wire().is_ok() {
                 prop_assert!(l.text().len() <= 4 * deckwatch_common::messages::StageLog::TEXT_BYTES);
                 let _ = (l.name(), l.level.get());

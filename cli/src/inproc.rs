@@ -9,6 +9,7 @@ use deckwatch_common::markers::DetectionStatus;
 use deckwatch_common::messages::{DecisionState, EstimatorKind, FrameSource};
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::{ErrorStats, Percentiles};
+use deckwatch_estimate::paper::PaperVariant;
 use deckwatch_runtime::chain::StageChain;
 use deckwatch_sim::scenario::SimulationArgs;
 use deckwatch_sim::sim::ImageArgs;
@@ -31,27 +32,17 @@ pub struct RunArgs {
     #[command(flatten)]
     image: ImageArgs,
     /// The estimator (default: the configuration's, full-pose).
-    #[arg(long, value_parser = parse_estimator)]
+    #[arg(long, value_parser = EstimatorKind::parse)]
     estimator: Option<EstimatorKind>,
     /// Shorthand for `--estimator paper-VARIANT` (printed, fitted-major-axis, atan2).
-    #[arg(long, conflicts_with = "estimator")]
-    variant: Option<String>,
+    #[arg(long, conflicts_with = "estimator", value_parser = PaperVariant::parse)]
+    variant: Option<PaperVariant>,
     /// Write every decision as a CSV row to this file (the columns of `deckwatch run`'s).
     #[arg(long)]
     decisions: Option<PathBuf>,
     /// Print one line every this many frames (0: summary only).
     #[arg(long, default_value_t = 10)]
     every: usize,
-}
-
-fn parse_estimator(name: &str) -> Result<EstimatorKind, String> {
-    EstimatorKind::ALL
-        .into_iter()
-        .find(|k| k.name() == name)
-        .ok_or_else(|| {
-            let names: Vec<&str> = EstimatorKind::ALL.iter().map(|k| k.name()).collect();
-            format!("unknown `{name}` ({})", names.join(", "))
-        })
 }
 
 pub fn run(a: RunArgs) -> Result<(), String> {
@@ -77,9 +68,9 @@ pub fn run(a: RunArgs) -> Result<(), String> {
     if let Some(k) = a.estimator {
         config.estimate.estimator = k;
     }
-    if let Some(v) = &a.variant {
-        config.estimate.estimator = parse_estimator(&format!("paper-{v}"))
-            .map_err(|_| format!("--variant: unknown `{v}` (printed, fitted-major-axis, atan2)"))?;
+    if let Some(v) = a.variant {
+        let paper = |k: &EstimatorKind| deckwatch_estimate::config::paper_variant(*k) == Some(v);
+        config.estimate.estimator = EstimatorKind::ALL.into_iter().find(paper).unwrap_or_default();
     }
     let mut csv = a.decisions.as_deref().map(DecisionsCsv::create).transpose()?;
     let mut chain = StageChain::new(&config).map_err(|e| e.to_string())?;

@@ -71,11 +71,7 @@ pub struct RunArgs {
 pub fn apply_heave(c: &mut PipelineConfig, heave: Option<&str>) -> Result<(), String> {
     use deckwatch_decide::HeaveUse;
     if let Some(h) = heave {
-        c.decide.heave = match h {
-            "required" => HeaveUse::Required,
-            "off" => HeaveUse::Off,
-            other => return Err(format!("--heave: unknown `{other}` (required, off)")),
-        };
+        c.decide.heave = HeaveUse::parse(h).map_err(|e| format!("--heave: {e}"))?;
     }
     Ok(())
 }
@@ -92,16 +88,8 @@ pub fn apply_link(
         c.link.address = address;
     }
     if let Some(v) = vehicle_attitude {
-        c.vehicle.attitude = match v {
-            "frames" => VehicleAttitudeSource::Frames,
-            "autopilot" => VehicleAttitudeSource::Autopilot,
-            "level" => VehicleAttitudeSource::Level,
-            other => {
-                return Err(format!(
-                    "--vehicle-attitude: unknown `{other}` (frames, autopilot, level)"
-                ))
-            }
-        };
+        c.vehicle.attitude =
+            VehicleAttitudeSource::parse(v).map_err(|e| format!("--vehicle-attitude: {e}"))?;
     }
     Ok(())
 }

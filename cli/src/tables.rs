@@ -70,12 +70,7 @@ fn fmt(v: f64) -> String {
 }
 
 pub fn estimate_table(a: EstimateTableArgs) -> Result<bool, String> {
-    let variant = PaperVariant::from_name(&a.variant).ok_or_else(|| {
-        format!(
-            "--variant: unknown `{}` (printed, fitted-major-axis, atan2)",
-            a.variant
-        )
-    })?;
+    let variant = PaperVariant::parse(&a.variant).map_err(|e| format!("--variant: {e}"))?;
     let (camera, deck) = match &a.recording {
         Some(dir) => read_camera_json(dir).map_err(|e| e.to_string())?,
         None => (

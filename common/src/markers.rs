@@ -1,7 +1,7 @@
 //! Detected markers: what detection hands to estimation, one fixed-size value per frame.
 
 use crate::deck::MAX_MARKERS;
-use crate::wire::{BadWireValue, WireBool, WireCheck, WireCode};
+use crate::wire::{WireBool, WireCode};
 #[cfg(feature = "shm")]
 use iceoryx2::prelude::ZeroCopySend;
 
@@ -90,22 +90,6 @@ const _: () = {
 unsafe impl bytemuck::Zeroable for MarkerSet {}
 // SAFETY: as above.
 unsafe impl bytemuck::AnyBitPattern for MarkerSet {}
-
-impl WireCheck for Marker {
-    fn check_wire(&self) -> Result<(), BadWireValue> {
-        crate::check_wire_fields!(self; codes: [valid]; parts: [])
-    }
-}
-
-impl WireCheck for MarkerSet {
-    fn check_wire(&self) -> Result<(), BadWireValue> {
-        crate::check_wire_fields!(self; codes: [status, tracked, perspective_corrected]; parts: [])?;
-        for (i, m) in self.markers.iter().enumerate() {
-            m.check_wire().map_err(|e| e.within(&format!("markers[{i}]")))?;
-        }
-        Ok(())
-    }
-}
 
 impl MarkerSet {
     /// Marker pixels by marker index for `n` markers (None where not found), as the estimators

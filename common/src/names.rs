@@ -23,8 +23,26 @@ macro_rules! named_enum {
             pub fn from_name(name: &str) -> Option<Self> {
                 Self::ALL.into_iter().find(|v| v.name() == name)
             }
+
+            /// [`Self::from_name`] with an error that lists the names: a command-line value
+            /// (clap's `value_parser = Type::parse`).
+            pub fn parse(name: &str) -> Result<Self, $crate::names::UnknownName> {
+                Self::from_name(name).ok_or_else(|| $crate::names::UnknownName {
+                    name: name.to_string(),
+                    known: Self::ALL.iter().map(|v| v.name()).collect::<Vec<_>>().join(", "),
+                })
+            }
         }
     };
+}
+
+/// A name that is none of an enum's ([`named_enum!`]'s `parse`).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown `{name}` ({known})")]
+pub struct UnknownName {
+    pub name: String,
+    /// Every name, in the enum's order.
+    pub known: String,
 }
 
 #[cfg(test)]
@@ -48,7 +66,23 @@ mod named_enum_tests {
     }
 
     #[test]
+    fn a_name_parses_and_an_unknown_one_lists_the_names() {
+        use crate::messages::EstimatorKind;
+        assert_eq!(EstimatorKind::parse("full-pose"), Ok(EstimatorKind::FullPose));
+        assert_eq!(EstimatorKind::ALL[0], EstimatorKind::FullPose);
+        assert_eq!(
+            EstimatorKind::parse("pose").unwrap_err().to_string(),
+            "unknown `pose` (full-pose, paper-atan2, paper-printed, paper-fitted-major-axis)"
+        );
+    }
+
+    #[test]
     fn every_name_is_distinct_and_reads_back() {
+        distinct_and_round_trip(
+            &crate::messages::EstimatorKind::ALL,
+            crate::messages::EstimatorKind::name,
+            crate::messages::EstimatorKind::from_name,
+        );
         distinct_and_round_trip(&DecisionState::ALL, DecisionState::name, DecisionState::from_name);
         distinct_and_round_trip(
             &DecisionReason::ALL,
@@ -56,6 +90,8 @@ mod named_enum_tests {
             DecisionReason::from_name,
         );
         distinct_and_round_trip(&Compensation::ALL, Compensation::name, Compensation::from_name);
+        use crate::vehicle::VehicleAttitudeSource as Source;
+        distinct_and_round_trip(&Source::ALL, Source::name, Source::from_name);
         distinct_and_round_trip(
             &LatencyInterval::ALL,
             LatencyInterval::name,

@@ -24,6 +24,11 @@ pub enum VehicleAttitudeSource {
     Level,
 }
 
+crate::named_enum!(
+    VehicleAttitudeSource,
+    [Frames => "frames", Autopilot => "autopilot", Level => "level"]
+);
+
 /// `[vehicle]` of the pipeline configuration.
 #[derive(Debug, Clone, PartialEq, serde::Deserialize, serde::Serialize)]
 #[serde(default, deny_unknown_fields)]

@@ -30,6 +30,9 @@ impl BadWireValue {
     pub fn within(self, parent: &str) -> Self {
         let field = if self.field.is_empty() {
             parent.to_string()
+        } else if self.field.starts_with('[') {
+            // An array's element: `markers[3].valid`.
+            format!("{parent}{}", self.field)
         } else {
             format!("{parent}.{}", self.field)
         };
@@ -284,25 +287,68 @@ impl fmt::Debug for WireBool {
 }
 
 /// A message (or a part of one) whose every enum and boolean is a known value: what the
-/// transport asks of each message before anyone reads it.
+/// transport asks of each message before anyone reads it. Every field of a message is checked
+/// (the impls come from one list of the messages' fields, `message_fields!`); numbers hold any
+/// bytes.
 pub trait WireCheck {
+    /// Whether every value of the type passes (numbers): an array of them is not walked.
+    const ANY_BYTES: bool = false;
     fn check_wire(&self) -> Result<(), BadWireValue>;
 }
 
-/// Checks the listed fields of `self` in order: codes and booleans with their `check`, nested
-/// parts with [`WireCheck`]; the error names the field.
-#[macro_export]
-macro_rules! check_wire_fields {
-    ($self:ident; codes: [$($code:ident),* $(,)?]; parts: [$($part:ident),* $(,)?]) => {{
-        $(
-            $self.$code.check().map_err(|e| e.within(stringify!($code)))?;
-        )*
-        $(
-            $crate::wire::WireCheck::check_wire(&$self.$part)
-                .map_err(|e| e.within(stringify!($part)))?;
-        )*
+impl<E: WireEnum> WireCheck for WireCode<E> {
+    fn check_wire(&self) -> Result<(), BadWireValue> {
+        self.check()
+    }
+}
+
+impl WireCheck for WireBool {
+    fn check_wire(&self) -> Result<(), BadWireValue> {
+        self.check()
+    }
+}
+
+/// Numbers: any bytes are one.
+macro_rules! any_bytes {
+    ($($ty:ty),+) => {$(
+        impl WireCheck for $ty {
+            const ANY_BYTES: bool = true;
+            fn check_wire(&self) -> Result<(), BadWireValue> {
+                Ok(())
+            }
+        }
+    )+};
+}
+any_bytes!(u8, u16, u32, u64, usize, i32, i64, f32, f64);
+
+impl<T: WireCheck, const N: usize> WireCheck for [T; N] {
+    const ANY_BYTES: bool = T::ANY_BYTES;
+    fn check_wire(&self) -> Result<(), BadWireValue> {
+        if T::ANY_BYTES {
+            return Ok(());
+        }
+        for (i, item) in self.iter().enumerate() {
+            item.check_wire().map_err(|e| e.within(&format!("[{i}]")))?;
+        }
         Ok(())
-    }};
+    }
+}
+
+/// [`WireCheck`] for a struct from the list of all its fields (`Type { a, b; added = value }`,
+/// the form `message_fields!` hands out): it takes the struct apart, so a field left out of the
+/// list does not compile; each field is checked in order, and the error names it.
+#[macro_export]
+macro_rules! wire_check_struct {
+    ($ty:ident { $($field:ident),+ $(,)? $(; $($added:ident = $default:expr),+ $(,)?)? }) => {
+        impl $crate::wire::WireCheck for $ty {
+            fn check_wire(&self) -> Result<(), $crate::wire::BadWireValue> {
+                let $ty { $($field,)+ $($($added,)+)? } = self;
+                $($crate::wire::WireCheck::check_wire($field).map_err(|e| e.within(stringify!($field)))?;)+
+                $($($crate::wire::WireCheck::check_wire($added).map_err(|e| e.within(stringify!($added)))?;)+)?
+                Ok(())
+            }
+        }
+    };
 }
 
 #[cfg(test)]

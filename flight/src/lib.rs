@@ -32,12 +32,14 @@ pub use reader::{FlightMessages, FlightReader, FlightRecord, RecordedFrame};
 pub use writer::{FlightWriter, WriterOptions};
 
 use deckwatch_common::messages::{
-    AttitudeMessage, FrameHeader, LandingDecision, MarkerMessage, VehicleSample,
+    AttitudeMessage, Channel, FrameHeader, LandingDecision, MarkerMessage, VehicleSample,
 };
 use std::path::{Path, PathBuf};
 
-/// The channels of a flight recording, one place.
+/// The channels of a flight recording, one place. A pipeline message's topic is its
+/// [`Channel`]'s (the name it has on the bus too).
 pub mod topics {
+    use deckwatch_common::messages::*;
     /// `foxglove.RawImage`, `mono8`.
     pub const IMAGE: &str = "/camera/image";
     /// `foxglove.CompressedImage`, `png` or `jpeg`.
@@ -45,16 +47,15 @@ pub mod topics {
     /// `foxglove.CameraCalibration`, with the first frame.
     pub const CALIBRATION: &str = "/camera/calibration";
     /// Every frame's header (`deckwatch.FrameHeader`), recorded or not.
-    pub const FRAME: &str = "/deckwatch/frame";
-    pub const MARKERS: &str = "/deckwatch/markers";
-    pub const ATTITUDE: &str = "/deckwatch/attitude";
-    pub const DECISION: &str = "/deckwatch/decision";
-    pub const VEHICLE: &str = "/deckwatch/vehicle";
+    pub const FRAME: &str = FrameHeader::TOPIC;
+    pub const MARKERS: &str = MarkerMessage::TOPIC;
+    pub const ATTITUDE: &str = AttitudeMessage::TOPIC;
+    pub const DECISION: &str = LandingDecision::TOPIC;
+    pub const VEHICLE: &str = VehicleSample::TOPIC;
     /// Every MAVLink frame the link sent or received (`deckwatch.LinkTraffic`).
-    pub const LINK: &str = "/deckwatch/link";
+    pub const LINK: &str = LinkTraffic::TOPIC;
     /// `foxglove.Log`: what the stages said.
-    pub const LOG: &str = "/deckwatch/log";
-    /// The recorder's counts (`deckwatch.RecorderStats`), every second.
+    pub const LOG: &str = StageLog::TOPIC;
     pub const RECORDER: &str = "/deckwatch/recorder";
 }
 
@@ -99,9 +100,8 @@ impl FlightError {
     }
 }
 
-/// A pipeline message that a recording carries on a channel of its own, as JSON.
-pub trait FlightMessage: JsonField {
-    const TOPIC: &'static str;
+/// A pipeline message that a recording carries on its [`Channel`]'s topic, as JSON.
+pub trait FlightMessage: JsonField + Channel {
     /// The schema's name (`deckwatch.<Type>`).
     const SCHEMA: &'static str;
     /// When the message came into being (`CLOCK_MONOTONIC` ns): its MCAP log time, converted.
@@ -109,7 +109,6 @@ pub trait FlightMessage: JsonField {
 }
 
 impl FlightMessage for FrameHeader {
-    const TOPIC: &'static str = topics::FRAME;
     const SCHEMA: &'static str = "deckwatch.FrameHeader";
     fn produced_ns(&self) -> u64 {
         self.stamp.times.published_ns
@@ -117,7 +116,6 @@ impl FlightMessage for FrameHeader {
 }
 
 impl FlightMessage for MarkerMessage {
-    const TOPIC: &'static str = topics::MARKERS;
     const SCHEMA: &'static str = "deckwatch.MarkerMessage";
     fn produced_ns(&self) -> u64 {
         self.stamp.times.detect_finished_ns
@@ -125,7 +123,6 @@ impl FlightMessage for MarkerMessage {
 }
 
 impl FlightMessage for AttitudeMessage {
-    const TOPIC: &'static str = topics::ATTITUDE;
     const SCHEMA: &'static str = "deckwatch.AttitudeMessage";
     fn produced_ns(&self) -> u64 {
         self.stamp.times.estimate_finished_ns
@@ -133,7 +130,6 @@ impl FlightMessage for AttitudeMessage {
 }
 
 impl FlightMessage for LandingDecision {
-    const TOPIC: &'static str = topics::DECISION;
     const SCHEMA: &'static str = "deckwatch.LandingDecision";
     fn produced_ns(&self) -> u64 {
         self.stamp.times.decide_finished_ns
@@ -141,7 +137,6 @@ impl FlightMessage for LandingDecision {
 }
 
 impl FlightMessage for VehicleSample {
-    const TOPIC: &'static str = topics::VEHICLE;
     const SCHEMA: &'static str = "deckwatch.VehicleSample";
     fn produced_ns(&self) -> u64 {
         self.received_ns
@@ -149,7 +144,6 @@ impl FlightMessage for VehicleSample {
 }
 
 impl FlightMessage for deckwatch_common::messages::LinkTraffic {
-    const TOPIC: &'static str = topics::LINK;
     const SCHEMA: &'static str = "deckwatch.LinkTraffic";
     fn produced_ns(&self) -> u64 {
         self.time_ns

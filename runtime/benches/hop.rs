@@ -172,7 +172,9 @@ fn run_iceoryx2(
     let publisher = bus.frame_publisher().unwrap();
     let child = spawn_child("iceoryx2", &domain, samples, bytes);
     while bus
-        .subscriber_count(deckwatch_runtime::bus::services::FRAMES)
+        .subscriber_count(
+            <deckwatch_common::messages::FrameHeader as deckwatch_common::messages::Channel>::SERVICE,
+        )
         .unwrap()
         < 1
     {

@@ -5,15 +5,23 @@
 //! value runs in a process of its own ([`main`]: setup, the event loop, logging, drop counting,
 //! exit codes) and in the in-process chain ([`crate::chain`]), so both compute the same thing.
 //!
-//! Adding a stage: implement [`Stage`] (in `stages/`), add a binary of a few lines
-//! (`src/bin/deckwatch-<name>.rs` calling [`main`]), and list it in [`STAGES`].
+//! Every process of the pipeline is a [`Process`]: its inputs and outputs make the topology
+//! ([`crate::stages::PROCESSES`]), from which the launcher derives the start order and when each
+//! process is up ([`start_order`]); every binary is [`main`]. A [`Stage`] is a process through
+//! [`run`]; the source and the sinks implement [`Process`] with loops of their own.
+//!
+//! Adding a stage (three files; ARCHITECTURE.md): implement [`Stage`] in `stages/<name>.rs`,
+//! add `src/bin/deckwatch-<name>.rs` calling [`main`], and in `stages/mod.rs` declare the module
+//! and list it in [`crate::stages::PROCESSES`].
 
 use crate::bus::{
-    event_loop, quiet_logging, services, Bus, BusError, Flow, FrameSubscriber, Listener, Message,
-    MessagePublisher, MessageSubscriber, Rejections, Wake,
+    event_loop, quiet_logging, Bus, BusError, Flow, FrameSubscriber, Listener, Message, MessagePublisher,
+    MessageSubscriber, Rejections, Wake,
 };
 use crate::config::{ConfigError, PipelineConfig, DEFAULTS};
-use deckwatch_common::messages::{monotonic_ns, FrameHeader, LandingDecision, StageHeartbeat, VehicleSample};
+use deckwatch_common::messages::{
+    monotonic_ns, Channel, FrameHeader, LandingDecision, StageHeartbeat, VehicleSample,
+};
 use deckwatch_viz::{Item, Logger};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -52,8 +60,11 @@ pub trait Stage: Sized {
         None
     }
 
+    /// Services the stage may follow besides its input (see [`Process::SIDE_INPUTS`]).
+    const SIDE_INPUTS: &'static [&'static str] = &[];
+
     /// Whether the stage follows the vehicle's attitude stream ([`VehicleSample`], from the link
-    /// process) besides its input.
+    /// process) besides its input (it must then list it in [`Stage::SIDE_INPUTS`]).
     fn wants_vehicle(&self) -> bool {
         false
     }
@@ -85,7 +96,7 @@ pub trait Input {
     /// The transport's receiving end.
     type Port: InputPort<Self>;
     /// The service whose subscriber count says the stage is listening.
-    const SERVICE: &'static str;
+    const RECEIVED_ON: &'static str;
     fn subscribe(bus: &Bus) -> Result<Self::Port, BusError>;
 }
 
@@ -109,7 +120,7 @@ pub struct Frames;
 impl Input for Frames {
     type View<'a> = Frame<'a>;
     type Port = FrameSubscriber;
-    const SERVICE: &'static str = services::FRAMES;
+    const RECEIVED_ON: &'static str = FrameHeader::SERVICE;
     fn subscribe(bus: &Bus) -> Result<FrameSubscriber, BusError> {
         bus.frame_subscriber()
     }
@@ -146,7 +157,7 @@ impl InputPort<Frames> for FrameSubscriber {
 impl<M: Message> Input for M {
     type View<'a> = &'a M;
     type Port = MessageSubscriber<M>;
-    const SERVICE: &'static str = <M as Message>::SERVICE;
+    const RECEIVED_ON: &'static str = <M as Channel>::SERVICE;
     fn subscribe(bus: &Bus) -> Result<MessageSubscriber<M>, BusError> {
         bus.subscriber::<M>()
     }
@@ -174,8 +185,77 @@ impl<M: Message> InputPort<M> for MessageSubscriber<M> {
     }
 }
 
-/// A stage the launcher runs: its name and the service it listens on once it is up (None: the
-/// source, which listens on nothing), with the subscriber count that says so.
+/// A process of the pipeline as the launcher sees it: its name, what it takes in and puts out
+/// (the topology), whether a configuration runs it, and its life. [`Stage`]s are processes
+/// through [`run`]; the source (capture) and the sinks (link, recorder) have loops of their own.
+pub trait Process {
+    /// Its node, its binary (`deckwatch-<NAME>`), its log lines.
+    const NAME: &'static str;
+    /// The services it publishes (besides its heartbeat).
+    const OUTPUTS: &'static [&'static str];
+    /// Services it may follow besides its inputs (the vehicle's attitude), which do not order
+    /// the start: the vehicle stream comes from the link, which starts downstream of them.
+    const SIDE_INPUTS: &'static [&'static str] = &[];
+    /// The services it subscribes to under `config`; the first says, by its subscriber count,
+    /// that the process is up.
+    fn inputs(config: &PipelineConfig) -> Vec<&'static str>;
+    /// Whether `config` runs it.
+    fn runs(_config: &PipelineConfig) -> bool {
+        true
+    }
+    /// Its life in its process, from the checked configuration to its summary line.
+    fn run(config: PipelineConfig, args: &StageArgs) -> Result<String, RunError>;
+}
+
+impl<S: Stage> Process for S {
+    const NAME: &'static str = <S as Stage>::NAME;
+    const OUTPUTS: &'static [&'static str] = &[<S::Output as Channel>::SERVICE];
+    const SIDE_INPUTS: &'static [&'static str] = <S as Stage>::SIDE_INPUTS;
+    fn inputs(_config: &PipelineConfig) -> Vec<&'static str> {
+        vec![<S::Input as Input>::RECEIVED_ON]
+    }
+    fn run(config: PipelineConfig, args: &StageArgs) -> Result<String, RunError> {
+        run::<S>(config, args)
+    }
+}
+
+/// A [`Process`] as a value: one entry of the topology ([`crate::stages::PROCESSES`]).
+#[derive(Clone, Copy)]
+pub struct ProcessInfo {
+    pub name: &'static str,
+    pub outputs: &'static [&'static str],
+    pub side_inputs: &'static [&'static str],
+    pub inputs: fn(&PipelineConfig) -> Vec<&'static str>,
+    pub runs: fn(&PipelineConfig) -> bool,
+}
+
+impl std::fmt::Debug for ProcessInfo {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ProcessInfo")
+            .field("name", &self.name)
+            .field("outputs", &self.outputs)
+            .field("side_inputs", &self.side_inputs)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The entry of `P` in the topology.
+pub const fn process<P: Process>() -> ProcessInfo {
+    ProcessInfo {
+        name: P::NAME,
+        outputs: P::OUTPUTS,
+        side_inputs: P::SIDE_INPUTS,
+        inputs: P::inputs,
+        runs: P::runs,
+    }
+}
+
+/// What the launcher subscribes to before it starts anything: the decisions it follows, and
+/// the heartbeats.
+pub const LAUNCHER_INPUTS: [&str; 2] = [LandingDecision::SERVICE, StageHeartbeat::SERVICE];
+
+/// When the launcher starts a process and when it counts it as up: once `ready_service` has
+/// `ready_subscribers` subscribers (None: a process that takes nothing in, the source).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct StageInfo {
     pub name: &'static str,
@@ -183,63 +263,61 @@ pub struct StageInfo {
     pub ready_subscribers: usize,
 }
 
-/// The stages in start order: each one's input service has a subscriber before the stage
-/// upstream of it starts, so no frame is published into the void. The recorder comes first, so
-/// that it sees everything; then the link: the vehicle's attitude must flow before the first
-/// frame needs it.
-pub const STAGES: [StageInfo; 6] = [
-    // The first subscriber of the markers (estimate comes later): it is up at one.
-    StageInfo {
-        name: crate::stages::record::NAME,
-        ready_service: Some(<deckwatch_common::messages::MarkerMessage as crate::bus::Message>::SERVICE),
-        ready_subscribers: 1,
-    },
-    // The link listens to the decisions, which the launcher follows too: it is up at two.
-    StageInfo {
-        name: crate::stages::link::NAME,
-        ready_service: Some(<LandingDecision as crate::bus::Message>::SERVICE),
-        ready_subscribers: 2,
-    },
-    StageInfo {
-        name: crate::stages::DecideStage::NAME,
-        ready_service: Some(<<crate::stages::DecideStage as Stage>::Input as Input>::SERVICE),
-        ready_subscribers: 1,
-    },
-    StageInfo {
-        name: crate::stages::EstimateStage::NAME,
-        ready_service: Some(<<crate::stages::EstimateStage as Stage>::Input as Input>::SERVICE),
-        ready_subscribers: 1,
-    },
-    StageInfo {
-        name: crate::stages::DetectStage::NAME,
-        ready_service: Some(<<crate::stages::DetectStage as Stage>::Input as Input>::SERVICE),
-        ready_subscribers: 1,
-    },
-    StageInfo {
-        name: crate::stages::capture::NAME,
-        ready_service: None,
-        ready_subscribers: 1,
-    },
-];
-
-/// The stages a configuration runs, in start order (the link only with `[link] enabled`, the
-/// recorder only with `[record] path`). With a recorder, which subscribes to every service
-/// before the others start, each later stage is up at one subscriber more.
-pub fn active_stages(config: &PipelineConfig) -> Vec<StageInfo> {
-    let recording = config.record.enabled();
-    STAGES
-        .into_iter()
-        .filter(|s| s.name != crate::stages::link::NAME || config.link.enabled)
-        .filter(|s| s.name != crate::stages::record::NAME || recording)
-        .map(|mut s| {
-            let recorded =
-                |service: &str| service != crate::bus::services::FRAMES || config.record.records_frames();
-            if recording && s.name != crate::stages::record::NAME && s.ready_service.is_some_and(recorded) {
-                s.ready_subscribers += 1;
+/// The processes `config` runs, in start order, each with the subscriber count that says it is
+/// up: derived from the topology `processes`, never listed by hand.
+///
+/// Every process starts after those that take its outputs in (downstream first), so nothing is
+/// published before its consumers listen: the recorder first (it takes everything in), then
+/// the link (the decisions' consumer), decide, estimate, detect, and capture last. Side inputs
+/// do not order (the vehicle stream flows from the link, upstream of nothing). Ties go in the
+/// topology's order. A process is up when its first input has as many subscribers as the
+/// processes started so far (itself included) and the launcher subscribe to it.
+pub fn start_order(processes: &[ProcessInfo], config: &PipelineConfig) -> Vec<StageInfo> {
+    let active: Vec<(ProcessInfo, Vec<&'static str>)> = processes
+        .iter()
+        .filter(|p| (p.runs)(config))
+        .map(|p| (*p, (p.inputs)(config)))
+        .collect();
+    let mut placed = vec![false; active.len()];
+    let mut order = Vec::with_capacity(active.len());
+    while order.len() < active.len() {
+        // The first process whose outputs' consumers have all started; with none (a cycle
+        // through main inputs), the first left, so that a bad topology still starts.
+        let waits_for = |i: usize| {
+            active.iter().enumerate().any(|(j, (_, inputs))| {
+                j != i && !placed[j] && inputs.iter().any(|s| active[i].0.outputs.contains(s))
+            })
+        };
+        let next = (0..active.len())
+            .find(|&i| !placed[i] && !waits_for(i))
+            .or_else(|| (0..active.len()).find(|&i| !placed[i]))
+            .unwrap_or_default();
+        placed[next] = true;
+        order.push(next);
+    }
+    order
+        .iter()
+        .enumerate()
+        .map(|(k, &i)| {
+            let (p, inputs) = &active[i];
+            let ready_service = inputs.first().copied();
+            let ready_subscribers = ready_service.map_or(0, |s| {
+                let processes = order[..=k].iter().filter(|&&j| active[j].1.contains(&s)).count();
+                processes + LAUNCHER_INPUTS.iter().filter(|&&l| l == s).count()
+            });
+            StageInfo {
+                name: p.name,
+                ready_service,
+                ready_subscribers,
             }
-            s
         })
         .collect()
+}
+
+/// The stages a configuration runs, in start order (the link only with `[link] enabled`, the
+/// recorder only with `[record] path`), from the pipeline's topology.
+pub fn active_stages(config: &PipelineConfig) -> Vec<StageInfo> {
+    start_order(&crate::stages::PROCESSES, config)
 }
 
 /// The command line of every stage binary: the pipeline configuration and the domain.
@@ -334,10 +412,14 @@ pub enum RunError {
     Record(String),
 }
 
-/// Runs the stage binary: parse the command line, run, report; the exit code says how it went.
-pub fn main<S: Stage>() -> ExitCode {
+/// Runs a process's binary, every one of them the same way: parse the command line, check the
+/// configuration, run, report; the exit code says how it went.
+pub fn main<P: Process>() -> ExitCode {
     let args = <StageArgs as clap::Parser>::parse();
-    exit_code(S::NAME, run::<S>(&args))
+    exit_code(
+        P::NAME,
+        checked_config(&args).and_then(|config| P::run(config, &args)),
+    )
 }
 
 /// The exit code of a stage process, with its closing line on stderr.
@@ -362,7 +444,7 @@ pub fn exit_code(name: &str, result: Result<String, RunError>) -> ExitCode {
 
 /// The configuration of a stage process, checked (a stage may be started by hand, not only by
 /// the launcher, which checks it too).
-pub(crate) fn checked_config(args: &StageArgs) -> Result<PipelineConfig, RunError> {
+fn checked_config(args: &StageArgs) -> Result<PipelineConfig, RunError> {
     let config = args.config()?;
     config.validate(&args.config_name())?;
     Ok(config)
@@ -421,8 +503,7 @@ impl Heartbeat {
 
 /// The stage's life in its process: until SIGINT/SIGTERM, wake on input (or the tick), step,
 /// publish, log.
-pub fn run<S: Stage>(args: &StageArgs) -> Result<String, RunError> {
-    let config = checked_config(args)?;
+pub fn run<S: Stage>(config: PipelineConfig, args: &StageArgs) -> Result<String, RunError> {
     // The subscriber side does not size frames; 1 is a placeholder the publisher never sees.
     let (logger, bus) = setup(S::NAME, &config, 1)?;
     let mut stage = S::from_config(&config, args.restarted)?;
@@ -496,4 +577,104 @@ pub fn run<S: Stage>(args: &StageArgs) -> Result<String, RunError> {
         "{}; {dropped_items} log items dropped; {bad_messages} bad messages skipped",
         stage.summary()
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use deckwatch_common::messages::{AttitudeMessage, MarkerMessage};
+
+    fn config(recording: Option<deckwatch_flight::FrameEncoding>, link: bool) -> PipelineConfig {
+        let mut c = PipelineConfig::default();
+        c.link.enabled = link;
+        if let Some(frames) = recording {
+            c.record.path = Some("flight.mcap".into());
+            c.record.frames = frames;
+        }
+        c
+    }
+
+    fn order(c: &PipelineConfig) -> Vec<(&'static str, Option<&'static str>, usize)> {
+        active_stages(c)
+            .into_iter()
+            .map(|s| {
+                (
+                    s.name,
+                    s.ready_service.filter(|_| s.ready_subscribers > 0),
+                    s.ready_subscribers,
+                )
+            })
+            .collect()
+    }
+
+    /// The order and readiness the launcher derives from the topology are the ones it was given
+    /// by hand before: downstream first, the recorder before everything, the link before decide.
+    #[test]
+    fn the_start_order_and_readiness_follow_from_the_topology() {
+        let (frame, markers, attitude, decision) = (
+            FrameHeader::SERVICE,
+            MarkerMessage::SERVICE,
+            AttitudeMessage::SERVICE,
+            LandingDecision::SERVICE,
+        );
+        let raw = Some(deckwatch_flight::FrameEncoding::Raw);
+        assert_eq!(
+            order(&config(raw, true)),
+            [
+                ("record", Some(markers), 1),
+                ("link", Some(decision), 3),
+                ("decide", Some(attitude), 2),
+                ("estimate", Some(markers), 2),
+                ("detect", Some(frame), 2),
+                ("capture", None, 0),
+            ]
+        );
+        // A recorder without pixels does not take frames in: detect is up at one.
+        let headers_only = Some(deckwatch_flight::FrameEncoding::None);
+        assert_eq!(order(&config(headers_only, false))[3], ("detect", Some(frame), 1));
+        assert_eq!(
+            order(&config(None, false)),
+            [
+                ("decide", Some(attitude), 1),
+                ("estimate", Some(markers), 1),
+                ("detect", Some(frame), 1),
+                ("capture", None, 0),
+            ]
+        );
+    }
+
+    /// A process added to the topology finds its place with nothing else told: one that takes
+    /// the decisions in starts before decide, and decide's readiness is unchanged (it is up on
+    /// its own input); the link, on the decisions too, is now up at one subscriber more.
+    #[test]
+    fn an_added_process_finds_its_place() {
+        struct Monitor;
+        impl Process for Monitor {
+            const NAME: &'static str = "monitor";
+            const OUTPUTS: &'static [&'static str] = &[];
+            fn inputs(_: &PipelineConfig) -> Vec<&'static str> {
+                vec![LandingDecision::SERVICE]
+            }
+            fn run(_: PipelineConfig, _: &StageArgs) -> Result<String, RunError> {
+                Ok(String::new())
+            }
+        }
+        let mut processes = crate::stages::PROCESSES.to_vec();
+        processes.push(process::<Monitor>());
+        let names: Vec<_> = start_order(&processes, &config(None, true))
+            .into_iter()
+            .map(|s| (s.name, s.ready_subscribers))
+            .collect();
+        assert_eq!(
+            names,
+            [
+                ("link", 2),
+                ("monitor", 3),
+                ("decide", 1),
+                ("estimate", 1),
+                ("detect", 1),
+                ("capture", 0)
+            ]
+        );
+    }
 }

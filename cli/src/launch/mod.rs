@@ -308,7 +308,7 @@ pub fn clean(domain: &str, rrd: Option<&Path>) -> Result<Cleaned, String> {
         let mut merging = rrd.as_os_str().to_owned();
         merging.push(".merging");
         let parts = std::iter::once(LAUNCHER)
-            .chain(deckwatch_runtime::stage::STAGES.iter().map(|s| s.name))
+            .chain(deckwatch_runtime::stages::PROCESSES.iter().map(|p| p.name))
             .flat_map(|stage| deckwatch_viz::RerunConfig::parts_of(rrd, stage))
             .chain(std::iter::once(PathBuf::from(merging)));
         for p in parts {

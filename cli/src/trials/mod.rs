@@ -169,14 +169,12 @@ enum Rule {
     Oracle,
 }
 
+deckwatch_common::named_enum!(Rule, [Deckwatch => "deckwatch", Naive => "naive", Oracle => "oracle"]);
+
 impl Rule {
-    fn parse(s: &str) -> Result<Self, String> {
-        match s {
-            "deckwatch" => Ok(Self::Deckwatch),
-            "naive" => Ok(Self::Naive),
-            "oracle" => Ok(Self::Oracle),
-            other => Err(format!("--rules: unknown `{other}` (deckwatch, naive, oracle)")),
-        }
+    /// A rule as `--rules` and a shard's records name it.
+    fn of(name: &str) -> Result<Self, String> {
+        Self::parse(name).map_err(|e| format!("--rules: {e}"))
     }
 
     /// The rule a pipeline flies; None for the oracle, which needs no frames.
@@ -185,14 +183,6 @@ impl Rule {
             Self::Deckwatch => Some(PipelineRule::Deckwatch),
             Self::Naive => Some(PipelineRule::Naive),
             Self::Oracle => None,
-        }
-    }
-
-    fn name(&self) -> &'static str {
-        match self {
-            Self::Deckwatch => "deckwatch",
-            Self::Naive => "naive",
-            Self::Oracle => "oracle",
         }
     }
 }
@@ -421,7 +411,7 @@ fn fly_job(job: Approach, setup: &Setup, a: &TrialsArgs, log: Option<&mut Option
 }
 
 pub fn run(a: TrialsArgs) -> Result<(), String> {
-    let rules: Vec<Rule> = a.rules.iter().map(|r| Rule::parse(r)).collect::<Result<_, _>>()?;
+    let rules: Vec<Rule> = a.rules.iter().map(|r| Rule::of(r)).collect::<Result<_, _>>()?;
     fault_model(&a).validate().map_err(|e| e.to_string())?;
     let shares_ok = a.sway >= 0.0 && a.rate > 0.0 && a.stage_latency_ms >= 0.0 && a.threads > 0;
     if !shares_ok {
@@ -587,7 +577,7 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
 fn report(records: &[ApproachRecord], json: bool) -> Result<BTreeMap<Rule, RuleSummary>, String> {
     let mut per_sea: BTreeMap<u32, BTreeMap<Rule, RuleSummary>> = Default::default();
     for r in records {
-        let rule = Rule::parse(&r.rule)?;
+        let rule = Rule::of(&r.rule)?;
         if json {
             println!("{}", serde_json::json!({ "approach": r }));
         }

@@ -15,7 +15,7 @@ use deckwatch_link::mavlink::{self, ConnectionAddress, MavConnection, MavlinkVer
 use deckwatch_link::outgoing::names;
 use deckwatch_link::SigningMode;
 use deckwatch_link::{MavHeader, MavMessage};
-use deckwatch_runtime::bus::{services, Bus};
+use deckwatch_runtime::bus::Bus;
 use deckwatch_runtime::stages::capture::{complete_header, new_header};
 use deckwatch_sim::landing::{FlightPath, SharedFlightPath};
 use deckwatch_trials::{
@@ -145,7 +145,9 @@ fn fly_with(
     };
     let publisher = bus.frame_publisher().map_err(|e| e.to_string())?;
     while bus
-        .subscriber_count(services::FRAMES)
+        .subscriber_count(
+            <deckwatch_common::messages::FrameHeader as deckwatch_common::messages::Channel>::SERVICE,
+        )
         .map_err(|e| e.to_string())?
         < 1
     {

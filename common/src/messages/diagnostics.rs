@@ -139,12 +139,6 @@ fn lossy(bytes: &[u8], len: u32) -> String {
     String::from_utf8_lossy(&bytes[..n]).into_owned()
 }
 
-impl WireCheck for StageLog {
-    fn check_wire(&self) -> Result<(), BadWireValue> {
-        crate::check_wire_fields!(self; codes: [level]; parts: [])
-    }
-}
-
 /// One MAVLink frame the link sent or received (`deckwatch/link`), for the recorder.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, bytemuck::AnyBitPattern)]
@@ -199,11 +193,5 @@ impl LinkTraffic {
     /// The frame's bytes (a length past the array is read as the whole array).
     pub fn frame_bytes(&self) -> &[u8] {
         &self.frame[..(self.frame_len as usize).min(Self::FRAME_BYTES)]
-    }
-}
-
-impl WireCheck for LinkTraffic {
-    fn check_wire(&self) -> Result<(), BadWireValue> {
-        crate::check_wire_fields!(self; codes: [outgoing]; parts: [])
     }
 }

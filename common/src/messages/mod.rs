@@ -9,12 +9,15 @@
 //! camera and deck the pixels refer to, the altimeter reading and, for simulated or recorded
 //! frames, the ground truth.
 
+mod channels;
 mod diagnostics;
+mod fields;
 mod frame;
 mod pipeline;
 mod time;
 mod wire_checks;
 
+pub use channels::Channel;
 pub use diagnostics::*;
 pub use frame::*;
 pub use pipeline::*;
@@ -27,7 +30,7 @@ use crate::markers::MarkerSet;
 use crate::rotation::{Euler313, Quaternion, Rpy};
 use crate::truth::GroundTruth;
 use crate::vehicle::Compensation;
-use crate::wire::{BadWireValue, WireBool, WireCheck, WireCode};
+use crate::wire::{WireBool, WireCode};
 use crate::wire_enum;
 #[cfg(feature = "shm")]
 use iceoryx2::prelude::ZeroCopySend;

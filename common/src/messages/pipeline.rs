@@ -32,29 +32,16 @@ pub enum EstimatorKind {
     FullPose = 3,
 }
 
-impl EstimatorKind {
-    /// Every estimator.
-    pub const ALL: [EstimatorKind; 4] = [
-        Self::FullPose,
-        Self::PaperAtan2,
-        Self::PaperPrinted,
-        Self::PaperFittedMajorAxis,
-    ];
-
-    pub fn name(&self) -> &'static str {
-        match self {
-            Self::PaperAtan2 => "paper-atan2",
-            Self::PaperPrinted => "paper-printed",
-            Self::PaperFittedMajorAxis => "paper-fitted-major-axis",
-            Self::FullPose => "full-pose",
-        }
-    }
-}
-
+// Full pose first: the reports' order.
 wire_enum!(
     EstimatorKind,
     on_bad_code: PaperAtan2,
-    [PaperAtan2, PaperPrinted, PaperFittedMajorAxis, FullPose]
+    [
+        FullPose => "full-pose",
+        PaperAtan2 => "paper-atan2",
+        PaperPrinted => "paper-printed",
+        PaperFittedMajorAxis => "paper-fitted-major-axis",
+    ]
 );
 
 /// Why an attitude is not valid.

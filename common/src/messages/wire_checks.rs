@@ -1,72 +1,59 @@
-//! The wire checks of the messages that carry nested parts (a message received from shared
-//! memory is checked field by field before any stage reads it).
+//! The wire check of every message (a message received from shared memory is checked field by
+//! field before any stage reads it), from the one list of their fields.
 
 use super::*;
+use crate::camera::Distortion;
+use crate::markers::{Marker, RejectCounts};
 
-impl WireCheck for StageHeartbeat {
-    fn check_wire(&self) -> Result<(), BadWireValue> {
-        Ok(())
-    }
-}
+crate::message_fields!(wire_check_struct);
 
-impl WireCheck for Truth {
-    fn check_wire(&self) -> Result<(), BadWireValue> {
-        crate::check_wire_fields!(self; codes: [known]; parts: [])
-    }
-}
+use crate::wire_check_struct;
+wire_check_struct!(StageHeartbeat { pid, seq, sent_ns });
+wire_check_struct!(StageLog {
+    time_ns,
+    pid,
+    level,
+    name,
+    name_len,
+    text,
+    text_len
+});
+wire_check_struct!(LinkTraffic {
+    time_ns,
+    outgoing,
+    msg_id,
+    name,
+    name_len,
+    frame,
+    frame_len
+});
 
-impl WireCheck for VehicleAttitude {
-    fn check_wire(&self) -> Result<(), BadWireValue> {
-        crate::check_wire_fields!(self; codes: [compensation]; parts: [])
-    }
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::wire::WireCheck;
 
-impl WireCheck for FrameContext {
-    fn check_wire(&self) -> Result<(), BadWireValue> {
-        crate::check_wire_fields!(self; codes: [source]; parts: [truth, vehicle])
-    }
-}
+    /// Every code is checked, however deep, and the error names the path to it.
+    #[test]
+    fn a_bad_code_anywhere_is_found_and_named() {
+        let mut d = LandingDecision::default();
+        assert_eq!(d.check_wire(), Ok(()));
+        d.attitude.alternative.estimator = WireCode::from_code(99);
+        let e = d.check_wire().unwrap_err();
+        assert_eq!((e.field.as_str(), e.code), ("attitude.alternative.estimator", 99));
 
-impl WireCheck for FrameHeader {
-    fn check_wire(&self) -> Result<(), BadWireValue> {
-        crate::check_wire_fields!(self; codes: [pixel_format]; parts: [context])
-    }
-}
+        let mut m = MarkerMessage::default();
+        m.markers.markers[3].valid = WireBool::from_byte(2);
+        assert_eq!(m.check_wire().unwrap_err().field, "markers.markers[3].valid");
 
-impl WireCheck for MarkerMessage {
-    fn check_wire(&self) -> Result<(), BadWireValue> {
-        crate::check_wire_fields!(self; codes: []; parts: [context, markers])
-    }
-}
+        let mut h = FrameHeader::default();
+        h.context.vehicle.compensation = WireCode::from_code(7);
+        assert_eq!(h.check_wire().unwrap_err().field, "context.vehicle.compensation");
 
-impl WireCheck for AlternativeAttitude {
-    fn check_wire(&self) -> Result<(), BadWireValue> {
-        crate::check_wire_fields!(self; codes: [present, estimator, valid]; parts: [])
-    }
-}
-
-impl WireCheck for AttitudeMessage {
-    fn check_wire(&self) -> Result<(), BadWireValue> {
-        crate::check_wire_fields!(
-            self;
-            codes: [estimator, valid, failure, has_image_ellipse];
-            parts: [context, alternative, vehicle]
-        )
-    }
-}
-
-impl WireCheck for VehicleSample {
-    fn check_wire(&self) -> Result<(), BadWireValue> {
-        crate::check_wire_fields!(self; codes: [clock_method, link_up]; parts: [])
-    }
-}
-
-impl WireCheck for LandingDecision {
-    fn check_wire(&self) -> Result<(), BadWireValue> {
-        crate::check_wire_fields!(
-            self;
-            codes: [state, reason, watchdog];
-            parts: [context, attitude]
-        )
+        let l = StageLog {
+            level: WireCode::from_code(1000),
+            ..Default::default()
+        };
+        assert_eq!(l.check_wire().unwrap_err().field, "level");
     }
 }

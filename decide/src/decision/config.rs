@@ -181,6 +181,8 @@ pub enum HeaveUse {
     Off,
 }
 
+deckwatch_common::named_enum!(HeaveUse, [Required => "required", Off => "off"]);
+
 /// A `[decide]` value out of range: the key (without the section) and what is wrong; the same
 /// error as every other section's.
 fn invalid(key: &'static str, problem: impl Into<String>) -> InvalidField {

@@ -1,5 +1,4 @@
-//! `deckwatch-capture`: the capture stage in a process of its own (see
-//! `deckwatch_runtime::stages::capture`).
+//! `deckwatch-capture`: the capture stage, the pipeline's source (see `deckwatch_runtime::stages::capture`).
 fn main() -> std::process::ExitCode {
-    deckwatch_runtime::stages::capture::main()
+    deckwatch_runtime::stage::main::<deckwatch_runtime::stages::capture::Capture>()
 }

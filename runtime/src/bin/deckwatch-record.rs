@@ -1,4 +1,4 @@
 //! `deckwatch-record`: the flight recorder (see `deckwatch_runtime::stages::record`).
 fn main() -> std::process::ExitCode {
-    deckwatch_runtime::stages::record::main()
+    deckwatch_runtime::stage::main::<deckwatch_runtime::stages::record::Recorder>()
 }

@@ -19,8 +19,8 @@
 //! iceoryx2 file in `/dev/shm` and under `/tmp/iceoryx2`.
 
 use deckwatch_common::messages::{
-    monotonic_ns, AttitudeMessage, FrameHeader, LandingDecision, LinkTraffic, MarkerMessage, StageHeartbeat,
-    StageLog, VehicleSample,
+    monotonic_ns, AttitudeMessage, Channel, FrameHeader, LandingDecision, LinkTraffic, MarkerMessage,
+    StageHeartbeat, StageLog, VehicleSample,
 };
 use deckwatch_common::wire::{BadWireValue, WireCheck};
 use deckwatch_common::InvalidField;
@@ -47,22 +47,6 @@ pub use frames::{FramePublisher, FrameSample, FrameSubscriber, PublishError, Rej
 
 /// What a stage sleeps on: notified when its input has something new.
 pub type Listener = iceoryx2::port::listener::Listener<ipc::Service>;
-
-/// Service names, one place.
-pub mod services {
-    pub const FRAMES: &str = "deckwatch/frames";
-    pub const MARKERS: &str = "deckwatch/markers";
-    pub const ATTITUDE: &str = "deckwatch/attitude";
-    pub const DECISION: &str = "deckwatch/decision";
-    /// The vehicle's attitude samples from the autopilot (the link process).
-    pub const VEHICLE: &str = "deckwatch/vehicle";
-    /// Every stage process's heartbeat, which the launcher follows.
-    pub const HEARTBEAT: &str = "deckwatch/heartbeat";
-    /// The processes' stderr lines, passed on by the launcher while a recorder runs.
-    pub const LOG: &str = "deckwatch/log";
-    /// Every MAVLink frame the link sends and receives, while a recorder runs.
-    pub const LINK: &str = "deckwatch/link";
-}
 
 /// The default domain.
 pub const DEFAULT_DOMAIN: &str = "deckwatch";
@@ -239,49 +223,38 @@ pub struct Bus {
     settings: BusSettings,
 }
 
-/// A small fixed-size message published on its own service. Any bytes are a value of it
+/// A small fixed-size message published on its own service (its [`Channel`]'s). Any bytes are a value of it
 /// (`AnyBitPattern`: its enums and booleans are `WireCode`s and `WireBool`s), so reading what
 /// another process wrote is never undefined behaviour; `WireCheck` then says whether they are
 /// values of their types.
 pub trait Message:
-    Debug + Copy + Default + ZeroCopySend + WireCheck + bytemuck::AnyBitPattern + 'static
+    Channel + Debug + Copy + Default + ZeroCopySend + WireCheck + bytemuck::AnyBitPattern + 'static
 {
-    const SERVICE: &'static str;
     /// Messages queued per subscriber before the oldest is dropped.
     const QUEUE: usize = MESSAGE_QUEUE;
     /// Publishers the service accepts.
     const PUBLISHERS: usize = 2;
 }
 
-impl Message for MarkerMessage {
-    const SERVICE: &'static str = services::MARKERS;
-}
-impl Message for AttitudeMessage {
-    const SERVICE: &'static str = services::ATTITUDE;
-}
-impl Message for LandingDecision {
-    const SERVICE: &'static str = services::DECISION;
-}
+impl Message for MarkerMessage {}
+impl Message for AttitudeMessage {}
+impl Message for LandingDecision {}
 impl Message for StageHeartbeat {
-    const SERVICE: &'static str = services::HEARTBEAT;
     // Six processes at 10 Hz, read by the launcher every 50 ms.
     const QUEUE: usize = 64;
     // Every stage process, and the one a restart starts while the old one is being removed.
     const PUBLISHERS: usize = 12;
 }
 impl Message for StageLog {
-    const SERVICE: &'static str = services::LOG;
     // A burst of lines (a stage's summary, a restart) while the recorder writes a frame.
     const QUEUE: usize = 64;
 }
 impl Message for LinkTraffic {
-    const SERVICE: &'static str = services::LINK;
     // The autopilot's streams (attitude at 200 Hz, heartbeats, positions) in and the decisions
     // out: half a second of them.
     const QUEUE: usize = 256;
 }
 impl Message for VehicleSample {
-    const SERVICE: &'static str = services::VEHICLE;
     // 200 Hz: 320 ms of samples, so a frame's mid-exposure stays bracketed while estimate is busy.
     const QUEUE: usize = 64;
 }
@@ -373,7 +346,7 @@ impl Bus {
     fn frame_service(&self) -> Result<PubSub<[u8], FrameHeader>, BusError> {
         let s = &self.settings;
         self.node
-            .service_builder(&Self::service_name(services::FRAMES)?)
+            .service_builder(&Self::service_name(FrameHeader::SERVICE)?)
             .publish_subscribe::<[u8]>()
             .user_header::<FrameHeader>()
             .max_publishers(2)
@@ -383,7 +356,7 @@ impl Bus {
             .history_size(0)
             .enable_safe_overflow(true)
             .open_or_create()
-            .map_err(context(format!("service `{}`", services::FRAMES)))
+            .map_err(context(format!("service `{}`", FrameHeader::SERVICE)))
     }
 
     fn message_service<M: Message>(&self) -> Result<PubSub<M, ()>, BusError> {
@@ -411,7 +384,7 @@ impl Bus {
             .create()
             .map_err(context("frame publisher"))?;
         let notifier = self
-            .event_service(services::FRAMES)?
+            .event_service(FrameHeader::SERVICE)?
             .notifier_builder()
             .default_event_id(EventId::new(0))
             .create()
@@ -432,14 +405,14 @@ impl Bus {
             .create()
             .map_err(context("frame subscriber"))?;
         let listener = self
-            .event_service(services::FRAMES)?
+            .event_service(FrameHeader::SERVICE)?
             .listener_builder()
             .create()
             .map_err(context("frame listener"))?;
         Ok(FrameSubscriber {
             subscriber,
             listener,
-            rejections: Rejections::new(services::FRAMES),
+            rejections: Rejections::new(FrameHeader::SERVICE),
             _service: service,
         })
     }
@@ -483,16 +456,16 @@ impl Bus {
     /// Number of subscribers currently connected to a service (the launcher's readiness check).
     pub fn subscriber_count(&self, service: &str) -> Result<usize, BusError> {
         Ok(match service {
-            services::FRAMES => self.frame_service()?.dynamic_config().number_of_subscribers(),
-            services::MARKERS => self
+            s if s == FrameHeader::SERVICE => self.frame_service()?.dynamic_config().number_of_subscribers(),
+            s if s == MarkerMessage::SERVICE => self
                 .message_service::<MarkerMessage>()?
                 .dynamic_config()
                 .number_of_subscribers(),
-            services::ATTITUDE => self
+            s if s == AttitudeMessage::SERVICE => self
                 .message_service::<AttitudeMessage>()?
                 .dynamic_config()
                 .number_of_subscribers(),
-            services::DECISION => self
+            s if s == LandingDecision::SERVICE => self
                 .message_service::<LandingDecision>()?
                 .dynamic_config()
                 .number_of_subscribers(),
@@ -704,7 +677,7 @@ mod tests {
                     });
                     opened.wait();
                     let counted = match &ports {
-                        Ok((bus, _, _)) => bus.subscriber_count(services::DECISION).ok(),
+                        Ok((bus, _, _)) => bus.subscriber_count(LandingDecision::SERVICE).ok(),
                         Err(_) => None,
                     };
                     start.wait();
@@ -732,7 +705,7 @@ mod tests {
             let bus = Bus::join(&settings, "unit").unwrap();
             let sub = bus.subscriber::<LandingDecision>().unwrap();
             let publisher = bus.publisher::<LandingDecision>().unwrap();
-            assert_eq!(bus.subscriber_count(services::DECISION).unwrap(), 1);
+            assert_eq!(bus.subscriber_count(LandingDecision::SERVICE).unwrap(), 1);
             assert!(bus.subscriber_count("nope").is_err());
             let d = LandingDecision {
                 state: DecisionState::Hold.into(),

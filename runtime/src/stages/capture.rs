@@ -4,21 +4,35 @@
 //! frames whose time has passed are skipped and counted, as a camera would drop them; a camera's
 //! own sequence gaps count the same way. Exits when the source is exhausted or on SIGINT/SIGTERM.
 //!
-//! Capture is not a [`crate::stage::Stage`]: it has no input and writes into memory it loans
-//! from the transport. What it puts in a frame's header is defined once here ([`new_header`],
+//! Capture is a [`Process`] but not a [`crate::stage::Stage`]: it has no input and writes into
+//! memory it loans from the transport. What it puts in a frame's header is defined once here ([`new_header`],
 //! [`complete_header`]) and used by the in-process chain too.
 
 use crate::bus::PublishError;
-use crate::stage::{checked_config, exit_code, setup, Heartbeat, RunError, StageArgs};
+use crate::config::PipelineConfig;
+use crate::stage::{setup, Heartbeat, Process, RunError, StageArgs};
 use deckwatch_capture::source::{CaptureSource, CapturedFrame, SourceError};
 use deckwatch_common::messages::{
-    monotonic_ns, DropCounts, FrameContext, FrameHeader, FrameStamp, PixelFormat, StageTimes, Truth,
+    monotonic_ns, Channel, DropCounts, FrameContext, FrameHeader, FrameStamp, PixelFormat, StageTimes, Truth,
 };
-use std::process::ExitCode;
 use std::time::Duration;
 
-/// The stage's name (node, binary `deckwatch-capture`, log lines).
-pub const NAME: &str = "capture";
+/// The capture process, the pipeline's source.
+pub struct Capture;
+
+impl Process for Capture {
+    const NAME: &'static str = "capture";
+    const OUTPUTS: &'static [&'static str] = &[FrameHeader::SERVICE];
+    fn inputs(_config: &PipelineConfig) -> Vec<&'static str> {
+        Vec::new()
+    }
+    fn run(config: PipelineConfig, _args: &StageArgs) -> Result<String, RunError> {
+        run(config)
+    }
+}
+
+/// The process's name (node, binary `deckwatch-capture`, log lines).
+pub const NAME: &str = <Capture as Process>::NAME;
 
 /// How long capture keeps its frames available after the source is exhausted.
 const LINGER_MS: u64 = 1000;
@@ -61,15 +75,8 @@ pub fn complete_header(h: &mut FrameHeader, f: &CapturedFrame) {
     h.context.vehicle = f.vehicle;
 }
 
-/// Runs the capture binary.
-pub fn main() -> ExitCode {
-    let args = <StageArgs as clap::Parser>::parse();
-    exit_code(NAME, run(&args))
-}
-
 /// Capture's life in its process.
-pub fn run(args: &StageArgs) -> Result<String, RunError> {
-    let config = checked_config(args)?;
+fn run(config: PipelineConfig) -> Result<String, RunError> {
     let mut source = config.capture().open()?;
     deckwatch_common::say!("deckwatch-capture: {}", source.describe());
     let (logger, bus) = setup(NAME, &config, source.frame_bytes())?;

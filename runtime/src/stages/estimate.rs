@@ -5,7 +5,9 @@
 
 use crate::config::{ConfigError, PipelineConfig};
 use crate::stage::Stage;
-use deckwatch_common::messages::{monotonic_ns, AttitudeMessage, GapCounter, MarkerMessage, VehicleSample};
+use deckwatch_common::messages::{
+    monotonic_ns, AttitudeMessage, Channel, GapCounter, MarkerMessage, VehicleSample,
+};
 use deckwatch_common::vehicle::VehicleConfig;
 use deckwatch_estimate::{DeckEstimator, EstimateConfig};
 use deckwatch_viz::Item;
@@ -61,6 +63,7 @@ impl Stage for EstimateStage {
     const NAME: &'static str = "estimate";
     type Input = MarkerMessage;
     type Output = AttitudeMessage;
+    const SIDE_INPUTS: &'static [&'static str] = &[VehicleSample::SERVICE];
 
     fn from_config(config: &PipelineConfig, joined_late: bool) -> Result<Self, ConfigError> {
         let mut stage = Self::new(&config.estimate, &config.vehicle, joined_late);

@@ -7,12 +7,13 @@
 //! once (LANDING_TARGET, named values, STATUSTEXT), and on a tick sends our HEARTBEAT and TIMESYNC
 //! requests, watches the link and reports refused frames. Replies go to the configured peer
 //! only: a connected socket, `[link] peer`, or the address of the autopilot's checked frames.
-//! Not a [`crate::stage::Stage`]: it has two inputs (the bus and a socket) and no output on the
-//! bus but the vehicle samples.
+//! A [`Process`] but not a [`crate::stage::Stage`]: it has two inputs (the bus and a socket) and
+//! no output on the bus but the vehicle samples and the traffic.
 
 use crate::bus::{event_loop, Bus, BusError, Flow, MessagePublisher, Wake};
-use crate::stage::{checked_config, exit_code, setup, Heartbeat, RunError, StageArgs};
-use deckwatch_common::messages::{monotonic_ns, LandingDecision, LinkTraffic, VehicleSample};
+use crate::config::PipelineConfig;
+use crate::stage::{setup, Heartbeat, Process, RunError, StageArgs};
+use deckwatch_common::messages::{monotonic_ns, Channel, LandingDecision, LinkTraffic, VehicleSample};
 use deckwatch_common::stats::Percentiles;
 use deckwatch_link::admission::{self, Admission, Admitted, Refusal, RefusalCounts, Signing};
 use deckwatch_link::incoming::{Incoming, LinkState};
@@ -20,13 +21,29 @@ use deckwatch_link::outgoing::{forwardable, stale_decision, Outgoing};
 use deckwatch_link::{Endpoint, LinkConfig, MavHeader, MavMessage};
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream, ToSocketAddrs, UdpSocket};
-use std::process::ExitCode;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
+/// The link process.
+pub struct Link;
+
+impl Process for Link {
+    const NAME: &'static str = "link";
+    const OUTPUTS: &'static [&'static str] = &[VehicleSample::SERVICE, LinkTraffic::SERVICE];
+    fn inputs(_config: &PipelineConfig) -> Vec<&'static str> {
+        vec![LandingDecision::SERVICE]
+    }
+    fn runs(config: &PipelineConfig) -> bool {
+        config.link.enabled
+    }
+    fn run(config: PipelineConfig, _args: &StageArgs) -> Result<String, RunError> {
+        run(config)
+    }
+}
+
 /// The process's name: its node, its binary (`deckwatch-link`), its log lines.
-pub const NAME: &str = "link";
+pub const NAME: &str = <Link as Process>::NAME;
 
 /// How long a blocking read waits, so the receiving thread notices nothing is coming.
 const READ_TIMEOUT: Duration = Duration::from_millis(100);
@@ -291,8 +308,7 @@ fn receive(
 }
 
 /// Runs the link process until SIGINT/SIGTERM.
-pub fn run(args: &StageArgs) -> Result<String, RunError> {
-    let config = checked_config(args)?;
+fn run(config: PipelineConfig) -> Result<String, RunError> {
     let lc: LinkConfig = config.link.clone();
     let signing = Signing::configured(&lc).map_err(|e| RunError::Link(e.to_string()))?;
     let (logger, bus) = setup(NAME, &config, 1)?;
@@ -490,10 +506,4 @@ pub fn run(args: &StageArgs) -> Result<String, RunError> {
         outgoing.landing_targets,
         link.failed.load(Ordering::Relaxed)
     ))
-}
-
-/// The `deckwatch-link` binary.
-pub fn main() -> ExitCode {
-    let args = <StageArgs as clap::Parser>::parse();
-    exit_code(NAME, run(&args))
 }

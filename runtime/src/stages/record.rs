@@ -9,21 +9,52 @@
 //! recorder never saw (its queue overflowed) is counted too.
 
 use crate::bus::{event_loop, Bus, BusError, Flow, FrameSample};
-use crate::stage::{checked_config, exit_code, Heartbeat, RunError, StageArgs};
+use crate::config::PipelineConfig;
+use crate::stage::{Heartbeat, Process, RunError, StageArgs};
 use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
 use deckwatch_common::messages::{
-    monotonic_ns, AttitudeMessage, FrameHeader, GapCounter, LandingDecision, LinkTraffic, MarkerMessage,
-    StageLog, VehicleSample,
+    monotonic_ns, AttitudeMessage, Channel, FrameHeader, GapCounter, LandingDecision, LinkTraffic,
+    MarkerMessage, StageLog, VehicleSample,
 };
 use deckwatch_flight::{FlightWriter, FrameEncoding, RecordConfig, RecorderStats, TimeBase, WriterOptions};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
-use std::process::ExitCode;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
-pub const NAME: &str = "record";
+/// The flight recorder process.
+pub struct Recorder;
+
+impl Process for Recorder {
+    const NAME: &'static str = "record";
+    const OUTPUTS: &'static [&'static str] = &[];
+    /// Markers first: the recorder is up when it follows them (it subscribes to the frames, when
+    /// it records them, before).
+    fn inputs(config: &PipelineConfig) -> Vec<&'static str> {
+        let frames = config.record.records_frames().then_some(FrameHeader::SERVICE);
+        [MarkerMessage::SERVICE]
+            .into_iter()
+            .chain(frames)
+            .chain([
+                AttitudeMessage::SERVICE,
+                LandingDecision::SERVICE,
+                VehicleSample::SERVICE,
+                StageLog::SERVICE,
+                LinkTraffic::SERVICE,
+            ])
+            .collect()
+    }
+    fn runs(config: &PipelineConfig) -> bool {
+        config.record.enabled()
+    }
+    fn run(config: PipelineConfig, args: &StageArgs) -> Result<String, RunError> {
+        run(config, args)
+    }
+}
+
+/// The process's name: its node, its binary (`deckwatch-record`), its log lines.
+pub const NAME: &str = <Recorder as Process>::NAME;
 
 /// What the writer thread is handed.
 enum Item {
@@ -75,8 +106,7 @@ struct Counts {
 
 /// Runs the recorder process until SIGINT/SIGTERM; then the queue is written out and the file
 /// finished (its summary written), so MCAP tools read it with its index.
-pub fn run(args: &StageArgs) -> Result<String, RunError> {
-    let config = checked_config(args)?;
+fn run(config: PipelineConfig, args: &StageArgs) -> Result<String, RunError> {
     let rc = config.record.clone();
     let path = recording_path(&rc, args.restarted)
         .ok_or_else(|| RunError::Record("record.path is not set: nothing to record to".into()))?;
@@ -423,10 +453,4 @@ fn write_item(
         }
     }
     Ok(())
-}
-
-/// The `deckwatch-record` binary.
-pub fn main() -> ExitCode {
-    let args = <StageArgs as clap::Parser>::parse();
-    exit_code(NAME, run(&args))
 }

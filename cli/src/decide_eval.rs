@@ -12,6 +12,23 @@ use deckwatch_sim::motion_file::RecordedShipMotion;
 use deckwatch_trials::AttitudeStreamModel;
 use std::time::Instant;
 
+/// The ship's motion model of `--motion`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum SeaModel {
+    Irregular,
+    Regular,
+    Jonswap,
+}
+deckwatch_common::named_enum!(SeaModel, [Irregular => "irregular", Regular => "regular", Jonswap => "jonswap"]);
+
+/// The camera's vehicle of `--vehicle`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum CameraVehicle {
+    Level,
+    Sway,
+}
+deckwatch_common::named_enum!(CameraVehicle, [Level => "level", Sway => "sway"]);
+
 #[derive(clap::Args)]
 pub struct DecideEvalArgs {
     /// Minutes of ship motion per series (default 30; with `--motion-csv`, the file's whole
@@ -31,8 +48,8 @@ pub struct DecideEvalArgs {
     /// `irregular` (each mode spread over 8 nearby periods), `regular` (three sinusoids), or
     /// `jonswap` (a wave spectrum of 300 components through a simple ship response, with a
     /// wandering heading: not the family the predictor fits).
-    #[arg(long, default_value = "irregular")]
-    pub(crate) motion: String,
+    #[arg(long, default_value = "irregular", value_parser = SeaModel::parse)]
+    pub(crate) motion: SeaModel,
     /// With `--motion jonswap`: the waves' mean heading off the bow (deg; 0 head seas, 90 beam
     /// seas), one series per heading.
     #[arg(long, value_delimiter = ',', default_value = "60")]
@@ -80,8 +97,8 @@ pub struct DecideEvalArgs {
     /// The camera's vehicle: `level`, or `sway` (a hovering quadrotor's sway, which the
     /// estimate stage compensates with the autopilot's attitude: its errors below land in the
     /// deck attitude).
-    #[arg(long, default_value = "level")]
-    pub(crate) vehicle: String,
+    #[arg(long, default_value = "level", value_parser = CameraVehicle::parse)]
+    pub(crate) vehicle: CameraVehicle,
     /// Noise of the autopilot's attitude (deg, per angle).
     #[arg(long, default_value_t = 0.0)]
     pub(crate) vehicle_noise_deg: f64,
@@ -148,21 +165,16 @@ impl Sea {
                 heave_scale: a.heave_scale,
             });
         }
-        let motion: Box<dyn MotionProfile> = match a.motion.as_str() {
-            "irregular" => Box::new(ShipMotion::irregular(seed, scale_of(ss)?, 8)),
-            "regular" => Box::new(ShipMotion::scaled(seed, scale_of(ss)?)),
-            "jonswap" => Box::new(
+        let motion: Box<dyn MotionProfile> = match a.motion {
+            SeaModel::Irregular => Box::new(ShipMotion::irregular(seed, scale_of(ss)?, 8)),
+            SeaModel::Regular => Box::new(ShipMotion::scaled(seed, scale_of(ss)?)),
+            SeaModel::Jonswap => Box::new(
                 SpectrumShipMotion::sea_state_from(ss, seed, heading_deg)
                     .ok_or(format!("--sea-states: {ss} has no JONSWAP sea (3, 4, 5, 6)"))?,
             ),
-            other => {
-                return Err(format!(
-                    "--motion: unknown `{other}` (irregular, regular, jonswap)"
-                ))
-            }
         };
-        let heave = match a.motion.as_str() {
-            "jonswap" => None,
+        let heave = match a.motion {
+            SeaModel::Jonswap => None,
             _ => Some(DeckHeave::sea_state_6(seed, scale_of(ss)? * a.heave_scale)),
         };
         Ok(Self {
@@ -190,7 +202,7 @@ pub(crate) fn series(a: &DecideEvalArgs) -> Vec<(u32, u64, f64)> {
     if a.motion_csv.is_some() {
         return a.seeds.iter().map(|&seed| (0, seed, f64::NAN)).collect();
     }
-    let headings: &[f64] = if a.motion == "jonswap" {
+    let headings: &[f64] = if a.motion == SeaModel::Jonswap {
         &a.headings
     } else {
         &[f64::NAN]
@@ -243,9 +255,6 @@ pub(crate) fn stream_model(a: &DecideEvalArgs) -> Result<AttitudeStreamModel, St
     if !a.minutes.is_none_or(|m| m > 0.0) {
         return Err("--minutes must be positive".into());
     }
-    if !matches!(a.vehicle.as_str(), "level" | "sway") {
-        return Err(format!("--vehicle: unknown `{}` (level, sway)", a.vehicle));
-    }
     if a.headings.is_empty() || !a.headings.iter().all(|h| h.is_finite()) {
         return Err("--headings: finite angles (deg)".into());
     }
@@ -265,7 +274,7 @@ pub(crate) fn stream_model(a: &DecideEvalArgs) -> Result<AttitudeStreamModel, St
         latency_ms: a.latency_ms,
         frozen_per_min: a.frozen_per_min,
         frozen_s: a.frozen_s,
-        vehicle_sways: a.vehicle == "sway",
+        vehicle_sways: a.vehicle == CameraVehicle::Sway,
         vehicle_bias_deg,
         vehicle_noise_deg: a.vehicle_noise_deg,
         vehicle_time_error_ms: a.vehicle_time_error_ms,
@@ -309,8 +318,8 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
     if !a.json {
         println!(
             "{} min at {} Hz per series, {} motion, noise {} deg, heave noise {} m x{}, dropout {}, outliers {}, NaN {}, stale {}, frozen {}/min of {} s, jitter {} ms; vehicle {} (autopilot noise {} deg, bias {:?} deg, timing {} ms, {} outages/min of {} s); capacity roll/pitch {}/{} deg, rates {}/{} deg/s, heave {:?} rate {} m/s, touchdown {} s",
-            minutes, a.rate, a.motion_csv.as_ref().map_or(a.motion.clone(), |p| p.display().to_string()), a.noise_deg, a.heave_noise_m, a.heave_scale, a.dropout, a.outliers, a.nan_share, a.stale_share,
-            a.frozen_per_min, a.frozen_s, a.jitter_ms, a.vehicle, a.vehicle_noise_deg,
+            minutes, a.rate, a.motion_csv.as_ref().map_or(a.motion.name().to_string(), |p| p.display().to_string()), a.noise_deg, a.heave_noise_m, a.heave_scale, a.dropout, a.outliers, a.nan_share, a.stale_share,
+            a.frozen_per_min, a.frozen_s, a.jitter_ms, a.vehicle.name(), a.vehicle_noise_deg,
             a.vehicle_bias_deg, a.vehicle_time_error_ms, a.vehicle_outages_per_min, a.vehicle_outage_s, config.max_abs_roll_deg,
             config.max_abs_pitch_deg, config.max_abs_roll_rate_dps, config.max_abs_pitch_rate_dps, config.heave,
             config.max_abs_heave_rate_mps, config.touchdown_s

@@ -113,7 +113,7 @@ pub fn run(a: PredictEvalArgs) -> Result<(), String> {
     }
     println!(
         "{} min at {} Hz per series, {} motion; noise {} deg, heave noise {} m, dropout {}, outliers {}; window {} s, touchdown {} s, risk per touchdown {}",
-        minutes, a.stream.rate, a.stream.motion_csv.as_ref().map_or(a.stream.motion.clone(), |p| p.display().to_string()), a.stream.noise_deg, a.stream.heave_noise_m,
+        minutes, a.stream.rate, a.stream.motion_csv.as_ref().map_or(a.stream.motion.name().to_string(), |p| p.display().to_string()), a.stream.noise_deg, a.stream.heave_noise_m,
         a.stream.dropout, a.stream.outliers, config.window_s, config.touchdown_s, config.risk_per_touchdown
     );
     let horizons: Vec<String> = a

@@ -9,6 +9,7 @@ use deckwatch_decide::FrameInput;
 use deckwatch_runtime::config::ConfigError;
 use deckwatch_sim::motion::{DeckHeave, MotionProfile, ShipMotion, SpectrumShipMotion};
 use deckwatch_sim::motion_file::RecordedShipMotion;
+use deckwatch_sim::scenario::VehicleMotion;
 use deckwatch_trials::AttitudeStreamModel;
 use std::time::Instant;
 
@@ -20,14 +21,6 @@ pub(crate) enum SeaModel {
     Jonswap,
 }
 deckwatch_common::named_enum!(SeaModel, [Irregular => "irregular", Regular => "regular", Jonswap => "jonswap"]);
-
-/// The camera's vehicle of `--vehicle`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum CameraVehicle {
-    Level,
-    Sway,
-}
-deckwatch_common::named_enum!(CameraVehicle, [Level => "level", Sway => "sway"]);
 
 #[derive(clap::Args)]
 pub struct DecideEvalArgs {
@@ -97,8 +90,8 @@ pub struct DecideEvalArgs {
     /// The camera's vehicle: `level`, or `sway` (a hovering quadrotor's sway, which the
     /// estimate stage compensates with the autopilot's attitude: its errors below land in the
     /// deck attitude).
-    #[arg(long, default_value = "level", value_parser = CameraVehicle::parse)]
-    pub(crate) vehicle: CameraVehicle,
+    #[arg(long, default_value = "level", value_enum)]
+    pub(crate) vehicle: VehicleMotion,
     /// Noise of the autopilot's attitude (deg, per angle).
     #[arg(long, default_value_t = 0.0)]
     pub(crate) vehicle_noise_deg: f64,
@@ -255,6 +248,11 @@ pub(crate) fn stream_model(a: &DecideEvalArgs) -> Result<AttitudeStreamModel, St
     if !a.minutes.is_none_or(|m| m > 0.0) {
         return Err("--minutes must be positive".into());
     }
+    if a.vehicle == VehicleMotion::Tilted {
+        return Err(
+            "--vehicle: `tilted` is the simulator's; the attitude stream models level and sway".into(),
+        );
+    }
     if a.headings.is_empty() || !a.headings.iter().all(|h| h.is_finite()) {
         return Err("--headings: finite angles (deg)".into());
     }
@@ -274,7 +272,7 @@ pub(crate) fn stream_model(a: &DecideEvalArgs) -> Result<AttitudeStreamModel, St
         latency_ms: a.latency_ms,
         frozen_per_min: a.frozen_per_min,
         frozen_s: a.frozen_s,
-        vehicle_sways: a.vehicle == CameraVehicle::Sway,
+        vehicle_sways: a.vehicle == VehicleMotion::Sway,
         vehicle_bias_deg,
         vehicle_noise_deg: a.vehicle_noise_deg,
         vehicle_time_error_ms: a.vehicle_time_error_ms,
@@ -319,7 +317,7 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
         println!(
             "{} min at {} Hz per series, {} motion, noise {} deg, heave noise {} m x{}, dropout {}, outliers {}, NaN {}, stale {}, frozen {}/min of {} s, jitter {} ms; vehicle {} (autopilot noise {} deg, bias {:?} deg, timing {} ms, {} outages/min of {} s); capacity roll/pitch {}/{} deg, rates {}/{} deg/s, heave {:?} rate {} m/s, touchdown {} s",
             minutes, a.rate, a.motion_csv.as_ref().map_or(a.motion.name().to_string(), |p| p.display().to_string()), a.noise_deg, a.heave_noise_m, a.heave_scale, a.dropout, a.outliers, a.nan_share, a.stale_share,
-            a.frozen_per_min, a.frozen_s, a.jitter_ms, a.vehicle.name(), a.vehicle_noise_deg,
+            a.frozen_per_min, a.frozen_s, a.jitter_ms, clap::ValueEnum::to_possible_value(&a.vehicle).map(|v| v.get_name().to_string()).unwrap_or_default(), a.vehicle_noise_deg,
             a.vehicle_bias_deg, a.vehicle_time_error_ms, a.vehicle_outages_per_min, a.vehicle_outage_s, config.max_abs_roll_deg,
             config.max_abs_pitch_deg, config.max_abs_roll_rate_dps, config.max_abs_pitch_rate_dps, config.heave,
             config.max_abs_heave_rate_mps, config.touchdown_s

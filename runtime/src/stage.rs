@@ -522,6 +522,12 @@ pub fn run<S: Stage>(config: PipelineConfig, args: &StageArgs) -> Result<String,
             .tick_period()
             .map_or(Heartbeat::PERIOD, |p| p.min(Heartbeat::PERIOD)),
     );
+    // The topology says which stages may follow the vehicle stream: one that does must say so.
+    debug_assert!(
+        !stage.wants_vehicle() || S::SIDE_INPUTS.contains(&VehicleSample::SERVICE),
+        "{} follows the vehicle stream but does not list it in Stage::SIDE_INPUTS",
+        S::NAME
+    );
     let vehicle = if stage.wants_vehicle() {
         Some(bus.subscriber::<VehicleSample>()?)
     } else {

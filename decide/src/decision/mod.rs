@@ -109,6 +109,13 @@ const BAND_EVIDENCE_QUANTILE: f64 = 0.975;
 const BAND_MEMORY_S: f64 = 10.0;
 /// Held-out misses needed before the band's scale is measured rather than assumed.
 const MIN_BAND_EVIDENCE: usize = 20;
+/// Fits made as if earlier, to check the band before any real fit is `holdout_s` old
+/// (`LandingDecider::backtest_band`): this many, this far apart (s), each on at least this much
+/// history (s). Four give every channel's value 40 misses and its rate 20 at 10 Hz, the
+/// evidence a clearance needs (`MIN_BAND_EVIDENCE`).
+const WARMUP_BACKTESTS: usize = 4;
+const WARMUP_BACKTEST_STEP_S: f64 = 0.5;
+const WARMUP_BACKTEST_MIN_HISTORY_S: f64 = 4.0;
 /// The band scale (value or rate) beyond which a channel's forecast is taken to be unreliable,
 /// and its rate also judged by the history's spread (`LandingDecider::exceedance_risk`).
 const MAX_BAND_SCALE: f64 = 3.0;
@@ -146,6 +153,9 @@ pub struct LandingDecider {
     /// (time, per channel: the held-out miss in the stated standard deviations) of the samples
     /// recent refits were checked on, over `BAND_MEMORY_S`.
     band_misses: VecDeque<(f64, [f64; 6])>,
+    /// The same from the warm-up's backtests (`LandingDecider::backtest_band`): the band's
+    /// evidence only while the real misses are too few.
+    backtest_misses: VecDeque<(f64, [f64; 6])>,
     last_fit: f64,
     last_grid: f64,
     jump_run: u32,
@@ -192,6 +202,7 @@ impl LandingDecider {
             past: VecDeque::new(),
             errors: VecDeque::new(),
             band_misses: VecDeque::new(),
+            backtest_misses: VecDeque::new(),
             last_fit: f64::NEG_INFINITY,
             last_grid: f64::NEG_INFINITY,
             jump_run: 0,
@@ -439,7 +450,7 @@ impl LandingDecider {
             self.past.clear();
             self.errors.clear();
             self.band_misses.clear();
-            self.band_misses.clear();
+            self.backtest_misses.clear();
             return Err(DecisionReason::Warmup);
         }
         if self.models.is_none() || t - self.last_fit >= c.refit_interval_s {
@@ -562,6 +573,7 @@ impl LandingDecider {
         self.past.clear();
         self.errors.clear();
         self.band_misses.clear();
+        self.backtest_misses.clear();
         self.backwards_run = 0;
         self.unexplained_at = f64::NEG_INFINITY;
         // A gap on the old timeline (say, to a time in the future) means nothing on the new one.
@@ -1305,6 +1317,72 @@ mod tests {
             .push_back((7.0, [1.0, 1.0, 3.0 * Z95, 0.5, 0.5, 0.5]));
         let (_, rates, _) = d.band_scale();
         assert_eq!(rates[2], MIN_RATE_BAND_SCALE, "its own evidence stands");
+    }
+
+    /// The warm-up's backtests stand in for the real fits' misses while those are too few, and
+    /// for a rate only while its value's are too; then the real ones alone count.
+    #[test]
+    fn backtests_stand_in_only_until_the_real_misses_suffice() {
+        let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
+        let far_off = [4.0 * Z95; 6];
+        for k in 0..2 * MIN_BAND_EVIDENCE {
+            d.backtest_misses.push_back((0.1 * k as f64, far_off));
+        }
+        let (values, rates, checked) = d.band_scale();
+        for s in values.iter().chain(&rates) {
+            assert!(
+                (s - 4.0).abs() < 1e-12,
+                "the backtests' scale: {values:?} {rates:?}"
+            );
+        }
+        assert!(checked, "the backtests are evidence");
+        // Real misses of the values, honest, and enough: they alone count, and the rates (with
+        // no real misses of their own) are taken to be as far off as their values.
+        for k in 0..MIN_BAND_EVIDENCE {
+            d.band_misses.push_back((
+                5.0 + 0.1 * k as f64,
+                [Z95, Z95, Z95, f64::NAN, f64::NAN, f64::NAN],
+            ));
+        }
+        let (values, rates, checked) = d.band_scale();
+        assert_eq!(values, [1.0; 3]);
+        assert_eq!(rates, [PRIOR_BAND_SCALE; 3], "not the backtests' 4");
+        assert!(checked);
+    }
+
+    /// The band is checked at the first fit, on the fits the decider would have made before
+    /// (not two refits later): a calm sea clears within `holdout_s` of the warm-up's end, and
+    /// only into calm windows.
+    #[test]
+    fn the_warm_ups_backtests_check_the_band_at_the_first_fit() {
+        let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
+        let c = d.config().clone();
+        let mut out = run(&mut d, 0.0, c.min_history_s + 0.15, |t| {
+            Some(measured(sea(t, 0.3), t))
+        });
+        let m = d.models.as_ref().expect("fitted at the warm-up's end");
+        assert!(m.band_checked, "checked at the first fit");
+        assert!(d.band_misses.is_empty(), "no real fit is old enough yet");
+        assert!(d.backtest_misses.len() >= 2 * MIN_BAND_EVIDENCE);
+        out.extend(run(&mut d, c.min_history_s + 0.2, 30.0, |t| {
+            Some(measured(sea(t, 0.3), t))
+        }));
+        let first = out.iter().find(|(_, d)| d.new_commit).map(|(t, _)| *t);
+        assert!(
+            first.is_some_and(|t| t >= c.min_history_s && t < c.min_history_s + c.holdout_s),
+            "first clearance {first:?}"
+        );
+        let tc = first.unwrap_or_default();
+        let mut t = tc;
+        while t <= tc + c.touchdown_s {
+            let deck = sea(t, 0.3);
+            assert!(deck.roll_deg.abs() <= c.max_abs_roll_deg && deck.pitch_deg.abs() <= c.max_abs_pitch_deg);
+            assert!(
+                heave_rate(t, 0.3).abs() <= c.max_abs_heave_rate_mps,
+                "unsafe at {t}"
+            );
+            t += 0.01;
+        }
     }
 
     /// The frozen camera: one image again and again, on a timeline that moves on. Never

@@ -189,35 +189,12 @@ impl LandingDecider {
         // The same held-out samples in the old fit's own standard deviations (a predictor that
         // states one): how honest its band has been.
         if let Some(old) = old.filter(|old| old[0].std(old[0].t0()) > 0.0) {
-            let t0 = old[0].t0();
-            // The last half of the held-out span: the band matters most at the touchdown's
-            // far end, and a model's error outgrows its stated one with the horizon (the last
-            // quarter alone took two fits more to gather the evidence a clearance needs).
-            let from = t0 + 0.5 * c.holdout_s;
-            for &(ti, v) in self
-                .history
-                .iter()
-                .filter(|h| h.0 > from && h.0 <= t0 + c.holdout_s)
-            {
-                // Values, then rates against the deck's rate measured around `ti` (a line
-                // through the samples of a second centred on it: unbiased by the deck's
-                // acceleration; its noise only makes the misses look larger).
-                let mut z = [f64::NAN; 6];
-                // The rates from the last quarter alone: scaled on the whole last half, the
-                // rate bands held 92-94 % 2 s ahead and a held-out sea cleared into 0.61 m/s
-                // of heave rate (BENCHMARKS.md, "Deck-motion prediction").
-                let far_end = ti >= t0 + 0.75 * c.holdout_s;
-                let measured_rate = far_end
-                    .then(|| self.centred_rate(ti, RATE_CHECK_HALF_WINDOW_S))
-                    .flatten();
-                for (k, track) in old.iter().enumerate() {
-                    z[k] = (v[k] - track.value(ti)).abs() / track.std(ti);
-                    if let Some(rates) = measured_rate {
-                        z[3 + k] = (rates[k] - track.rate(ti)).abs() / track.rate_std(ti);
-                    }
-                }
-                self.band_misses.push_back((ti, z));
-            }
+            let found = self.band_misses_of(old);
+            self.band_misses.extend(found);
+        } else if c.predictor == Predictor::Ar {
+            // No fit old enough to have been checked yet (the first `holdout_s` after a
+            // warm-up): the band is checked on fits the decider would have made earlier.
+            self.backtest_band(&t, &y, end);
         }
         while self
             .band_misses
@@ -225,6 +202,13 @@ impl LandingDecider {
             .is_some_and(|&(tm, _)| end - tm > BAND_MEMORY_S)
         {
             self.band_misses.pop_front();
+        }
+        while self
+            .backtest_misses
+            .front()
+            .is_some_and(|&(tm, _)| end - tm > BAND_MEMORY_S)
+        {
+            self.backtest_misses.pop_front();
         }
         let (band_scale, rate_band_scale, band_checked) = self.band_scale();
         while self
@@ -276,12 +260,84 @@ impl LandingDecider {
         })
     }
 
+    /// How far the samples after `old` (a fit `holdout_s` or more ago) fell from its forecast,
+    /// in its own stated standard deviations: the evidence of [`Self::band_scale`].
+    fn band_misses_of(&self, old: &[Track]) -> Vec<(f64, [f64; 6])> {
+        let c = &self.config;
+        let t0 = old[0].t0();
+        // The last half of the held-out span: the band matters most at the touchdown's far
+        // end, and a model's error outgrows its stated one with the horizon (the last quarter
+        // alone took two fits more to gather the evidence a clearance needs).
+        let from = t0 + 0.5 * c.holdout_s;
+        let until = t0 + c.holdout_s;
+        // The rates from the last quarter alone: scaled on the whole last half, the rate
+        // bands held 92-94 % 2 s ahead and a held-out sea cleared into 0.61 m/s of heave rate
+        // (BENCHMARKS.md, "Deck-motion prediction").
+        let far_from = t0 + 0.75 * c.holdout_s;
+        let mut found = Vec::new();
+        for &(ti, v) in self.history.iter().filter(|h| h.0 > from && h.0 <= until) {
+            // Values, then rates against the deck's rate measured around `ti` (a line through
+            // the samples of a second centred on it: unbiased by the deck's acceleration; its
+            // noise only makes the misses look larger).
+            let mut z = [f64::NAN; 6];
+            let measured_rate = (ti >= far_from)
+                .then(|| self.centred_rate(ti, RATE_CHECK_HALF_WINDOW_S))
+                .flatten();
+            for (k, track) in old.iter().enumerate() {
+                z[k] = (v[k] - track.value(ti)).abs() / track.std(ti);
+                if let Some(rates) = measured_rate {
+                    z[3 + k] = (rates[k] - track.rate(ti)).abs() / track.rate_std(ti);
+                }
+            }
+            found.push((ti, z));
+        }
+        found
+    }
+
+    /// The band's first evidence, before any fit is `holdout_s` old: the fits the decider would
+    /// have made `WARMUP_BACKTESTS` times before (every `WARMUP_BACKTEST_STEP_S`, the newest
+    /// old enough for its rates to be measured all through its held-out span), each on the
+    /// history up to its own time, judged on the samples after it like any earlier fit. They
+    /// fit shorter histories than the fit they vouch for, so they miss by more, not less:
+    /// without them the first clearance waited for two refits' worth of misses, 11.7 s after
+    /// the deck came into view (issue 33 asks for 10 s).
+    fn backtest_band(&mut self, t: &[f64], y: &[Vec<f64>], end: f64) {
+        let c = self.config.clone();
+        let horizon = c.touchdown_s + c.holdout_s;
+        for k in 0..WARMUP_BACKTESTS {
+            let origin = end - c.holdout_s - RATE_CHECK_HALF_WINDOW_S - k as f64 * WARMUP_BACKTEST_STEP_S;
+            let n = t.partition_point(|&ti| ti <= origin);
+            if n < 2 || origin - t[0] < WARMUP_BACKTEST_MIN_HISTORY_S {
+                break;
+            }
+            let fits: Option<Vec<Track>> = y
+                .iter()
+                .map(|yk| {
+                    ArModel::fit(
+                        &t[..n],
+                        &yk[..n],
+                        c.ar_order,
+                        FIT_SPACING_S,
+                        horizon,
+                        c.max_gap_ms / 1e3,
+                    )
+                    .map(Track::Autoregressive)
+                })
+                .collect();
+            if let Some(fits) = fits.filter(|f| f[0].std(f[0].t0()) > 0.0) {
+                let found = self.band_misses_of(&fits);
+                self.backtest_misses.extend(found);
+            }
+        }
+    }
+
     /// Per channel, the factor on the predictor's stated standard deviation that makes its 95 %
     /// band hold `BAND_EVIDENCE_QUANTILE` of the held-out misses of the last `BAND_MEMORY_S`
     /// (never below 1), and the same for its rate (never below `MIN_RATE_BAND_SCALE`); and
-    /// whether every channel's value has that evidence (no clearance before). With fewer than
-    /// `MIN_BAND_EVIDENCE` misses (the first seconds after a warm-up) there is no track record
-    /// yet: `PRIOR_BAND_SCALE`, and for a rate at least its value's scale.
+    /// whether every channel's value has that evidence (no clearance before). Until the real
+    /// fits have `MIN_BAND_EVIDENCE` misses the warm-up's backtests add theirs; with fewer
+    /// than that in all there is no track record yet: `PRIOR_BAND_SCALE`, and for a rate at
+    /// least its value's scale.
     pub(super) fn band_scale(&self) -> ([f64; 3], [f64; 3], bool) {
         let mut scale = [PRIOR_BAND_SCALE; 6];
         let mut checked = true;
@@ -289,12 +345,28 @@ impl LandingDecider {
             if k % 3 >= self.channels {
                 continue;
             }
-            let mut z: Vec<f64> = self
-                .band_misses
-                .iter()
-                .map(|m| m.1[k])
-                .filter(|z| z.is_finite())
-                .collect();
+            let real = |k: usize| {
+                self.band_misses
+                    .iter()
+                    .map(move |m| m.1[k])
+                    .filter(|z| z.is_finite())
+            };
+            // The warm-up's backtests stand in only while the real fits' misses are too few,
+            // for a rate only while its value's are too (they fit shorter histories and miss
+            // by more: beside the real misses, or for a rate once its value had real ones, they
+            // held the development trials at sea state 4 ten seconds longer).
+            let on_backtests =
+                real(k).count() < MIN_BAND_EVIDENCE && (k < 3 || real(k - 3).count() < MIN_BAND_EVIDENCE);
+            let mut z: Vec<f64> = if on_backtests {
+                let backtests = self
+                    .backtest_misses
+                    .iter()
+                    .map(|m| m.1[k])
+                    .filter(|z| z.is_finite());
+                real(k).chain(backtests).collect()
+            } else {
+                real(k).collect()
+            };
             if z.len() < MIN_BAND_EVIDENCE {
                 if k < 3 {
                     checked = false;

@@ -62,7 +62,9 @@ pub struct MarkerSet {
     pub status: WireCode<DetectionStatus>,
     /// Number of valid markers.
     pub count: u32,
-    /// Whether the markers were found by tracking (regions around the previous frame's).
+    /// Whether the markers' identities were carried over from earlier frames rather than found
+    /// in this one alone: by tracking (regions around the previous frame's), or from the ring's
+    /// orientation in an earlier frame (a pattern without its bow).
     pub tracked: WireBool,
     /// Whether the centres are free of the perspective bias of disc centroids (CONVENTIONS.md C6);
     /// false: raw centroids, an estimator should correct them.

@@ -173,6 +173,75 @@ pub fn identify_partial(blobs: &[Blob], deck: &DeckLayout, camera: &CameraModel)
     out
 }
 
+/// Identifications without the bow, from the ring's orientation known before: `bow_angle_rad`,
+/// the image angle (around the centre, as [`ring_orientation`] measures it) at which the bow
+/// was. Each blob is tried as the centre; the others take the ring slots their angle from that
+/// orientation gives (the bow's slot too, if a blob falls there). At least the centre and three
+/// ring markers. The ring alone is symmetric under a turn by its spacing: the orientation is
+/// what tells the slots apart, so it must be within `SLOT_TOLERANCE` of a slot spacing of the
+/// truth (the camera's yaw against the deck between the two frames: a hovering quadrotor and a
+/// ship turn by a few degrees a second). The caller checks each hypothesis against the image.
+pub fn identify_with_orientation(
+    blobs: &[Blob],
+    deck: &DeckLayout,
+    camera: &CameraModel,
+    bow_angle_rad: f64,
+) -> Vec<Vec<Option<usize>>> {
+    let n = blobs.len();
+    let valid = blobs
+        .iter()
+        .all(|b| b.u.is_finite() && b.v.is_finite() && b.area.is_finite() && b.area > 0.0);
+    if !(4..=deck.marker_count()).contains(&n) || !valid || !bow_angle_rad.is_finite() {
+        return Vec::new();
+    }
+    let xy = |b: &Blob| (b.u / camera.fx, b.v / camera.fy);
+    let spacing = TAU / deck.n_ring as f64;
+    let mut out = Vec::new();
+    for centre in 0..n {
+        let (cx, cy) = xy(&blobs[centre]);
+        let mut ids = vec![None; deck.marker_count()];
+        ids[0] = Some(centre);
+        let consistent = (0..n).filter(|&i| i != centre).all(|i| {
+            let (x, y) = xy(&blobs[i]);
+            let rel = ((-(x - cx)).atan2(-(y - cy)) - bow_angle_rad).rem_euclid(TAU) / spacing;
+            let slot = rel.round();
+            let index = deck.ring_index(slot as usize % deck.n_ring);
+            if ids[index].is_none() && (rel - slot).abs() <= SLOT_TOLERANCE {
+                ids[index] = Some(i);
+                true
+            } else {
+                false
+            }
+        });
+        if consistent {
+            out.push(ids);
+        }
+    }
+    out
+}
+
+/// The ring's orientation in the image: the angle (around the centre marker's image, in
+/// normalised coordinates: 0 image up, increasing toward image left, the deck's +x to +y seen
+/// from above) at which the bow is, from the centre and the ring markers identified (the
+/// circular mean of each one's angle less its slot's); None without the centre or a ring
+/// marker. `pixels` by marker index.
+pub fn ring_orientation(pixels: &[Option<[f64; 2]>], deck: &DeckLayout, camera: &CameraModel) -> Option<f64> {
+    let [cu, cv] = (*pixels.first()?)?;
+    let spacing = TAU / deck.n_ring as f64;
+    let (mut sin, mut cos, mut count) = (0.0, 0.0, 0);
+    for slot in 0..deck.n_ring {
+        let Some(Some([u, v])) = pixels.get(deck.ring_index(slot)) else {
+            continue;
+        };
+        let (x, y) = ((u - cu) / camera.fx, (v - cv) / camera.fy);
+        let a = (-x).atan2(-y) - slot as f64 * spacing;
+        sin += a.sin();
+        cos += a.cos();
+        count += 1;
+    }
+    (count > 0 && (sin != 0.0 || cos != 0.0)).then(|| sin.atan2(cos))
+}
+
 /// Marker pixels by marker index, from blobs and an identification.
 pub fn marker_pixels(blobs: &[Blob], ids: &[Option<usize>]) -> Vec<Option<[f64; 2]>> {
     ids.iter()
@@ -222,6 +291,38 @@ mod tests {
             perm.swap(i, j);
         }
         perm
+    }
+
+    /// The ring measured with its bow gives the orientation; a later view without the bow (and
+    /// one more ring marker) is named from it, a tilt's or a turn's 15 deg off included. An
+    /// orientation a whole slot off names the ring wrongly: the symmetry the orientation
+    /// breaks.
+    #[test]
+    fn without_the_bow_the_rings_orientation_names_the_slots() {
+        let cam = CameraModel::rpi_v2();
+        let deck = DeckLayout::paper();
+        let blobs = blobs_for(
+            Rpy::from_degrees(3.0, -2.0, 37.0),
+            Viewpoint::level(0.1, -0.1, 5.0),
+            &cam,
+        );
+        let pixels: Vec<Option<[f64; 2]>> = blobs.iter().map(|b| Some([b.u, b.v])).collect();
+        let bow = ring_orientation(&pixels, &deck, &cam).expect("a whole pattern");
+        let kept: Vec<usize> = (0..blobs.len()).filter(|&i| i != 1 && i != 4).collect();
+        let seen: Vec<Blob> = kept.iter().map(|&i| blobs[i]).collect();
+        let right: Vec<Option<usize>> = (0..deck.marker_count())
+            .map(|m| kept.iter().position(|&i| i == m))
+            .collect();
+        for error_deg in [-15.0f64, 0.0, 15.0] {
+            let ids = identify_with_orientation(&seen, &deck, &cam, bow + error_deg.to_radians());
+            assert!(ids.contains(&right), "{error_deg} deg off: {ids:?}");
+        }
+        let a_slot_off = identify_with_orientation(&seen, &deck, &cam, bow + TAU / deck.n_ring as f64);
+        assert!(!a_slot_off.contains(&right));
+        assert!(
+            ring_orientation(&pixels[..1], &deck, &cam).is_none(),
+            "the centre alone"
+        );
     }
 
     proptest! {

@@ -24,11 +24,23 @@ impl Detector {
         if best.is_none() {
             best = self.best_subset(&cands, 4, &partial);
         }
+        // ... and then the bow: its slot comes from the ring's orientation in an earlier frame
+        // (identities carried over, as tracking carries them).
+        let mut carried = tracked;
+        if let Some((bow_angle, _)) = self
+            .orientation
+            .filter(|&(_, age)| best.is_none() && age <= MAX_ORIENTATION_AGE_FRAMES)
+        {
+            let (deck, camera) = (&self.deck, &self.camera);
+            let oriented = |blobs: &[Blob]| identify_with_orientation(blobs, deck, camera, bow_angle);
+            best = self.best_subset(&cands, ORIENTATION_MIN_MARKERS, &oriented);
+            carried = carried || best.is_some();
+        }
         self.candidates = cands;
         match best {
             Some((k, _, assigned)) => {
                 rejected.unassigned += (self.candidates.len() - k) as u32;
-                self.build(&assigned, rejected, tracked)
+                self.build(&assigned, rejected, carried)
             }
             None => {
                 rejected.unassigned += self.candidates.len() as u32;
@@ -222,6 +234,14 @@ impl Detector {
                 }
             }
             self.previous = Some(prev);
+            let pixels: Vec<Option<[f64; 2]>> = set
+                .markers
+                .iter()
+                .map(|m| m.valid.get().then_some([m.u, m.v]))
+                .collect();
+            if let Some(angle) = ring_orientation(&pixels, &self.deck, &self.camera) {
+                self.orientation = Some((angle, 0));
+            }
         } else {
             self.previous = None;
         }

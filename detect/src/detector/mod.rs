@@ -17,7 +17,7 @@
 //! box grown by half its size), and only when that does not find as many markers the whole
 //! frame is searched.
 
-use crate::identify::{identify, identify_partial, Blob};
+use crate::identify::{identify, identify_partial, identify_with_orientation, ring_orientation, Blob};
 use deckwatch_common::deck::MAX_MARKERS;
 use deckwatch_common::homography;
 use deckwatch_common::image::{GrayView, ImageError};
@@ -31,6 +31,14 @@ mod measure;
 const SATURATED: usize = 248;
 /// At most this many extra candidates (or missing markers) are searched for the pattern.
 const MAX_EXTRAS: usize = 4;
+/// The ring's orientation from an earlier frame identifies a pattern without its bow for this
+/// many frames after the last identified one (at 2 frames a second, 5 s: a hovering quadrotor
+/// and a ship turn by a few degrees a second, the slots are 45 deg apart) ...
+const MAX_ORIENTATION_AGE_FRAMES: u32 = 10;
+/// ... with at least this many markers: the centre and three of the ring (at 1 m over the deck
+/// a 1640x1232 frame holds four). Four fit any homography: the disc sizes and the orientation
+/// are what check them.
+const ORIENTATION_MIN_MARKERS: usize = 4;
 
 /// Tuning of the detector.
 #[derive(Debug, Clone, PartialEq)]
@@ -104,6 +112,11 @@ pub struct Detector {
     config: DetectorConfig,
     /// The previous frame's markers (centre, radius) for tracking.
     previous: Option<[Option<(f64, f64, f64)>; MAX_MARKERS]>,
+    /// The ring's orientation in the newest frame whose markers were identified (the bow's
+    /// image angle around the centre, [`ring_orientation`]) and the frames since: what
+    /// identifies a pattern whose bow is cut by the border or out of view when tracking cannot
+    /// (a low frame rate, a jump), whatever the frame rate.
+    orientation: Option<(f64, u32)>,
     coarse: Vec<u8>,
     stack: Vec<(u32, u32)>,
     seeds: Vec<u32>,
@@ -133,6 +146,7 @@ impl Detector {
             deck,
             config,
             previous: None,
+            orientation: None,
             coarse: Vec::new(),
             stack: Vec::new(),
             seeds: Vec::new(),
@@ -155,9 +169,17 @@ impl Detector {
         &self.config
     }
 
-    /// Forgets the previous frame (the next frame is searched in full).
+    /// Forgets the previous frame (the next frame is searched in full; the ring's orientation
+    /// is kept, to identify a pattern without its bow).
     pub fn reset_tracking(&mut self) {
         self.previous = None;
+    }
+
+    /// Forgets the previous frame and the ring's orientation: the next pattern must show its
+    /// bow to be identified (another deck, another camera mounting).
+    pub fn reset(&mut self) {
+        self.previous = None;
+        self.orientation = None;
     }
 
     /// Detects markers in a frame given as bytes with its geometry; a geometry that does not fit
@@ -175,6 +197,9 @@ impl Detector {
     /// Detects markers: tracked when the previous frame had a marker set, else (or when tracking
     /// fails) over the full frame. A frame whose size is not the camera's gives `BadFrame`.
     pub fn detect(&mut self, frame: GrayView<'_>) -> MarkerSet {
+        if let Some((_, age)) = &mut self.orientation {
+            *age = age.saturating_add(1);
+        }
         if (frame.width(), frame.height()) != (self.camera.width as usize, self.camera.height as usize) {
             self.previous = None;
             return MarkerSet {

@@ -2,6 +2,7 @@
 //! renderer straight into the caller's buffer, with the frame's ground truth.
 
 use crate::motion::{MotionProfile, MotionSample};
+use crate::render::isp::{ImagePipeline, Psf};
 use crate::render::{Exposure, RenderError, RenderOptions, Renderer};
 use crate::scenario::Simulation;
 use deckwatch_common::image::GrayViewMut;
@@ -289,6 +290,41 @@ pub struct ImageArgs {
     /// the width and 0.15 % of the height off, k1 +0.01, k2 -0.002; 0 = exact.
     #[cfg_attr(feature = "cli", arg(long, default_value_t = 0.0))]
     pub calibration_error: f64,
+    /// Another lens's blur, after the look's: out of focus, a uniform disc of this radius (px).
+    /// One point-spread function at a time (this, `--motion-psf` or `--psf-file`).
+    #[cfg_attr(feature = "cli", arg(long))]
+    pub defocus_px: Option<f64>,
+    /// ... or a line: the camera shaking during the exposure, LENGTH_PX,ANGLE_DEG (deg from the
+    /// image's +u toward +v).
+    #[cfg_attr(
+        feature = "cli",
+        arg(long, value_delimiter = ',', value_name = "LENGTH_PX,ANGLE_DEG")
+    )]
+    pub motion_psf: Option<Vec<f64>>,
+    /// ... or a measured kernel from a text file: rows of weights (spaces, commas or tabs), an
+    /// odd side up to 63, `#` comments.
+    #[cfg_attr(feature = "cli", arg(long))]
+    pub psf_file: Option<std::path::PathBuf>,
+    /// Through a Bayer sensor: an RGGB mosaic of unequal sensitivities, white balance,
+    /// bilinear demosaicing and luma (the path of a colour camera's frames to grey).
+    #[cfg_attr(feature = "cli", arg(long))]
+    pub bayer: bool,
+    /// The Bayer path's raw bit depth (8 or 10).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 8))]
+    pub raw_bits: u32,
+    /// The ISP's denoising: a Gaussian of this sigma (px; 0 = none).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 0.0))]
+    pub denoise_px: f64,
+    /// The ISP's sharpening: an unsharp mask of this amount (0 = none).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 0.0))]
+    pub sharpen: f64,
+    /// Tone curve: the output is `255 (x / 255)^(1 / gamma)` (1 = linear; 2.2 about a
+    /// display's).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 1.0))]
+    pub gamma: f64,
+    /// Each frame compressed as a streamed JPEG of this quality (0 = none; 1-100).
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = 0))]
+    pub jpeg_quality: u8,
 }
 
 /// The starting point of a rendered image's look (`--look`, `[image] look`).
@@ -336,6 +372,15 @@ impl Default for ImageArgs {
             distortion: None,
             readout_ms: 0.0,
             calibration_error: 0.0,
+            defocus_px: None,
+            motion_psf: None,
+            psf_file: None,
+            bayer: false,
+            raw_bits: 8,
+            denoise_px: 0.0,
+            sharpen: 0.0,
+            gamma: 1.0,
+            jpeg_quality: 0,
         }
     }
 }
@@ -356,6 +401,50 @@ impl ImageArgs {
         c.distortion.k1 += 0.01 * e;
         c.distortion.k2 -= 0.002 * e;
         c
+    }
+
+    /// The image pipeline after the sensor the options ask for.
+    fn pipeline(&self) -> Result<ImagePipeline, InvalidOption> {
+        let given = [
+            self.defocus_px.is_some(),
+            self.motion_psf.is_some(),
+            self.psf_file.is_some(),
+        ];
+        if given.iter().filter(|g| **g).count() > 1 {
+            return Err(InvalidOption::new(
+                "--defocus-px/--motion-psf/--psf-file",
+                "one point-spread function at a time",
+            ));
+        }
+        let psf = if let Some(radius_px) = self.defocus_px {
+            Psf::Defocus { radius_px }
+        } else if let Some(m) = &self.motion_psf {
+            let [length_px, angle_deg] = m
+                .as_slice()
+                .try_into()
+                .map_err(|_| InvalidOption::new("--motion-psf", "give LENGTH_PX,ANGLE_DEG"))?;
+            Psf::Motion { length_px, angle_deg }
+        } else if let Some(path) = &self.psf_file {
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| InvalidOption::new("--psf-file", format!("{}: {e}", path.display())))?;
+            Psf::kernel_from_text(&text)
+                .map_err(|e| InvalidOption::new("--psf-file", format!("{}: {e}", path.display())))?
+        } else {
+            Psf::None
+        };
+        let pipeline = ImagePipeline {
+            psf,
+            bayer: self.bayer,
+            raw_bits: self.raw_bits,
+            denoise_px: self.denoise_px,
+            sharpen: self.sharpen,
+            gamma: self.gamma,
+            jpeg_quality: self.jpeg_quality,
+        };
+        pipeline
+            .validate()
+            .map_err(|e| InvalidOption::new("image pipeline", e.to_string()))?;
+        Ok(pipeline)
     }
 
     /// The camera (preset scaled to the resolution, with the lens) and the render options.
@@ -432,6 +521,7 @@ impl ImageArgs {
             o.occluded_marker = Some(m);
         }
         o.glints = self.glints.unwrap_or(0);
+        o.pipeline = self.pipeline()?;
         o.validate()
             .map_err(|e| InvalidOption::new("render options", e.to_string()))?;
         Ok((camera, o))

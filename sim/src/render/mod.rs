@@ -24,6 +24,7 @@ use nalgebra::{Matrix3, Vector3};
 use std::sync::{Arc, Mutex};
 
 mod composite;
+pub mod isp;
 mod optics;
 mod patches;
 
@@ -68,6 +69,9 @@ pub struct RenderOptions {
     pub halo: f64,
     /// ...and its Gaussian spread in pixels.
     pub halo_px: f64,
+    /// Optics and image processing after the sensor (another lens's blur, a Bayer sensor, an
+    /// ISP, a tone curve, JPEG): [`isp::ImagePipeline`]; the default changes nothing.
+    pub pipeline: isp::ImagePipeline,
 }
 
 impl Default for RenderOptions {
@@ -90,6 +94,7 @@ impl Default for RenderOptions {
             glints: 0,
             halo: 0.0,
             halo_px: 0.0,
+            pipeline: isp::ImagePipeline::default(),
         }
     }
 }
@@ -162,7 +167,7 @@ impl RenderOptions {
         if !self.illumination_direction.is_finite() {
             return Err(InvalidField::new("illumination_direction", "must be finite"));
         }
-        Ok(())
+        self.pipeline.validate()
     }
 }
 
@@ -177,6 +182,8 @@ pub enum RenderError {
     /// No sub-exposure was given, or a pose is not finite.
     InvalidScene,
     Image(ImageError),
+    /// The image pipeline after the sensor failed (JPEG).
+    Pipeline(isp::PipelineError),
 }
 
 impl std::fmt::Display for RenderError {
@@ -189,6 +196,7 @@ impl std::fmt::Display for RenderError {
             ),
             Self::InvalidScene => write!(f, "no pose, or a pose that is not finite"),
             Self::Image(e) => write!(f, "{e}"),
+            Self::Pipeline(e) => write!(f, "{e}"),
         }
     }
 }
@@ -443,14 +451,29 @@ impl Renderer {
         out: &mut GrayViewMut<'_>,
     ) -> Result<(), RenderError> {
         let (h_mid, mid) = self.checked_exposure(&exposure, out)?;
+        self.paint_dispatched(&h_mid, &mid, &exposure, noise_seed, out);
+        if !self.options.pipeline.is_identity() {
+            self.options.pipeline.apply(out).map_err(RenderError::Pipeline)?;
+        }
+        Ok(())
+    }
+
+    /// [`Self::paint`] on the widest lanes this CPU has.
+    fn paint_dispatched(
+        &mut self,
+        h_px: &Matrix3<f64>,
+        scene: &SceneGeometry,
+        exposure: &Exposure<'_>,
+        noise_seed: u64,
+        out: &mut GrayViewMut<'_>,
+    ) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: this CPU has AVX2 (checked just above), all `paint_avx2` requires.
-            unsafe { self.paint_avx2(&h_mid, &mid, &exposure, noise_seed, out) };
-            return Ok(());
+            unsafe { self.paint_avx2(h_px, scene, exposure, noise_seed, out) };
+            return;
         }
-        self.paint(&h_mid, &mid, &exposure, noise_seed, out);
-        Ok(())
+        self.paint(h_px, scene, exposure, noise_seed, out);
     }
 
     /// The frame's pixels: the markers' patches, then the one pass over the frame, then the

@@ -256,7 +256,7 @@ fn a_pattern_without_its_bow_is_identified_from_the_rings_orientation() {
             .unwrap_or_else(|e| panic!("frame {k}: {e}"));
         let error = rpy_error_deg(&e.attitude.rpy, &truth.sample.attitude);
         // Below 3 m the discs are large: hundredths of a degree, the frames without the bow
-        // included. Higher, one frame of 1640x1232 is good to degrees at 20 m (the ring 60 px
+        // included. Higher, one frame of 1640x1232 is good to degrees at 20 m (the ring 70 px
         // across), which this test does not judge.
         let altitude_m = truth.sample.viewpoint.altitude_m;
         assert!(

@@ -137,9 +137,9 @@ fn closed_loop_landings_touch_down_safely_in_one_process_and_through_the_process
     #[cfg(feature = "rerun")]
     {
         let rows = deckwatch_viz::rrd_entity_rows(&rrd).unwrap();
-        // Every frame of the approach (at 10 Hz; it lands after its warm-up and the band's
-        // first check, about 12 s or more).
-        assert!(rows.get("/camera/image").copied().unwrap_or(0) > 100, "{rows:?}");
+        // Every frame of the approach (at 10 Hz; it lands after its 8 s warm-up, the band
+        // checked on the warm-up's backtests: 10 s or more).
+        assert!(rows.get("/camera/image").copied().unwrap_or(0) >= 80, "{rows:?}");
         for entity in [
             "/camera/image",
             "/heave/vehicle_over_deck_m",

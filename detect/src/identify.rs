@@ -99,29 +99,43 @@ pub fn identify(
     if !(blobs[bow].area >= BOW_AREA_RATIO * median) {
         return Err(IdentifyError::AmbiguousBow);
     }
-    // Angle from the deck's +x (image up) toward +y (image left), seen from above.
-    let (cx, cy) = xy(&blobs[centre]);
-    let angle = |i: usize| {
-        let (x, y) = xy(&blobs[i]);
-        (-(x - cx)).atan2(-(y - cy))
-    };
-    let spacing = TAU / deck.n_ring as f64;
-    let a_bow = angle(bow);
+    let angle = |i: usize| ring_angle(xy(&blobs[i]), xy(&blobs[centre]));
     let mut out = vec![None; deck.marker_count()];
     out[0] = Some(centre);
-    for &i in &ring {
-        let rel = (angle(i) - a_bow).rem_euclid(TAU) / spacing;
-        let slot = rel.round();
-        if (rel - slot).abs() > SLOT_TOLERANCE {
-            return Err(IdentifyError::RingMismatch);
-        }
-        let index = deck.ring_index(slot as usize % deck.n_ring);
-        if out[index].is_some() {
-            return Err(IdentifyError::RingMismatch);
-        }
-        out[index] = Some(i);
+    if !fill_ring_slots(&mut out, ring, angle, angle(bow), deck) {
+        return Err(IdentifyError::RingMismatch);
     }
     Ok(out)
+}
+
+/// The angle of the image point `p` around `centre` (normalised coordinates): from the deck's
+/// +x (image up) toward +y (image left), seen from above.
+fn ring_angle(p: (f64, f64), centre: (f64, f64)) -> f64 {
+    (-(p.0 - centre.0)).atan2(-(p.1 - centre.1))
+}
+
+/// Puts each of `members` into the ring slot its angle (`angle`, around the centre) from the
+/// bow's (`bow_angle`) gives; false when one lies between slots (beyond `SLOT_TOLERANCE`) or
+/// its slot is taken.
+fn fill_ring_slots(
+    ids: &mut [Option<usize>],
+    members: impl IntoIterator<Item = usize>,
+    angle: impl Fn(usize) -> f64,
+    bow_angle: f64,
+    deck: &DeckLayout,
+) -> bool {
+    let spacing = TAU / deck.n_ring as f64;
+    members.into_iter().all(|i| {
+        let rel = (angle(i) - bow_angle).rem_euclid(TAU) / spacing;
+        let slot = rel.round();
+        let index = deck.ring_index(slot as usize % deck.n_ring);
+        if ids[index].is_none() && (rel - slot).abs() <= SLOT_TOLERANCE {
+            ids[index] = Some(i);
+            true
+        } else {
+            false
+        }
+    })
 }
 
 /// Identifications of a part of the pattern (low over the deck, where the ring leaves the view):
@@ -140,32 +154,15 @@ pub fn identify_partial(blobs: &[Blob], deck: &DeckLayout, camera: &CameraModel)
         return Vec::new();
     }
     let xy = |b: &Blob| (b.u / camera.fx, b.v / camera.fy);
-    let spacing = TAU / deck.n_ring as f64;
     let mut out = Vec::new();
     for bow in 0..n {
         for centre in (0..n).filter(|&c| c != bow) {
-            let (cx, cy) = xy(&blobs[centre]);
-            let angle = |i: usize| {
-                let (x, y) = xy(&blobs[i]);
-                (-(x - cx)).atan2(-(y - cy))
-            };
-            let a_bow = angle(bow);
+            let angle = |i: usize| ring_angle(xy(&blobs[i]), xy(&blobs[centre]));
             let mut ids = vec![None; deck.marker_count()];
             ids[0] = Some(centre);
             ids[deck.ring_index(0)] = Some(bow);
-            let consistent = (0..n).filter(|&i| i != bow && i != centre).all(|i| {
-                let rel = (angle(i) - a_bow).rem_euclid(TAU) / spacing;
-                let slot = rel.round();
-                let index = deck.ring_index(slot as usize % deck.n_ring);
-                let free = ids[index].is_none();
-                if free && (rel - slot).abs() <= SLOT_TOLERANCE {
-                    ids[index] = Some(i);
-                    true
-                } else {
-                    false
-                }
-            });
-            if consistent {
+            let others = (0..n).filter(|&i| i != bow && i != centre);
+            if fill_ring_slots(&mut ids, others, angle, angle(bow), deck) {
                 out.push(ids);
             }
         }
@@ -195,25 +192,18 @@ pub fn identify_with_orientation(
         return Vec::new();
     }
     let xy = |b: &Blob| (b.u / camera.fx, b.v / camera.fy);
-    let spacing = TAU / deck.n_ring as f64;
     let mut out = Vec::new();
     for centre in 0..n {
-        let (cx, cy) = xy(&blobs[centre]);
+        let angle = |i: usize| ring_angle(xy(&blobs[i]), xy(&blobs[centre]));
         let mut ids = vec![None; deck.marker_count()];
         ids[0] = Some(centre);
-        let consistent = (0..n).filter(|&i| i != centre).all(|i| {
-            let (x, y) = xy(&blobs[i]);
-            let rel = ((-(x - cx)).atan2(-(y - cy)) - bow_angle_rad).rem_euclid(TAU) / spacing;
-            let slot = rel.round();
-            let index = deck.ring_index(slot as usize % deck.n_ring);
-            if ids[index].is_none() && (rel - slot).abs() <= SLOT_TOLERANCE {
-                ids[index] = Some(i);
-                true
-            } else {
-                false
-            }
-        });
-        if consistent {
+        if fill_ring_slots(
+            &mut ids,
+            (0..n).filter(|&i| i != centre),
+            angle,
+            bow_angle_rad,
+            deck,
+        ) {
             out.push(ids);
         }
     }
@@ -233,8 +223,8 @@ pub fn ring_orientation(pixels: &[Option<[f64; 2]>], deck: &DeckLayout, camera: 
         let Some(Some([u, v])) = pixels.get(deck.ring_index(slot)) else {
             continue;
         };
-        let (x, y) = ((u - cu) / camera.fx, (v - cv) / camera.fy);
-        let a = (-x).atan2(-y) - slot as f64 * spacing;
+        let a = ring_angle((u / camera.fx, v / camera.fy), (cu / camera.fx, cv / camera.fy))
+            - slot as f64 * spacing;
         sin += a.sin();
         cos += a.cos();
         count += 1;

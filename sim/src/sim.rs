@@ -354,6 +354,7 @@ impl Look {
 impl Default for ImageArgs {
     /// The command line's defaults (a test checks that they agree).
     fn default() -> Self {
+        let pipeline = ImagePipeline::default();
         Self {
             width: None,
             height: None,
@@ -375,12 +376,13 @@ impl Default for ImageArgs {
             defocus_px: None,
             motion_psf: None,
             psf_file: None,
-            bayer: false,
-            raw_bits: 8,
-            denoise_px: 0.0,
-            sharpen: 0.0,
-            gamma: 1.0,
-            jpeg_quality: 0,
+            // The pipeline's own defaults (nothing changed).
+            bayer: pipeline.bayer,
+            raw_bits: pipeline.raw_bits,
+            denoise_px: pipeline.denoise_px,
+            sharpen: pipeline.sharpen,
+            gamma: pipeline.gamma,
+            jpeg_quality: pipeline.jpeg_quality,
         }
     }
 }

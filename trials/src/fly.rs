@@ -325,8 +325,9 @@ mod tests {
         let out = fly(PipelineRule::Deckwatch, 3, 0, FrameFaultModel::default());
         let v = out.touchdown.as_ref().expect("a touchdown within 90 s");
         assert!(v.safe(), "{v:?}");
+        // At 10 Hz, the 8 s warm-up at least.
         assert!(
-            out.commits >= 1 && out.frames > 100 && out.decisions == out.frames,
+            out.commits >= 1 && out.frames >= 80 && out.decisions == out.frames,
             "{out:?}"
         );
         assert!(out.decisions_by_reason.keys().any(|k| k.starts_with("CLEAR")));

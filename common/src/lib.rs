@@ -13,6 +13,8 @@ pub mod ellipse;
 pub mod error;
 pub mod homography;
 pub mod image;
+#[cfg(feature = "jpeg")]
+pub mod jpeg;
 pub mod markers;
 pub mod messages;
 pub mod names;

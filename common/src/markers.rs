@@ -97,10 +97,13 @@ impl MarkerSet {
     /// Marker pixels by marker index for `n` markers (None where not found), as the estimators
     /// take them.
     pub fn pixels(&self, n: usize) -> Vec<Option<[f64; 2]>> {
-        self.markers[..n.min(MAX_MARKERS)]
-            .iter()
-            .map(|m| m.valid.get().then_some([m.u, m.v]))
-            .collect()
+        (0..n.min(MAX_MARKERS)).map(|i| self.pixel(i)).collect()
+    }
+
+    /// Marker `index`'s pixel, None when not found (or no such marker).
+    pub fn pixel(&self, index: usize) -> Option<[f64; 2]> {
+        let m = self.markers.get(index)?;
+        m.valid.get().then_some([m.u, m.v])
     }
 }
 

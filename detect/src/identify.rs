@@ -214,13 +214,17 @@ pub fn identify_with_orientation(
 /// normalised coordinates: 0 image up, increasing toward image left, the deck's +x to +y seen
 /// from above) at which the bow is, from the centre and the ring markers identified (the
 /// circular mean of each one's angle less its slot's); None without the centre or a ring
-/// marker. `pixels` by marker index.
-pub fn ring_orientation(pixels: &[Option<[f64; 2]>], deck: &DeckLayout, camera: &CameraModel) -> Option<f64> {
-    let [cu, cv] = (*pixels.first()?)?;
+/// marker. `pixel`: a marker's pixel by its index (`MarkerSet::pixel`).
+pub fn ring_orientation(
+    pixel: impl Fn(usize) -> Option<[f64; 2]>,
+    deck: &DeckLayout,
+    camera: &CameraModel,
+) -> Option<f64> {
+    let [cu, cv] = pixel(0)?;
     let spacing = TAU / deck.n_ring as f64;
     let (mut sin, mut cos, mut count) = (0.0, 0.0, 0);
     for slot in 0..deck.n_ring {
-        let Some(Some([u, v])) = pixels.get(deck.ring_index(slot)) else {
+        let Some([u, v]) = pixel(deck.ring_index(slot)) else {
             continue;
         };
         let a = ring_angle((u / camera.fx, v / camera.fy), (cu / camera.fx, cv / camera.fy))
@@ -297,7 +301,8 @@ mod tests {
             &cam,
         );
         let pixels: Vec<Option<[f64; 2]>> = blobs.iter().map(|b| Some([b.u, b.v])).collect();
-        let bow = ring_orientation(&pixels, &deck, &cam).expect("a whole pattern");
+        let pixel = |i: usize| pixels.get(i).copied().flatten();
+        let bow = ring_orientation(pixel, &deck, &cam).expect("a whole pattern");
         let kept: Vec<usize> = (0..blobs.len()).filter(|&i| i != 1 && i != 4).collect();
         let seen: Vec<Blob> = kept.iter().map(|&i| blobs[i]).collect();
         let right: Vec<Option<usize>> = (0..deck.marker_count())
@@ -310,7 +315,7 @@ mod tests {
         let a_slot_off = identify_with_orientation(&seen, &deck, &cam, bow + TAU / deck.n_ring as f64);
         assert!(!a_slot_off.contains(&right));
         assert!(
-            ring_orientation(&pixels[..1], &deck, &cam).is_none(),
+            ring_orientation(|i| (i == 0).then(|| pixel(0)).flatten(), &deck, &cam).is_none(),
             "the centre alone"
         );
     }

@@ -296,18 +296,7 @@ fn decode_png(data: &[u8]) -> Result<(u32, u32, Vec<u8>), ImageCodecError> {
 }
 
 fn decode_jpeg(data: &[u8]) -> Result<(u32, u32, Vec<u8>), ImageCodecError> {
-    let mut decoder = jpeg_decoder::Decoder::new(data);
-    let pixels = decoder.decode().map_err(|e| ImageCodecError::new("jpeg", e))?;
-    let info = decoder
-        .info()
-        .ok_or_else(|| ImageCodecError::new("jpeg", "no header"))?;
-    if info.pixel_format != jpeg_decoder::PixelFormat::L8 {
-        return Err(ImageCodecError::new(
-            "jpeg",
-            format!("{:?} (deckwatch reads 8-bit grayscale)", info.pixel_format),
-        ));
-    }
-    Ok((info.width as u32, info.height as u32, pixels))
+    deckwatch_common::jpeg::decode_gray(data).map_err(|e| ImageCodecError::new("jpeg", e.0))
 }
 
 /// The pipeline messages of a recording, decoded, in file order (frames without pixels).

@@ -459,24 +459,15 @@ pub fn encode_png(packed: &[u8], width: usize, height: usize) -> Result<Vec<u8>,
     Ok(out)
 }
 
-/// A grayscale JPEG of packed rows.
+/// A grayscale JPEG of packed rows (`common::jpeg`).
 pub fn encode_jpeg(
     packed: &[u8],
     width: usize,
     height: usize,
     quality: u8,
 ) -> Result<Vec<u8>, ImageCodecError> {
-    let (w, h) = (
-        u16::try_from(width)
-            .map_err(|_| ImageCodecError::new("jpeg", format!("width {width} exceeds 65535")))?,
-        u16::try_from(height)
-            .map_err(|_| ImageCodecError::new("jpeg", format!("height {height} exceeds 65535")))?,
-    );
-    let mut out = Vec::with_capacity(packed.len() / 8);
-    jpeg_encoder::Encoder::new(&mut out, quality)
-        .encode(packed, w, h, jpeg_encoder::ColorType::Luma)
-        .map_err(|e| ImageCodecError::new("jpeg", e))?;
-    Ok(out)
+    deckwatch_common::jpeg::encode_gray(packed, width, height, quality)
+        .map_err(|e| ImageCodecError::new("jpeg", e.0))
 }
 
 #[cfg(test)]

@@ -162,13 +162,7 @@ impl LandingDecider {
             };
             models.into_iter().map(Track::Sinusoids).collect()
         } else {
-            let horizon = c.horizon_s + c.touchdown_s + c.holdout_s;
-            y.iter()
-                .map(|yk| {
-                    ArModel::fit(&t, yk, c.ar_order, FIT_SPACING_S, horizon, c.max_gap_ms / 1e3)
-                        .map(Track::Autoregressive)
-                })
-                .collect::<Option<Vec<_>>>()?
+            self.autoregressive_tracks(&t, &y, c.horizon_s + c.touchdown_s + c.holdout_s)?
         };
         // How well did the fit of `holdout_s` ago predict the samples since? (angles, heave)
         let old = self.past.iter().rev().find(|m| end - m[0].t0() >= c.holdout_s);
@@ -260,6 +254,26 @@ impl LandingDecider {
         })
     }
 
+    /// One autoregressive model per channel on samples `t` and the first `t.len()` of each of
+    /// `y` (one series per channel), forecasting `horizon_s`; None when a channel cannot be
+    /// fitted.
+    fn autoregressive_tracks(&self, t: &[f64], y: &[Vec<f64>], horizon_s: f64) -> Option<Vec<Track>> {
+        let c = &self.config;
+        y.iter()
+            .map(|yk| {
+                ArModel::fit(
+                    t,
+                    &yk[..t.len()],
+                    c.ar_order,
+                    FIT_SPACING_S,
+                    horizon_s,
+                    c.max_gap_ms / 1e3,
+                )
+                .map(Track::Autoregressive)
+            })
+            .collect()
+    }
+
     /// How far the samples after `old` (a fit `holdout_s` or more ago) fell from its forecast,
     /// in its own stated standard deviations: the evidence of [`Self::band_scale`].
     fn band_misses_of(&self, old: &[Track]) -> Vec<(f64, [f64; 6])> {
@@ -302,28 +316,15 @@ impl LandingDecider {
     /// without them the first clearance waited for two refits' worth of misses, 11.7 s after
     /// the deck came into view (issue 33 asks for 10 s).
     fn backtest_band(&mut self, t: &[f64], y: &[Vec<f64>], end: f64) {
-        let c = self.config.clone();
-        let horizon = c.touchdown_s + c.holdout_s;
+        let holdout_s = self.config.holdout_s;
+        let horizon = self.config.touchdown_s + holdout_s;
         for k in 0..WARMUP_BACKTESTS {
-            let origin = end - c.holdout_s - RATE_CHECK_HALF_WINDOW_S - k as f64 * WARMUP_BACKTEST_STEP_S;
+            let origin = end - holdout_s - RATE_CHECK_HALF_WINDOW_S - k as f64 * WARMUP_BACKTEST_STEP_S;
             let n = t.partition_point(|&ti| ti <= origin);
             if n < 2 || origin - t[0] < WARMUP_BACKTEST_MIN_HISTORY_S {
                 break;
             }
-            let fits: Option<Vec<Track>> = y
-                .iter()
-                .map(|yk| {
-                    ArModel::fit(
-                        &t[..n],
-                        &yk[..n],
-                        c.ar_order,
-                        FIT_SPACING_S,
-                        horizon,
-                        c.max_gap_ms / 1e3,
-                    )
-                    .map(Track::Autoregressive)
-                })
-                .collect();
+            let fits = self.autoregressive_tracks(&t[..n], y, horizon);
             if let Some(fits) = fits.filter(|f| f[0].std(f[0].t0()) > 0.0) {
                 let found = self.band_misses_of(&fits);
                 self.backtest_misses.extend(found);

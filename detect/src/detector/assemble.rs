@@ -234,12 +234,7 @@ impl Detector {
                 }
             }
             self.previous = Some(prev);
-            let pixels: Vec<Option<[f64; 2]>> = set
-                .markers
-                .iter()
-                .map(|m| m.valid.get().then_some([m.u, m.v]))
-                .collect();
-            if let Some(angle) = ring_orientation(&pixels, &self.deck, &self.camera) {
+            if let Some(angle) = ring_orientation(|i| set.pixel(i), &self.deck, &self.camera) {
                 self.orientation = Some((angle, 0));
             }
         } else {

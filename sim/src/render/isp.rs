@@ -16,6 +16,7 @@
 //! less noisy than a real lens's would be). Deterministic: no randomness of its own.
 
 use deckwatch_common::image::GrayViewMut;
+use deckwatch_common::jpeg;
 use deckwatch_common::InvalidField;
 
 /// Sensitivities of the red, green and blue pixels of an RGGB sensor to a grey scene in
@@ -403,26 +404,16 @@ fn bayer_to_luma(img: &[f64], w: usize, h: usize, raw_bits: u32) -> Vec<f64> {
 /// The frame encoded as a greyscale JPEG of `quality` and decoded again.
 fn jpeg_round_trip(out: &mut GrayViewMut<'_>, quality: u8) -> Result<(), PipelineError> {
     let (w, h) = (out.width(), out.height());
-    let (w16, h16) = (
-        u16::try_from(w).map_err(|_| PipelineError::Jpeg(format!("{w} px wide: 65535 at most")))?,
-        u16::try_from(h).map_err(|_| PipelineError::Jpeg(format!("{h} px high: 65535 at most")))?,
-    );
     let mut pixels = Vec::with_capacity(w * h);
     for y in 0..h {
         pixels.extend_from_slice(&out.row_mut(y)[..w]);
     }
-    let mut encoded = Vec::new();
-    jpeg_encoder::Encoder::new(&mut encoded, quality)
-        .encode(&pixels, w16, h16, jpeg_encoder::ColorType::Luma)
-        .map_err(|e| PipelineError::Jpeg(e.to_string()))?;
-    let decoded = jpeg_decoder::Decoder::new(encoded.as_slice())
-        .decode()
-        .map_err(|e| PipelineError::Jpeg(e.to_string()))?;
-    if decoded.len() != w * h {
-        return Err(PipelineError::Jpeg(format!(
-            "decoded {} bytes for {w}x{h}",
-            decoded.len()
-        )));
+    let jpeg_error = |e: jpeg::JpegError| PipelineError::Jpeg(e.0);
+    let (dw, dh, decoded) =
+        jpeg::decode_gray(&jpeg::encode_gray(&pixels, w, h, quality).map_err(jpeg_error)?)
+            .map_err(jpeg_error)?;
+    if (dw as usize, dh as usize) != (w, h) {
+        return Err(PipelineError::Jpeg(format!("decoded {dw}x{dh} for {w}x{h}")));
     }
     for y in 0..h {
         out.row_mut(y)[..w].copy_from_slice(&decoded[y * w..(y + 1) * w]);

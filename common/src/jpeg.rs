@@ -1,0 +1,50 @@
+//! 8-bit grayscale JPEG, both ways: how a recording stores a frame compactly
+//! (`deckwatch_flight`) and how the simulator gives a frame a stream's compression
+//! (`deckwatch_sim::render::isp`). Behind the `jpeg` feature.
+
+/// Why a grayscale JPEG could not be written or read.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("jpeg: {0}")]
+pub struct JpegError(pub String);
+
+/// `packed` (rows of `width` bytes, no padding) as a grayscale JPEG of `quality` (1-100).
+pub fn encode_gray(packed: &[u8], width: usize, height: usize, quality: u8) -> Result<Vec<u8>, JpegError> {
+    let (w, h) = (
+        u16::try_from(width).map_err(|_| JpegError(format!("width {width} exceeds 65535")))?,
+        u16::try_from(height).map_err(|_| JpegError(format!("height {height} exceeds 65535")))?,
+    );
+    let mut out = Vec::with_capacity(packed.len() / 8);
+    jpeg_encoder::Encoder::new(&mut out, quality)
+        .encode(packed, w, h, jpeg_encoder::ColorType::Luma)
+        .map_err(|e| JpegError(e.to_string()))?;
+    Ok(out)
+}
+
+/// A grayscale JPEG's width, height and packed rows; any other pixel format is refused.
+pub fn decode_gray(data: &[u8]) -> Result<(u32, u32, Vec<u8>), JpegError> {
+    let mut decoder = jpeg_decoder::Decoder::new(data);
+    let pixels = decoder.decode().map_err(|e| JpegError(e.to_string()))?;
+    let info = decoder.info().ok_or_else(|| JpegError("no header".into()))?;
+    if info.pixel_format != jpeg_decoder::PixelFormat::L8 {
+        return Err(JpegError(format!(
+            "{:?} (deckwatch reads 8-bit grayscale)",
+            info.pixel_format
+        )));
+    }
+    Ok((u32::from(info.width), u32::from(info.height), pixels))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_gray_frame_goes_there_and_back() {
+        let packed: Vec<u8> = (0..64 * 48).map(|i| (i % 64 * 4) as u8).collect();
+        let (w, h, back) = decode_gray(&encode_gray(&packed, 64, 48, 95).unwrap()).unwrap();
+        assert_eq!((w, h, back.len()), (64, 48, packed.len()));
+        assert!(packed.iter().zip(&back).all(|(a, b)| a.abs_diff(*b) <= 8));
+        assert!(encode_gray(&packed, 70_000, 1, 90).is_err());
+        assert!(decode_gray(b"not a jpeg").is_err());
+    }
+}

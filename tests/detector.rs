@@ -28,9 +28,10 @@ fn full_resolution_ship_motion_accuracy() {
     let mut sim = simulator(Scenario::Ship, cam, RenderOptions::realistic(), 1.0 / 1.7, 11);
     let mut det = Detector::new(cam, deck, DetectorConfig::for_camera(&cam, &deck));
     let est = PaperEstimator::new(cam, deck, PaperVariant::Atan2);
+    let pose = PoseEstimator::new(cam, deck, PoseConfig::default());
     let mut img = GrayImage::new(cam.width as usize, cam.height as usize);
     let (mut ss, mut n) = (0.0, 0);
-    let mut att = ErrorStats::default();
+    let (mut att, mut full_pose) = (ErrorStats::default(), ErrorStats::default());
     for k in 0..60 {
         let truth = sim.render_frame(k, &mut img.view_mut()).unwrap();
         det.reset_tracking();
@@ -41,23 +42,48 @@ fn full_resolution_ship_motion_accuracy() {
             ss += (m.u - t[0]).powi(2) + (m.v - t[1]).powi(2);
             n += 1;
         }
-        let e = est
-            .estimate(&set.pixels(9), Some(truth.sample.viewpoint.altitude_m))
+        let e = pose
+            .estimate_in_motion(
+                &set.pixels(9),
+                set.centre_stds_px(9).as_deref(),
+                set.perspective_corrected.get(),
+                &truth.sample.viewpoint.vehicle_attitude,
+                None,
+                true,
+            )
             .unwrap();
-        att.add(rpy_error_deg(&e.attitude.rpy, &truth.sample.attitude));
+        full_pose.add(rpy_error_deg(&e.attitude.rpy, &truth.sample.attitude));
+        // The paper's estimator takes the tilt from the ring's axis ratio, cos(tilt): near a
+        // level deck that is second order (0.5 deg of tilt is a ratio of 0.99996, below what
+        // a centre's 0.015 px on a 300 px ring resolves), so it is judged where the deck is
+        // tilted by 1 deg or more; the full pose, on every frame.
+        let a = truth.sample.attitude;
+        if (a.roll.cos() * a.pitch.cos()).acos().to_degrees() >= 1.0 {
+            let e = est
+                .estimate(&set.pixels(9), Some(truth.sample.viewpoint.altitude_m))
+                .unwrap();
+            att.add(rpy_error_deg(&e.attitude.rpy, &truth.sample.attitude));
+        }
     }
     let rms = (ss / n as f64).sqrt();
     println!(
-        "centroid RMS {rms:.4} px; attitude RMSE {:?} deg, max {:?}",
+        "centroid RMS {rms:.4} px; the paper's attitude RMSE {:?} deg, max {:?} ({} frames tilted 1 deg \
+         or more); the full pose's RMSE {:?}, max {:?}",
         att.rmse(),
-        att.max
+        att.max,
+        att.n,
+        full_pose.rmse(),
+        full_pose.max
     );
     assert!(rms <= 0.08, "centroid RMS {rms} px");
-    assert!(
-        att.rmse().iter().all(|&r| r <= 0.05),
-        "attitude RMSE {:?}",
-        att.rmse()
-    );
+    assert!(att.n >= 40, "{} tilted frames", att.n);
+    for stats in [&att, &full_pose] {
+        assert!(
+            stats.rmse().iter().all(|&r| r <= 0.05),
+            "attitude RMSE {:?}",
+            stats.rmse()
+        );
+    }
 }
 
 /// Paints a disc of value `value` and radius `r` (pixels) at (u, v).
@@ -248,6 +274,7 @@ fn a_pattern_without_its_bow_is_identified_from_the_rings_orientation() {
         let e = pose
             .estimate_in_motion(
                 &set.pixels(9),
+                set.centre_stds_px(9).as_deref(),
                 set.perspective_corrected.get(),
                 &truth.sample.viewpoint.vehicle_attitude,
                 None,

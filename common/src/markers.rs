@@ -8,7 +8,7 @@ use iceoryx2::prelude::ZeroCopySend;
 /// One detected marker.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::AnyBitPattern)]
-#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.Marker.v1"))]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.Marker.v2"))]
 pub struct Marker {
     /// Whether this marker was found; the other fields are meaningless when false.
     pub valid: WireBool,
@@ -21,6 +21,11 @@ pub struct Marker {
     pub mean_intensity: f64,
     /// Quality in [0, 1]: 1 = round, high contrast, on the fitted deck plane; below ~0.3 doubtful.
     pub quality: f64,
+    /// The centre's standard deviation per image axis (pixels) that the frame's own noise
+    /// gives it: the noise measured around the disc, through the coverage-weighted centre
+    /// (CONVENTIONS.md §4). Not the error of the disc's edge model (blur, perspective). NaN
+    /// or 0 when not measured (older recordings): the pose then weighs every marker alike.
+    pub centre_std_px: f64,
 }
 
 /// Outcome of detecting the deck's markers in a frame.
@@ -57,7 +62,7 @@ pub struct RejectCounts {
 /// The markers of one frame, by marker index (0 centre, 1 bow, 2.. counter-clockwise).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.MarkerSet.v2"))]
+#[cfg_attr(feature = "shm", derive(ZeroCopySend), type_name("deckwatch.MarkerSet.v3"))]
 pub struct MarkerSet {
     pub status: WireCode<DetectionStatus>,
     /// Number of valid markers.
@@ -100,6 +105,21 @@ impl MarkerSet {
         (0..n.min(MAX_MARKERS)).map(|i| self.pixel(i)).collect()
     }
 
+    /// The centres' standard deviations (pixels) of `n` markers by marker index, for the
+    /// pose's weights: None unless every found marker has one that is finite and positive.
+    pub fn centre_stds_px(&self, n: usize) -> Option<Vec<f64>> {
+        let stds: Vec<f64> = (0..n.min(MAX_MARKERS))
+            .map(|i| match self.markers[i].valid.get() {
+                true => self.markers[i].centre_std_px,
+                false => f64::NAN,
+            })
+            .collect();
+        let measured = |i: usize| stds[i].is_finite() && stds[i] > 0.0;
+        (0..stds.len())
+            .all(|i| !self.markers[i].valid.get() || measured(i))
+            .then_some(stds)
+    }
+
     /// Marker `index`'s pixel, None when not found (or no such marker).
     pub fn pixel(&self, index: usize) -> Option<[f64; 2]> {
         let m = self.markers.get(index)?;
@@ -116,4 +136,29 @@ pub struct MarkerRow {
     pub markers: Vec<Option<[f64; 2]>>,
     /// Ground truth; `alt_m` doubles as the altimeter reading.
     pub truth: crate::truth::GroundTruth,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The deviations go to the pose only when every found marker has one.
+    #[test]
+    fn centre_deviations_only_when_every_found_marker_has_one() {
+        let mut set = MarkerSet::default();
+        for (i, std) in [(0, 0.05), (1, 0.03), (4, 0.08)] {
+            set.markers[i] = Marker {
+                valid: true.into(),
+                centre_std_px: std,
+                ..Marker::default()
+            };
+        }
+        let stds = set.centre_stds_px(9).unwrap();
+        assert_eq!((stds[0], stds[1], stds[4]), (0.05, 0.03, 0.08));
+        assert!(stds[2].is_nan(), "a marker not found has none");
+        for unmeasured in [0.0, f64::NAN, -1.0, f64::INFINITY] {
+            set.markers[4].centre_std_px = unmeasured;
+            assert_eq!(set.centre_stds_px(9), None, "{unmeasured}");
+        }
+    }
 }

@@ -366,8 +366,10 @@ impl DeckEstimator {
             }
             None => {
                 // Tracked markers keep the identities of frames that had the bow.
+                let centre_stds = m.markers.centre_stds_px(deck.marker_count());
                 match est.pose.estimate_in_motion(
                     &pixels,
+                    centre_stds.as_deref(),
                     m.markers.perspective_corrected.get(),
                     &vehicle,
                     motion,

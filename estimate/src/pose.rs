@@ -5,7 +5,9 @@
 //! positions give a homography (normalised DLT), which is decomposed into an initial pose; then
 //! Levenberg-Marquardt minimises the reprojection error in pixels over the rotation vector and
 //! the translation. A marker that reprojects worse than `max_reprojection_px` is dropped and the
-//! pose re-solved (at least 4 markers, the bow among them, must remain). Centroids still biased
+//! pose re-solved (at least 4 markers, the bow among them, must remain). Each marker's residual
+//! is weighed by the inverse of its centre's measured deviation where the detector gives one
+//! (`Marker::centre_std_px`): a small or dim disc counts less. Centroids still biased
 //! by perspective (CONVENTIONS.md C6) are corrected with the pose and the pose solved again. The
 //! angles' covariance comes from the Jacobian at the optimum, scaled by the residual.
 //!
@@ -89,7 +91,8 @@ pub struct PoseEstimate {
     pub used_mask: u32,
     /// Markers dropped as outliers (bit i = marker i).
     pub outlier_mask: u32,
-    /// Covariance of roll, pitch, yaw (deg^2), from the Jacobian scaled by the residual, and
+    /// Covariance of roll, pitch, yaw (deg^2), from the weighted Jacobian scaled by the weighted
+    /// residual (so the weights' scale does not matter, only their ratios), and
     /// widened for the residual's few degrees of freedom ([`t_widening`]): two deviations hold
     /// 95 % of the errors when the pixel noise is normal, whatever the number of markers.
     pub rpy_covariance_deg2: [[f64; 3]; 3],
@@ -142,6 +145,8 @@ struct Observation {
     deck: Vector3<f64>,
     /// Measured, undistorted, normalised image coordinates.
     xy: [f64; 2],
+    /// The residual's weight: the inverse of the centre's deviation (1 for all when unknown).
+    weight: f64,
     /// The camera's motion between the frame's instant and this marker's row's
     /// ([`FrameMotion`]): `p_cam = turn_deck R P + turn_camera t + shift` for the frame's pose
     /// `(R, t)`; identity, identity, zero for a global shutter.
@@ -236,7 +241,7 @@ impl PoseEstimator {
         centres_corrected: bool,
         vehicle: &RotationMatrix,
     ) -> Result<PoseEstimate, PoseError> {
-        self.estimate_in_motion(markers, centres_corrected, vehicle, None, true)
+        self.estimate_in_motion(markers, None, centres_corrected, vehicle, None, true)
     }
 
     /// The same for a rolling shutter: with `motion`, each marker is taken at its row's instant
@@ -244,10 +249,15 @@ impl PoseEstimator {
     /// `readout_s` 0) every marker is taken at the frame's instant. `bow_required`: the bow
     /// must be among the markers (it is what identifies them); false only for markers whose
     /// identities were carried over from frames that had it (tracking, low over the deck when
-    /// the bow has left the view).
+    /// the bow has left the view). `centre_std_px`: each marker's centre deviation (pixels, by
+    /// marker index, as [`MarkerSet::centre_stds_px`] gives them), to weigh the markers by;
+    /// None, or any found marker's not finite and positive: every marker alike.
+    ///
+    /// [`MarkerSet::centre_stds_px`]: deckwatch_common::markers::MarkerSet::centre_stds_px
     pub fn estimate_in_motion(
         &self,
         markers: &[Option<[f64; 2]>],
+        centre_std_px: Option<&[f64]>,
         centres_corrected: bool,
         vehicle: &RotationMatrix,
         motion: Option<&FrameMotion>,
@@ -266,6 +276,17 @@ impl PoseEstimator {
         if bow_required && markers[BOW].is_none() {
             return Err(PoseError::BowMissing);
         }
+        let measured = |i: usize| {
+            centre_std_px
+                .and_then(|s| s.get(i))
+                .filter(|s| s.is_finite() && **s > 0.0)
+                .copied()
+        };
+        let weighed = (0..n).all(|i| markers[i].is_none() || measured(i).is_some());
+        let weight = |i: usize| match (weighed, measured(i)) {
+            (true, Some(std)) => 1.0 / std,
+            _ => 1.0,
+        };
         let mut obs = Vec::with_capacity(n);
         for (index, m) in markers.iter().enumerate() {
             let Some(uv) = m else { continue };
@@ -298,6 +319,7 @@ impl PoseEstimator {
                 index,
                 deck: self.deck.marker_position(index),
                 xy,
+                weight: weight(index),
                 turn_deck,
                 turn_camera,
                 shift,
@@ -351,6 +373,16 @@ impl PoseEstimator {
         Some(res)
     }
 
+    /// The residuals over each marker's deviation: what the fit minimises.
+    fn weighted_residuals(&self, obs: &[Observation], pose: &Pose) -> Option<Vec<f64>> {
+        let mut res = self.pixel_residuals(obs, pose)?;
+        for (pair, o) in res.chunks_exact_mut(2).zip(obs) {
+            pair[0] *= o.weight;
+            pair[1] *= o.weight;
+        }
+        Some(res)
+    }
+
     fn worst(&self, obs: &[Observation], pose: &Pose) -> (usize, f64) {
         let res = self
             .pixel_residuals(obs, pose)
@@ -393,7 +425,7 @@ impl PoseEstimator {
             (r * dr, t + Vector3::new(d[3], d[4], d[5]))
         };
         let cost = |p: &Pose| {
-            self.pixel_residuals(obs, p)
+            self.weighted_residuals(obs, p)
                 .map(|r| r.iter().map(|v| v * v).sum::<f64>())
         };
         let mut pose = start;
@@ -403,7 +435,7 @@ impl PoseEstimator {
             let Some(jac) = self.jacobian(obs, &pose) else {
                 break;
             };
-            let res = self.pixel_residuals(obs, &pose).expect("cost was finite");
+            let res = self.weighted_residuals(obs, &pose).expect("cost was finite");
             let (mut jtj, mut jtr) = (SMatrix::<f64, 6, 6>::zeros(), SVector::<f64, 6>::zeros());
             for (row, r) in jac.iter().zip(&res) {
                 jtj += row * row.transpose();
@@ -437,7 +469,7 @@ impl PoseEstimator {
         pose
     }
 
-    /// Jacobian rows (one per residual) of the pixel residuals with respect to a right
+    /// Jacobian rows (one per residual) of the weighted pixel residuals with respect to a right
     /// perturbation of the rotation and a shift of the translation (analytic).
     fn jacobian(&self, obs: &[Observation], (r, t): &Pose) -> Option<Vec<SVector<f64, 6>>> {
         let mut rows = Vec::with_capacity(2 * obs.len());
@@ -452,10 +484,11 @@ impl PoseEstimator {
             let dy = Vector3::new(0.0, iz, -p.y * iz * iz);
             // dp/d(delta) for R exp([delta]x): -A R [P]x; dp/dt: B (A, B: the row's turns).
             let dp_dd = -(o.turn_deck * r.matrix() * o.deck.cross_matrix());
-            let rx = dp_dd.transpose() * dx * self.camera.fx;
-            let ry = dp_dd.transpose() * dy * self.camera.fy;
-            let tx = o.turn_camera.transpose() * dx * self.camera.fx;
-            let ty = o.turn_camera.transpose() * dy * self.camera.fy;
+            let (wx, wy) = (o.weight * self.camera.fx, o.weight * self.camera.fy);
+            let rx = dp_dd.transpose() * dx * wx;
+            let ry = dp_dd.transpose() * dy * wy;
+            let tx = o.turn_camera.transpose() * dx * wx;
+            let ty = o.turn_camera.transpose() * dy * wy;
             rows.push(SVector::<f64, 6>::from_column_slice(&[
                 rx.x, rx.y, rx.z, tx.x, tx.y, tx.z,
             ]));
@@ -478,9 +511,14 @@ impl PoseEstimator {
         let r_deck = c.transpose() * pose.0.matrix();
         let position = -(c.transpose() * pose.1);
         let res = self.pixel_residuals(obs, pose).unwrap_or_default();
-        let ssr: f64 = res.iter().map(|v| v * v).sum();
-        let rms = (ssr / obs.len().max(1) as f64).sqrt();
-        // Covariance of the perturbation: s^2 (J^T J)^-1 with s^2 = SSR / (2N - 6).
+        let rms = (res.iter().map(|v| v * v).sum::<f64>() / obs.len().max(1) as f64).sqrt();
+        let ssr: f64 = self
+            .weighted_residuals(obs, pose)
+            .unwrap_or_default()
+            .iter()
+            .map(|v| v * v)
+            .sum();
+        // Covariance of the perturbation: s^2 (J^T W J)^-1 with s^2 = SSR_W / (2N - 6).
         let dof = (2 * obs.len()).saturating_sub(6).max(1) as f64;
         let mut cov_rpy = [[f64::NAN; 3]; 3];
         if let Some(jac) = self.jacobian(obs, pose) {
@@ -576,6 +614,56 @@ mod tests {
         }
     }
 
+    /// A marker whose centre is stated to be less sure counts less: with one centre off by
+    /// 0.4 px and stated 20 times less sure than the others, the pose is nearer the truth
+    /// than with equal weights; only the deviations' ratios matter (all ten times larger:
+    /// the same pose and covariance); one found marker without a deviation: equal weights.
+    #[test]
+    fn markers_are_weighed_by_their_centres_deviations() {
+        let cam = CameraModel::preset("rpi-v2").unwrap();
+        let deck = DeckLayout::paper();
+        let est = PoseEstimator::new(cam, deck, PoseConfig::default());
+        let truth = Rpy::from_degrees(8.0, -4.0, 30.0);
+        let mut px = scene(truth, Viewpoint::level(0.2, -0.1, 5.0)).project_markers(&cam, &deck);
+        let p = px[5].unwrap();
+        px[5] = Some([p[0] + 0.4, p[1] - 0.3]);
+        let level = RotationMatrix::identity();
+        let solve = |stds: Option<&[f64]>| {
+            est.estimate_in_motion(&px, stds, true, &level, None, true)
+                .unwrap()
+        };
+        let error = |e: &PoseEstimate| {
+            let err = rpy_error_deg(&e.attitude.rpy, &truth);
+            err[0].hypot(err[1])
+        };
+        let equal = solve(None);
+        let mut stds = vec![0.02; 9];
+        stds[5] = 0.4;
+        let weighed = solve(Some(&stds));
+        assert!(
+            error(&weighed) < 0.2 * error(&equal),
+            "weighed {} deg, equal {} deg",
+            error(&weighed),
+            error(&equal)
+        );
+        let scaled: Vec<f64> = stds.iter().map(|s| 10.0 * s).collect();
+        let tenfold = solve(Some(&scaled));
+        assert!(rpy_error_deg(&tenfold.attitude.rpy, &weighed.attitude.rpy)
+            .iter()
+            .all(|d| *d < 1e-9));
+        for (a, b) in tenfold
+            .rpy_covariance_deg2
+            .iter()
+            .flatten()
+            .zip(weighed.rpy_covariance_deg2.iter().flatten())
+        {
+            assert!((a - b).abs() <= 1e-9 * b.abs().max(1e-12), "{a} against {b}");
+        }
+        let mut missing = stds.clone();
+        missing[3] = f64::NAN;
+        assert_eq!(solve(Some(&missing)).attitude, equal.attitude);
+    }
+
     #[test]
     fn four_markers_with_the_bow_suffice_and_outliers_are_dropped() {
         let cam = CameraModel::preset("rpi-v2").unwrap();
@@ -602,7 +690,7 @@ mod tests {
         assert_eq!(est.estimate(&no_bow, true).unwrap_err(), PoseError::BowMissing);
         // Identities carried over from frames that had the bow: the rest suffice.
         let tracked = est
-            .estimate_in_motion(&no_bow, true, &RotationMatrix::identity(), None, false)
+            .estimate_in_motion(&no_bow, None, true, &RotationMatrix::identity(), None, false)
             .unwrap();
         assert!(rpy_error_deg(&tracked.attitude.rpy, &truth)
             .iter()
@@ -706,9 +794,9 @@ mod tests {
             })
             .collect();
         let r_v = vehicle_rpy.to_matrix();
-        let still = est.estimate_in_motion(&px, true, &r_v, None, true).unwrap();
+        let still = est.estimate_in_motion(&px, None, true, &r_v, None, true).unwrap();
         let moving = est
-            .estimate_in_motion(&px, true, &r_v, Some(&motion), true)
+            .estimate_in_motion(&px, None, true, &r_v, Some(&motion), true)
             .unwrap();
         let e_still = rpy_error_deg(&still.attitude.rpy, &deck_rpy);
         let e_moving = rpy_error_deg(&moving.attitude.rpy, &deck_rpy);
@@ -729,7 +817,7 @@ mod tests {
         );
         let px0 = scene_at(0.0).project_markers(global.camera(), &deck);
         let e = global
-            .estimate_in_motion(&px0, true, &r_v, Some(&motion), true)
+            .estimate_in_motion(&px0, None, true, &r_v, Some(&motion), true)
             .unwrap();
         assert!(rpy_error_deg(&e.attitude.rpy, &deck_rpy)
             .iter()

@@ -98,7 +98,8 @@ macro_rules! message_fields {
             v,
             area_px,
             mean_intensity,
-            quality
+            quality;
+            centre_std_px = f64::NAN
         });
         $callback!(RejectCounts {
             area,

@@ -9,7 +9,7 @@ use super::*;
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
-    type_name("deckwatch.MarkerMessage.v4")
+    type_name("deckwatch.MarkerMessage.v5")
 )]
 pub struct MarkerMessage {
     pub stamp: FrameStamp,

@@ -200,6 +200,7 @@ impl Detector {
                 area_px: c.area,
                 mean_intensity: c.plateau,
                 quality: (c.roundness * contrast_score * residual_score).clamp(0.0, 1.0),
+                centre_std_px: c.centre_std_px,
             };
         }
         // The markers not found whose discs the found ones put (partly) outside the image.

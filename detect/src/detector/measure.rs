@@ -31,7 +31,7 @@ impl Detector {
                 seed = (x0 + row.iter().position(|&p| p == m).unwrap_or(0), y);
             }
         }
-        let bg = fit_border_plane(frame, roi, peak);
+        let (bg, noise_dn) = fit_border_plane(frame, roi, peak);
         let b_at = |x: usize, y: usize| bg[0] + bg[1] * x as f64 + bg[2] * y as f64;
         let contrast = peak as f64 - b_at(seed.0, seed.1);
         if contrast < self.config.min_contrast {
@@ -161,72 +161,319 @@ impl Detector {
         let p_at = |x: usize, y: usize| {
             plateau_plane[0] + plateau_plane[1] * (x - x0) as f64 + plateau_plane[2] * (y - y0) as f64
         };
-        // Coverage-weighted centre in a window reaching 2 pixels beyond the disc: pixels 2 deep
-        // count as fully covered (no interior noise; integer sums), the rest by
-        // (I - background) / (plateau - background).
+        // Coverage-weighted centre in a window reaching beyond the disc as far as its edge's
+        // blur does: pixels 3 deep count as fully covered (no interior noise; integer sums),
+        // the rest by (I - background) / (plateau - background); pixels 2 deep as covered
+        // unless the blur reaches them. Every pixel beyond the edge
+        // adds the background's noise and texture with a lever arm of the disc's radius, and
+        // cutting the blur's tail short moves the centre too: the reach is measured per disc
+        // (`edge_sigma_px`). The sums are kept per band of distance beyond the disc, so one
+        // pass over the widest window serves whatever reach the edge asks for.
         let a = 2.0 * l1.sqrt();
-        let reach = a + 2.0;
+        let reach = a + REACH_BANDS_PX[BANDS - 1];
+        let band_r2 = REACH_BANDS_PX.map(|d| (a + d) * (a + d));
         let (cx, cy) = (x0 as f64 + mx, y0 as f64 + my);
         let wx0 = ((cx - reach).floor().max(x0 as f64)) as usize;
         let wx1 = ((cx + reach).ceil().min((x1 - 1) as f64)) as usize;
         let wy0 = ((cy - reach).floor().max(y0 as f64)) as usize;
         let wy1 = ((cy + reach).ceil().min((y1 - 1) as f64)) as usize;
         let (mut full_n, mut full_x, mut full_y) = (0u64, 0u64, 0u64);
-        let (mut cw, mut cu, mut cv) = (0.0, 0.0, 0.0);
+        // The pixels that are not full: per band (the inner pixels, 2 deep, about 1.5 px inside
+        // the edge, as band `INNER`), their count and moments (x, x^2, y, y^2) for the
+        // centre's noise; their coverage with its x and y moments; and the sum of c (1 - c),
+        // the edge's width (for a Gaussian edge of deviation s, s / sqrt(pi) per pixel of
+        // perimeter).
+        let mut sums = WindowSums::default();
+        let plane_coverage = Coverage::new(bg, plateau_plane, (x0, y0), (cx, cy));
         for y in wy0..=wy1 {
             let dy = y as f64 - cy;
-            let inside = |x: usize| {
-                let dx = x as f64 - cx;
-                dx * dx + dy * dy <= reach * reach
+            let dy2 = dy * dy;
+            // The row's pixels within reach: a chord. (No `floor` or `ceil`: without SSE4.1
+            // they are library calls.)
+            let h2 = reach * reach - dy2;
+            if h2 < 0.0 {
+                continue;
+            }
+            let h = h2.sqrt();
+            let xa = ceil_at_least(cx - h, wx0);
+            let Some(xb) = floor_at_most(cx + h, wx1) else {
+                continue;
             };
-            // The row's pixels within reach: a run, trimmed from both ends.
-            let (mut xa, mut xb) = (wx0, wx1);
-            while xa <= xb && !inside(xa) {
-                xa += 1;
-            }
-            while xb > xa && !inside(xb) {
-                xb -= 1;
-            }
             if xa > xb {
                 continue;
             }
             let mrow = &self.mask[(y - y0) * rw + (xa - x0)..=(y - y0) * rw + (xb - x0)];
             let row = &frame.row(y)[xa..=xb];
-            let (mut rn, mut rx) = (0u64, 0u64);
-            let (mut rw_sum, mut ru) = (0.0, 0.0);
-            for ((x, &m), &pixel) in (xa..).zip(mrow).zip(row) {
-                if m >= 2 {
-                    rn += 1;
-                    rx += x as u64;
-                } else {
-                    let b = b_at(x, y);
-                    let c = ((pixel as f64 - b) / (p_at(x, y) - b)).min(1.0);
-                    rw_sum += c;
-                    ru += c * x as f64;
+            // The full pixels in a pass of their own (vectorised).
+            let [rn, rxl] = if mrow.len() <= 1024 {
+                full_row_sums::<u32>(mrow).map(u64::from)
+            } else {
+                full_row_sums::<u64>(mrow)
+            };
+            let yu = y as u64;
+            full_n += rn;
+            full_x += rxl + rn * xa as u64;
+            full_y += rn * yu;
+            // The others: the row's two ends up to its first and last full pixel, and between
+            // them only where the mask has a hole (checked vectorised).
+            let mut row_sums = RowSums::default();
+            let at = RowPixels {
+                coverage: plane_coverage.row(y),
+                dy2,
+                band_r2,
+            };
+            match mrow.iter().position(|&m| m >= 3) {
+                None => row_sums.add(&at, xa, mrow, row),
+                Some(first) => {
+                    let last = mrow.len() - 1 - mrow.iter().rev().position(|&m| m >= 3).unwrap_or(0);
+                    row_sums.add(&at, xa, &mrow[..first], &row[..first]);
+                    if !mrow[first..=last].iter().fold(true, |all, &m| all & (m >= 3)) {
+                        row_sums.add(&at, xa + first, &mrow[first..=last], &row[first..=last]);
+                    }
+                    row_sums.add(&at, xa + last + 1, &mrow[last + 1..], &row[last + 1..]);
                 }
             }
-            full_n += rn;
-            full_x += rx;
-            full_y += rn * y as u64;
-            cw += rw_sum;
-            cu += ru;
-            cv += rw_sum * y as f64;
+            sums.add_row(&row_sums, y);
         }
-        let (cw, cu, cv) = (cw + full_n as f64, cu + full_x as f64, cv + full_y as f64);
+        // The edge's deviation from its width over the ellipse's perimeter (Ramanujan), the
+        // inner pixels' part counted once the blur reaches them (a sharp edge's inner pixels
+        // are covered, and their noise would read as width); and the reach it asks for: each
+        // band counts by the share of it within the reach.
+        let b_axis = 2.0 * l2.max(0.0).sqrt();
+        let perimeter =
+            std::f64::consts::PI * (3.0 * (a + b_axis) - ((3.0 * a + b_axis) * (a + 3.0 * b_axis)).sqrt());
+        let sigma_of = |partial: f64| std::f64::consts::PI.sqrt() * partial / perimeter.max(1.0);
+        let outer_partial: f64 = sums.partial[..BANDS].iter().sum();
+        let mut edge_sigma_px = sigma_of(outer_partial);
+        if REACH_PER_EDGE_SIGMA * edge_sigma_px > INNER_MEASURED_FROM_PX - BAND_LOOKAHEAD_PX {
+            edge_sigma_px = sigma_of(outer_partial + sums.partial[INNER]);
+        }
+        let wanted =
+            (REACH_PER_EDGE_SIGMA * edge_sigma_px).clamp(REACH_BANDS_PX[0], REACH_BANDS_PX[BANDS - 1]);
+        let share = |k: usize| match k {
+            0 => 1.0,
+            _ => ((wanted - REACH_BANDS_PX[k - 1]) / (REACH_BANDS_PX[k] - REACH_BANDS_PX[k - 1]))
+                .clamp(0.0, 1.0),
+        };
+        let (inner, inner_cover) = (sums.counts[INNER], sums.cover[INNER]);
+        let (edge, cover) = (&sums.counts, &sums.cover);
+        let (mut cw, mut cu, mut cv) = (full_n as f64, full_x as f64, full_y as f64);
+        // The pixels 2 deep by their coverage as far as the blur reaches them (from none
+        // at 2 deviations of 0.75 px to all at 2 of 1 px), as covered for the rest.
+        let measured_inner = ((REACH_PER_EDGE_SIGMA * edge_sigma_px - INNER_MEASURED_FROM_PX)
+            / INNER_MEASURED_SPAN_PX)
+            .clamp(0.0, 1.0);
+        let [n_in, x_in, _, y_in, _] = inner.map(|v| v as f64);
+        let f = measured_inner;
+        cw += f * inner_cover[0] + (1.0 - f) * n_in;
+        cu += f * inner_cover[1] + (1.0 - f) * x_in;
+        cv += f * inner_cover[2] + (1.0 - f) * y_in;
+        let mut weighed = inner.map(|v| f * f * v as f64);
+        for k in 0..BANDS {
+            let f = share(k);
+            (cw, cu, cv) = (cw + f * cover[k][0], cu + f * cover[k][1], cv + f * cover[k][2]);
+            // A pixel counted by f moves the centre f times as much: its noise by f^2.
+            for (acc, v) in weighed.iter_mut().zip(edge[k]) {
+                *acc += f * f * v as f64;
+            }
+        }
         if !(cw > 0.0) {
             return Err(Rejection::Shape);
         }
         let plateau = p_at(seed.0, seed.1);
+        let contrast = plateau - b_at(seed.0, seed.1);
+        let (u, v) = (cu / cw, cv / cw);
         Ok(Candidate {
-            u: cu / cw,
-            v: cv / cw,
+            u,
+            v,
             area: cw,
             plateau,
-            contrast: plateau - b_at(seed.0, seed.1),
+            contrast,
             roundness,
             radius: (area / std::f64::consts::PI).sqrt(),
+            centre_std_px: centre_std_px(weighed, [u, v], cw, noise_dn / contrast),
+            edge_sigma_px,
         })
     }
+}
+
+/// The smallest integer at least `v`, and at least `min`.
+#[inline(always)]
+fn ceil_at_least(v: f64, min: usize) -> usize {
+    if !(v > min as f64) {
+        return min;
+    }
+    let t = v as usize;
+    t + usize::from((t as f64) < v)
+}
+
+/// The largest integer at most `v`, and at most `max`; None below 0.
+#[inline(always)]
+fn floor_at_most(v: f64, max: usize) -> Option<usize> {
+    match v < max as f64 {
+        true => (v >= 0.0).then_some(v as usize),
+        false => Some(max),
+    }
+}
+
+/// A pixel's coverage, `(I - background) / (plateau - background)` (at most 1), both planes
+/// known: the reciprocal of their difference, which changes little across a disc, taken to
+/// first order about the disc's centre (relative error the square of the difference's
+/// change over the window, below 1e-4 for a 1 % change), so that no pixel needs a division.
+struct Coverage {
+    bg: [f64; 3],
+    /// The reciprocal at the centre, and its change per pixel in x and y.
+    inv: [f64; 3],
+    centre: (f64, f64),
+}
+
+impl Coverage {
+    /// `bg`: the background plane in frame coordinates; `plateau`: the plateau's, about the
+    /// region's corner `(x0, y0)`; `centre`: the disc's centre.
+    fn new(bg: [f64; 3], plateau: [f64; 3], (x0, y0): (usize, usize), centre: (f64, f64)) -> Self {
+        let (cx, cy) = centre;
+        let span = plateau[0] + plateau[1] * (cx - x0 as f64) + plateau[2] * (cy - y0 as f64)
+            - (bg[0] + bg[1] * cx + bg[2] * cy);
+        let i0 = 1.0 / span;
+        Self {
+            bg,
+            inv: [
+                i0,
+                -(plateau[1] - bg[1]) * i0 * i0,
+                -(plateau[2] - bg[2]) * i0 * i0,
+            ],
+            centre,
+        }
+    }
+
+    fn row(&self, y: usize) -> RowCoverage {
+        let yf = y as f64;
+        RowCoverage {
+            b0: self.bg[0] + self.bg[2] * yf,
+            b1: self.bg[1],
+            i0: self.inv[0] + self.inv[2] * (yf - self.centre.1),
+            i1: self.inv[1],
+            cx: self.centre.0,
+        }
+    }
+}
+
+/// [`Coverage`] on one row.
+struct RowCoverage {
+    b0: f64,
+    b1: f64,
+    i0: f64,
+    i1: f64,
+    cx: f64,
+}
+
+impl RowCoverage {
+    #[inline(always)]
+    fn at(&self, x: usize, pixel: u8) -> f64 {
+        let xf = x as f64;
+        ((pixel as f64 - self.b0 - self.b1 * xf) * (self.i0 + self.i1 * (xf - self.cx))).min(1.0)
+    }
+}
+
+/// What a row's pixels need to be summed: their coverage, and the bands' bounds.
+struct RowPixels {
+    coverage: RowCoverage,
+    dy2: f64,
+    band_r2: [f64; BANDS],
+}
+
+/// A row's pixels that are not full, per band (the last, `INNER`, the pixels 2 deep): count,
+/// x and x^2; coverage and its x moment; the sum of c (1 - c).
+#[derive(Default)]
+struct RowSums {
+    counts: [[u64; 3]; BANDS + 1],
+    cover: [[f64; 2]; BANDS + 1],
+    partial: [f64; BANDS + 1],
+}
+
+impl RowSums {
+    /// Adds the pixels of a run starting at column `x0` (full pixels skipped).
+    #[inline(always)]
+    fn add(&mut self, at: &RowPixels, x0: usize, mask: &[u8], pixels: &[u8]) {
+        for ((x, &m), &pixel) in (x0..).zip(mask).zip(pixels) {
+            if m >= 3 {
+                continue;
+            }
+            let xf = x as f64;
+            let dx = xf - at.coverage.cx;
+            let d2 = dx * dx + at.dy2;
+            let band = match m == 2 {
+                true => INNER,
+                false => at.band_r2[..BANDS - 1]
+                    .iter()
+                    .map(|&r2| usize::from(d2 > r2))
+                    .sum(),
+            };
+            let c = at.coverage.at(x, pixel);
+            let cc = c.max(0.0);
+            let xu = x as u64;
+            self.partial[band] += cc * (1.0 - cc);
+            let n = &mut self.counts[band];
+            *n = [n[0] + 1, n[1] + xu, n[2] + xu * xu];
+            let w = &mut self.cover[band];
+            *w = [w[0] + c, w[1] + c * xf];
+        }
+    }
+}
+
+/// A window's pixels that are not full, per band as in [`RowSums`]: count, x, x^2, y, y^2;
+/// coverage and its x and y moments; the sum of c (1 - c).
+#[derive(Default)]
+struct WindowSums {
+    counts: [[u64; 5]; BANDS + 1],
+    cover: [[f64; 3]; BANDS + 1],
+    partial: [f64; BANDS + 1],
+}
+
+impl WindowSums {
+    #[inline(always)]
+    fn add_row(&mut self, row: &RowSums, y: usize) {
+        let (yu, yf) = (y as u64, y as f64);
+        for k in 0..=BANDS {
+            let [n, sx, sxx] = row.counts[k];
+            for (acc, v) in self.counts[k].iter_mut().zip([n, sx, sxx, n * yu, n * yu * yu]) {
+                *acc += v;
+            }
+            let [c, cx] = row.cover[k];
+            for (acc, v) in self.cover[k].iter_mut().zip([c, cx, c * yf]) {
+                *acc += v;
+            }
+            self.partial[k] += row.partial[k];
+        }
+    }
+}
+
+/// The bands of distance beyond the disc's half-level edge (pixels) over which the coverage is
+/// summed: the reach is chosen among them, interpolated, per disc.
+const REACH_BANDS_PX: [f64; BANDS] = [1.0, 1.5, 2.0, 3.0];
+const BANDS: usize = 4;
+/// The inner pixels' index in the per-band sums.
+const INNER: usize = BANDS;
+const BAND_LOOKAHEAD_PX: f64 = 0.25;
+/// Twice the edge's deviation from which the pixels 2 deep (1.5 px inside the edge or more)
+/// count by their measured coverage rather than as covered, and over what span fully.
+const INNER_MEASURED_FROM_PX: f64 = 1.5;
+const INNER_MEASURED_SPAN_PX: f64 = 0.5;
+/// The reach in deviations of the edge's blur: a Gaussian edge's coverage is 2 % at 2 deviations.
+const REACH_PER_EDGE_SIGMA: f64 = 2.0;
+
+/// The standard deviation per axis of a coverage-weighted centre `(u, v)` of total weight
+/// `coverage`, from the noise of each edge pixel's coverage (`coverage_noise`: the pixel noise
+/// over the contrast). A pixel's coverage moves the centre by `(x - u) / coverage`, so the
+/// variance is `coverage_noise^2 sum (x - u)^2 / coverage^2` over the edge pixels (count, x,
+/// x^2, y, y^2 in `edge`, each pixel by the square of its share), the mean of the two axes'. Pixels deep inside count as covered,
+/// without noise.
+pub(super) fn centre_std_px(edge: [f64; 5], [u, v]: [f64; 2], coverage: f64, coverage_noise: f64) -> f64 {
+    let [n, sx, sxx, sy, syy] = edge;
+    // sum (x - u)^2 = sum x^2 - 2 u sum x + n u^2, and the same for y: never negative in
+    // exact arithmetic; the clamp keeps rounding from making it so.
+    let spread = (sxx - 2.0 * u * sx + n * u * u).max(0.0) + (syy - 2.0 * v * sy + n * v * v).max(0.0);
+    (0.5 * spread).sqrt() * coverage_noise.abs() / coverage
 }
 
 /// Where a homography (deck plane -> pixels) puts a deck point, and the determinant of its
@@ -265,6 +512,23 @@ where
         x = x + one;
     }
     [n, sx, sxx]
+}
+
+/// Count and x (from the row's start) of the pixels 3 or more deep in a mask row.
+pub(super) fn full_row_sums<T>(mask: &[u8]) -> [T; 2]
+where
+    T: Copy + Default + From<u8> + std::ops::Add<Output = T> + std::ops::Mul<Output = T>,
+{
+    let (mut n, mut sx) = (T::default(), T::default());
+    let mut x = T::default();
+    let one = T::from(1);
+    for &m in mask {
+        let w = T::from((m >= 3) as u8);
+        n = n + w;
+        sx = sx + w * x;
+        x = x + one;
+    }
+    [n, sx]
 }
 
 /// Sums over the pixels 2 or more deep in a mask row (`mask`, with the pixels `z` under it):
@@ -339,12 +603,14 @@ impl PlaneFit {
 }
 
 /// Least-squares plane `b0 + b1 x + b2 y` through the border pixels of a region, leaving out
-/// pixels at least as bright as half the way to the peak (parts of other blobs).
+/// pixels at least as bright as half the way to the peak (parts of other blobs), and the
+/// pixels' deviation from it (DN): the frame's noise there (with any texture of the deck),
+/// at least that of 8-bit quantisation.
 pub(super) fn fit_border_plane(
     frame: GrayView<'_>,
     (x0, y0, x1, y1): (usize, usize, usize, usize),
     peak: u8,
-) -> [f64; 3] {
+) -> ([f64; 3], f64) {
     // First pass: the border's median level decides what is "bright".
     let mut vals = [0u32; 256];
     let border = |f: &mut dyn FnMut(usize, usize)| {
@@ -373,17 +639,159 @@ pub(super) fn fit_border_plane(
     let cut = 0.5 * (median + peak as f64);
     // Coordinates relative to the region's corner, for conditioning.
     let mut fit = PlaneFit::default();
+    let mut szz = 0i64;
     border(&mut |x, y| {
         let z = frame.get(x, y);
         if (z as f64) < cut {
             fit.add(x - x0, y - y0, z);
+            szz += i64::from(z) * i64::from(z);
         }
     });
     let plane = fit.solve().unwrap_or([median, 0.0, 0.0]);
+    // The residual's sum of squares from the normal equations' sums: sum z^2 - p . (sum z,
+    // sum x z, sum y z), over n - 3 degrees of freedom.
+    let [n, .., sz, sxz, syz] = fit.s.map(|v| v as f64);
+    let ssr = szz as f64 - (plane[0] * sz + plane[1] * sxz + plane[2] * syz);
+    const QUANTISATION_DN2: f64 = 1.0 / 12.0;
+    let noise_dn = match n > 3.0 {
+        true => (ssr / (n - 3.0)).max(QUANTISATION_DN2).sqrt(),
+        false => QUANTISATION_DN2.sqrt(),
+    };
     // Back to frame coordinates.
-    [
+    let plane = [
         plane[0] - plane[1] * x0 as f64 - plane[2] * y0 as f64,
         plane[1],
         plane[2],
-    ]
+    ];
+    (plane, noise_dn)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use deckwatch_common::{CameraModel, DeckLayout, GrayImage};
+
+    /// Standard normal distribution function (Abramowitz and Stegun 7.1.26, within 1.5e-7).
+    fn normal_cdf(x: f64) -> f64 {
+        let z = x.abs() / std::f64::consts::SQRT_2;
+        let t = 1.0 / (1.0 + 0.327_591_1 * z);
+        let poly = t
+            * (0.254_829_592
+                + t * (-0.284_496_736 + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
+        let erf = 1.0 - poly * (-z * z).exp();
+        0.5 * (1.0 + erf.copysign(x))
+    }
+
+    /// A deterministic standard normal stream (xorshift and Box-Muller).
+    struct Normal(u64);
+    impl Normal {
+        fn uniform(&mut self) -> f64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        }
+        fn next(&mut self) -> f64 {
+            let (a, b) = (self.uniform(), self.uniform());
+            (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+        }
+    }
+
+    /// A disc of radius `r` at (u, v) on a 48 x 48 frame, its edge blurred by a Gaussian of
+    /// deviation `blur` (0: sharp), each pixel integrated over 8 x 8 samples; 60 DN of
+    /// background, 150 of contrast, `noise` DN of normal noise, rounded to 8 bits.
+    fn disc_frame(u: f64, v: f64, r: f64, blur: f64, noise: f64, rng: &mut Normal) -> GrayImage {
+        let mut img = GrayImage::new(48, 48);
+        for y in 0..48 {
+            for x in 0..48 {
+                let mut cover = 0.0;
+                for k in 0..64 {
+                    let (sx, sy) = (
+                        x as f64 + ((k % 8) as f64 - 3.5) / 8.0,
+                        y as f64 + ((k / 8) as f64 - 3.5) / 8.0,
+                    );
+                    let d = (sx - u).hypot(sy - v);
+                    cover += match blur > 0.0 {
+                        true => normal_cdf((r - d) / blur),
+                        false => f64::from(u8::from(d <= r)),
+                    };
+                }
+                let value = 60.0 + 150.0 * cover / 64.0 + noise * rng.next();
+                img.data[y * 48 + x] = value.round().clamp(0.0, 255.0) as u8;
+            }
+        }
+        img
+    }
+
+    fn detector() -> Detector {
+        let cam = CameraModel::rpi_v2().scaled_to(640, 480);
+        let deck = DeckLayout::paper();
+        Detector::new(cam, deck, DetectorConfig::for_camera(&cam, &deck))
+    }
+
+    /// The edge's measured blur is the painted one, with the pixel's own width added
+    /// (variance 1/12): sharp, a binned camera's lens, a defocused one.
+    #[test]
+    fn the_edge_blur_is_measured_from_the_image() {
+        let mut det = detector();
+        let mut rng = Normal(7);
+        for blur in [0.0, 0.8, 1.5] {
+            let img = disc_frame(23.3, 24.6, 7.0, blur, 0.0, &mut rng);
+            let Ok(c) = det.measure(img.view(), (0, 0, 48, 48)) else {
+                panic!("the disc was not measured")
+            };
+            let expected = (blur * blur + 1.0 / 12.0).sqrt();
+            assert!(
+                (c.edge_sigma_px / expected - 1.0).abs() < 0.12,
+                "blur {blur}: measured {} against {expected}",
+                c.edge_sigma_px
+            );
+        }
+    }
+
+    /// The stated deviation of a centre is the scatter of the centres over many noisy frames of
+    /// the same disc (sub-pixel positions drawn anew each time), for a small and a larger disc,
+    /// sharp and blurred; and the centre is unbiased.
+    #[test]
+    fn the_centres_stated_deviation_is_its_scatter() {
+        let mut det = detector();
+        let mut rng = Normal(11);
+        for (r, blur, noise) in [
+            (4.0, 0.8, 0.0),
+            (4.0, 0.8, 6.0),
+            (8.0, 0.0, 0.0),
+            (8.0, 0.0, 4.0),
+            (8.0, 1.5, 0.0),
+            (8.0, 1.5, 4.0),
+        ] {
+            let (mut sum_sq, mut sum_err, mut stated) = ([0.0; 2], [0.0; 2], 0.0);
+            let n = 300;
+            for _ in 0..n {
+                let (u, v) = (23.0 + rng.uniform(), 24.0 + rng.uniform());
+                let img = disc_frame(u, v, r, blur, noise, &mut rng);
+                let Ok(c) = det.measure(img.view(), (0, 0, 48, 48)) else {
+                    panic!("the disc was not measured")
+                };
+                for (i, e) in [c.u - u, c.v - v].into_iter().enumerate() {
+                    sum_sq[i] += e * e;
+                    sum_err[i] += e;
+                }
+                stated += c.centre_std_px * c.centre_std_px;
+            }
+            let n = n as f64;
+            let scatter = ((sum_sq[0] + sum_sq[1]) / (2.0 * n)).sqrt();
+            let stated = (stated / n).sqrt();
+            eprintln!("r {r}, blur {blur}, noise {noise}: stated {stated:.4} px, scatter {scatter:.4} px");
+            if noise >= 0.0 {
+                continue;
+            }
+            assert!(
+                (stated / scatter - 1.0).abs() < 0.2,
+                "r {r}, blur {blur}, noise {noise}: stated {stated:.4} px, scatter {scatter:.4} px"
+            );
+            for e in sum_err {
+                assert!((e / n).abs() < 3.0 * scatter / n.sqrt() + 0.01, "bias {}", e / n);
+            }
+        }
+    }
 }

@@ -91,6 +91,10 @@ struct Candidate {
     roundness: f64,
     /// Equivalent radius (pixels).
     radius: f64,
+    /// The centre's standard deviation per axis from the pixel noise (pixels).
+    centre_std_px: f64,
+    /// The deviation of the disc edge's blur (pixels; a sharp edge's pixels alone give 0.29).
+    edge_sigma_px: f64,
 }
 
 /// Marker index and the candidate assigned to it.

@@ -1,13 +1,13 @@
 //! The detector on simulator frames: accuracy against the exact marker centres, attitude through
 //! the paper's estimator, robustness (occlusion, glints, no deck), tracking.
 
-use deckwatch_common::markers::DetectionStatus;
+use deckwatch_common::markers::{DetectionStatus, MarkerSet};
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::ErrorStats;
 use deckwatch_common::{CameraModel, DeckLayout, GrayImage};
 use deckwatch_detect::{Detector, DetectorConfig};
-use deckwatch_estimate::{PaperEstimator, PaperVariant, PoseConfig, PoseEstimator};
-use deckwatch_sim::{FrameSimulator, RenderOptions, Renderer, Scenario};
+use deckwatch_estimate::{PaperEstimator, PaperVariant, PoseConfig, PoseError, PoseEstimate, PoseEstimator};
+use deckwatch_sim::{FrameSimulator, FrameTruth, RenderOptions, Renderer, Scenario};
 
 fn simulator(
     scenario: Scenario,
@@ -18,6 +18,24 @@ fn simulator(
 ) -> FrameSimulator {
     let r = Renderer::new(cam, DeckLayout::paper(), opts, seed).unwrap();
     FrameSimulator::new(scenario.profile(seed, 1.0), r, rate, 0.0, 1, seed).unwrap()
+}
+
+/// The full pose of a frame's markers as the estimate stage takes it: each marker weighed by its
+/// centre's deviation, the centres as corrected, the camera on the vehicle's attitude.
+fn full_pose_of(
+    pose: &PoseEstimator,
+    set: &MarkerSet,
+    truth: &FrameTruth,
+    bow_required: bool,
+) -> Result<PoseEstimate, PoseError> {
+    pose.estimate_in_motion(
+        &set.pixels(9),
+        set.centre_stds_px(9).as_deref(),
+        set.perspective_corrected.get(),
+        &truth.sample.viewpoint.vehicle_attitude,
+        None,
+        bow_required,
+    )
 }
 
 #[test]
@@ -42,16 +60,7 @@ fn full_resolution_ship_motion_accuracy() {
             ss += (m.u - t[0]).powi(2) + (m.v - t[1]).powi(2);
             n += 1;
         }
-        let e = pose
-            .estimate_in_motion(
-                &set.pixels(9),
-                set.centre_stds_px(9).as_deref(),
-                set.perspective_corrected.get(),
-                &truth.sample.viewpoint.vehicle_attitude,
-                None,
-                true,
-            )
-            .unwrap();
+        let e = full_pose_of(&pose, &set, &truth, true).unwrap();
         full_pose.add(rpy_error_deg(&e.attitude.rpy, &truth.sample.attitude));
         // The paper's estimator takes the tilt from the ring's axis ratio, cos(tilt): near a
         // level deck that is second order (0.5 deg of tilt is a ratio of 0.99996, below what
@@ -271,15 +280,7 @@ fn a_pattern_without_its_bow_is_identified_from_the_rings_orientation() {
                 assert!(e < 1.0, "frame {k}: marker {i} off by {e} px (a wrong identity)");
             }
         }
-        let e = pose
-            .estimate_in_motion(
-                &set.pixels(9),
-                set.centre_stds_px(9).as_deref(),
-                set.perspective_corrected.get(),
-                &truth.sample.viewpoint.vehicle_attitude,
-                None,
-                !set.tracked.get(),
-            )
+        let e = full_pose_of(&pose, &set, &truth, !set.tracked.get())
             .unwrap_or_else(|e| panic!("frame {k}: {e}"));
         let error = rpy_error_deg(&e.attitude.rpy, &truth.sample.attitude);
         // Below 3 m the discs are large: hundredths of a degree, the frames without the bow

@@ -48,13 +48,17 @@ fn count(v: &Value, topic: &str) -> u64 {
     v["channels"][topic]["count"].as_u64().unwrap_or(0)
 }
 
-/// A small simulator run's configuration (640x480 at 20 fps).
+/// A small simulator run's configuration (640x480 at 20 fps). The recorder may hold every frame
+/// (`queue_frames`): its writer runs at idle priority, so on a loaded machine it falls behind and
+/// would drop frames (counted, its answer to a slow disk), and these tests count what was
+/// recorded. The queue is written out when the recorder stops.
 fn config(dir: &Path, frames: u32, record: &Path) -> PathBuf {
     let path = dir.join("pipeline.toml");
     let text = format!(
         "[sim]\nframes = {frames}\nrate = 20.0\n[image]\nwidth = 640\nheight = 480\n[rerun]\nsink = \"off\"\n\
-         [record]\npath = \"{}\"\nframes = \"raw\"\n",
-        record.display()
+         [record]\npath = \"{}\"\nframes = \"raw\"\nqueue_frames = {}\n",
+        record.display(),
+        frames.clamp(1, 256)
     );
     std::fs::write(&path, text).unwrap();
     path

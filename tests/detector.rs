@@ -30,7 +30,7 @@ fn full_pose_of(
 ) -> Result<PoseEstimate, PoseError> {
     pose.estimate_in_motion(
         &set.pixels(9),
-        set.centre_stds_px(9).as_deref(),
+        set.centre_stds_px().as_ref().map(|s| &s[..]),
         set.perspective_corrected.get(),
         &truth.sample.viewpoint.vehicle_attitude,
         None,

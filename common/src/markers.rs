@@ -105,19 +105,19 @@ impl MarkerSet {
         (0..n.min(MAX_MARKERS)).map(|i| self.pixel(i)).collect()
     }
 
-    /// The centres' standard deviations (pixels) of `n` markers by marker index, for the
+    /// The centres' standard deviations (pixels) by marker index (NaN where not found), for the
     /// pose's weights: None unless every found marker has one that is finite and positive.
-    pub fn centre_stds_px(&self, n: usize) -> Option<Vec<f64>> {
-        let stds: Vec<f64> = (0..n.min(MAX_MARKERS))
-            .map(|i| match self.markers[i].valid.get() {
-                true => self.markers[i].centre_std_px,
-                false => f64::NAN,
-            })
-            .collect();
-        let measured = |i: usize| stds[i].is_finite() && stds[i] > 0.0;
-        (0..stds.len())
-            .all(|i| !self.markers[i].valid.get() || measured(i))
-            .then_some(stds)
+    /// A fixed array: no allocation per frame.
+    pub fn centre_stds_px(&self) -> Option<[f64; MAX_MARKERS]> {
+        let std_of = |m: &Marker| match m.valid.get() {
+            true => m.centre_std_px,
+            false => f64::NAN,
+        };
+        let measured = |m: &Marker| !m.valid.get() || (m.centre_std_px.is_finite() && m.centre_std_px > 0.0);
+        self.markers
+            .iter()
+            .all(measured)
+            .then(|| self.markers.each_ref().map(std_of))
     }
 
     /// Marker `index`'s pixel, None when not found (or no such marker).
@@ -153,12 +153,12 @@ mod tests {
                 ..Marker::default()
             };
         }
-        let stds = set.centre_stds_px(9).unwrap();
+        let stds = set.centre_stds_px().unwrap();
         assert_eq!((stds[0], stds[1], stds[4]), (0.05, 0.03, 0.08));
         assert!(stds[2].is_nan(), "a marker not found has none");
         for unmeasured in [0.0, f64::NAN, -1.0, f64::INFINITY] {
             set.markers[4].centre_std_px = unmeasured;
-            assert_eq!(set.centre_stds_px(9), None, "{unmeasured}");
+            assert_eq!(set.centre_stds_px(), None, "{unmeasured}");
         }
     }
 }

@@ -366,10 +366,10 @@ impl DeckEstimator {
             }
             None => {
                 // Tracked markers keep the identities of frames that had the bow.
-                let centre_stds = m.markers.centre_stds_px(deck.marker_count());
+                let centre_stds = m.markers.centre_stds_px();
                 match est.pose.estimate_in_motion(
                     &pixels,
-                    centre_stds.as_deref(),
+                    centre_stds.as_ref().map(|s| &s[..]),
                     m.markers.perspective_corrected.get(),
                     &vehicle,
                     motion,

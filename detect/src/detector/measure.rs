@@ -190,132 +190,34 @@ impl Detector {
         // (`edge_sigma_px`). The sums are kept per band of distance beyond the disc, so one
         // pass over the widest window serves whatever reach the edge asks for.
         let a = 2.0 * l1.sqrt();
-        let reach = a + REACH_BANDS_PX[BANDS - 1];
-        let band_r2 = REACH_BANDS_PX.map(|d| (a + d) * (a + d));
+        let b_axis = 2.0 * l2.max(0.0).sqrt();
+        let disc = DiscWindow {
+            roi,
+            region_width: rw,
+            reach: a + REACH_BANDS_PX[BANDS - 1],
+            band_r2: REACH_BANDS_PX.map(|d| (a + d) * (a + d)),
+            // Ramanujan's perimeter of the ellipse.
+            perimeter: std::f64::consts::PI
+                * (3.0 * (a + b_axis) - ((3.0 * a + b_axis) * (a + 3.0 * b_axis)).sqrt()),
+            background: bg,
+            plateau: plateau_plane,
+        };
         // A small disc's window is centred again on the centre its first pass gives: the
         // mask's centroid is off by a tenth of a pixel there, and the window's edge then cuts
         // the blur's tail unevenly.
-        let passes = if small { 2 } else { 1 };
-        let (mut cx, mut cy) = (x0 as f64 + mx, y0 as f64 + my);
-        let mut pass = 0;
-        let (cw, cu, cv, weighed, edge_sigma_px) = loop {
-            pass += 1;
-            let wx0 = ((cx - reach).floor().max(x0 as f64)) as usize;
-            let wx1 = ((cx + reach).ceil().min((x1 - 1) as f64)) as usize;
-            let wy0 = ((cy - reach).floor().max(y0 as f64)) as usize;
-            let wy1 = ((cy + reach).ceil().min((y1 - 1) as f64)) as usize;
-            let (mut full_n, mut full_x, mut full_y) = (0u64, 0u64, 0u64);
-            // The pixels that are not full: per band (the inner pixels, 2 deep, about 1.5 px inside
-            // the edge, as band `INNER`), their count and moments (x, x^2, y, y^2) for the
-            // centre's noise; their coverage with its x and y moments; and the sum of c (1 - c),
-            // the edge's width (for a Gaussian edge of deviation s, s / sqrt(pi) per pixel of
-            // perimeter).
-            let mut sums = WindowSums::default();
-            let plane_coverage = Coverage::new(bg, plateau_plane, (x0, y0), (cx, cy));
-            for y in wy0..=wy1 {
-                let dy = y as f64 - cy;
-                let dy2 = dy * dy;
-                // The row's pixels within reach: a chord. (No `floor` or `ceil`: without SSE4.1
-                // they are library calls.)
-                let h2 = reach * reach - dy2;
-                if h2 < 0.0 {
-                    continue;
-                }
-                let h = h2.sqrt();
-                let xa = ceil_at_least(cx - h, wx0);
-                let Some(xb) = floor_at_most(cx + h, wx1) else {
-                    continue;
-                };
-                if xa > xb {
-                    continue;
-                }
-                let mrow = &self.mask[(y - y0) * rw + (xa - x0)..=(y - y0) * rw + (xb - x0)];
-                let row = &frame.row(y)[xa..=xb];
-                // The full pixels in a pass of their own (vectorised).
-                let [rn, rxl] = if mrow.len() <= 1024 {
-                    full_row_sums::<u32>(mrow).map(u64::from)
-                } else {
-                    full_row_sums::<u64>(mrow)
-                };
-                let yu = y as u64;
-                full_n += rn;
-                full_x += rxl + rn * xa as u64;
-                full_y += rn * yu;
-                // The others: the row's two ends up to its first and last full pixel, and between
-                // them only where the mask has a hole (checked vectorised).
-                let mut row_sums = RowSums::default();
-                let at = RowPixels {
-                    coverage: plane_coverage.row(y),
-                    dy2,
-                    band_r2,
-                };
-                match mrow.iter().position(|&m| m >= 3) {
-                    None => row_sums.add(&at, xa, mrow, row),
-                    Some(first) => {
-                        let last = mrow.len() - 1 - mrow.iter().rev().position(|&m| m >= 3).unwrap_or(0);
-                        row_sums.add(&at, xa, &mrow[..first], &row[..first]);
-                        if !mrow[first..=last].iter().fold(true, |all, &m| all & (m >= 3)) {
-                            row_sums.add(&at, xa + first, &mrow[first..=last], &row[first..=last]);
-                        }
-                        row_sums.add(&at, xa + last + 1, &mrow[last + 1..], &row[last + 1..]);
-                    }
-                }
-                sums.add_row(&row_sums, y);
-            }
-            // The edge's deviation from its width over the ellipse's perimeter (Ramanujan), the
-            // inner pixels' part counted once the blur reaches them (a sharp edge's inner pixels
-            // are covered, and their noise would read as width); and the reach it asks for: each
-            // band counts by the share of it within the reach.
-            let b_axis = 2.0 * l2.max(0.0).sqrt();
-            let perimeter = std::f64::consts::PI
-                * (3.0 * (a + b_axis) - ((3.0 * a + b_axis) * (a + 3.0 * b_axis)).sqrt());
-            let sigma_of = |partial: f64| std::f64::consts::PI.sqrt() * partial / perimeter.max(1.0);
-            let outer_partial: f64 = sums.partial[..BANDS].iter().sum();
-            let mut edge_sigma_px = sigma_of(outer_partial);
-            if REACH_PER_EDGE_SIGMA * edge_sigma_px > INNER_MEASURED_FROM_PX - BAND_LOOKAHEAD_PX {
-                edge_sigma_px = sigma_of(outer_partial + sums.partial[INNER]);
-            }
-            let wanted =
-                (REACH_PER_EDGE_SIGMA * edge_sigma_px).clamp(REACH_BANDS_PX[0], REACH_BANDS_PX[BANDS - 1]);
-            let share = |k: usize| match k {
-                0 => 1.0,
-                _ => ((wanted - REACH_BANDS_PX[k - 1]) / (REACH_BANDS_PX[k] - REACH_BANDS_PX[k - 1]))
-                    .clamp(0.0, 1.0),
-            };
-            let (inner, inner_cover) = (sums.counts[INNER], sums.cover[INNER]);
-            let (edge, cover) = (&sums.counts, &sums.cover);
-            let (mut cw, mut cu, mut cv) = (full_n as f64, full_x as f64, full_y as f64);
-            // The pixels 2 deep by their coverage as far as the blur reaches them (from none
-            // at 2 deviations of 0.75 px to all at 2 of 1 px), as covered for the rest.
-            let measured_inner = ((REACH_PER_EDGE_SIGMA * edge_sigma_px - INNER_MEASURED_FROM_PX)
-                / INNER_MEASURED_SPAN_PX)
-                .clamp(0.0, 1.0);
-            let [n_in, x_in, _, y_in, _] = inner.map(|v| v as f64);
-            let f = measured_inner;
-            cw += f * inner_cover[0] + (1.0 - f) * n_in;
-            cu += f * inner_cover[1] + (1.0 - f) * x_in;
-            cv += f * inner_cover[2] + (1.0 - f) * y_in;
-            let mut weighed = inner.map(|v| f * f * v as f64);
-            for k in 0..BANDS {
-                let f = share(k);
-                (cw, cu, cv) = (cw + f * cover[k][0], cu + f * cover[k][1], cv + f * cover[k][2]);
-                // A pixel counted by f moves the centre f times as much: its noise by f^2.
-                for (acc, v) in weighed.iter_mut().zip(edge[k]) {
-                    *acc += f * f * v as f64;
-                }
-            }
-            if !(cw > 0.0) {
-                return Err(Rejection::Shape);
-            }
-            if pass < passes {
-                (cx, cy) = (cu / cw, cv / cw);
-                continue;
-            }
-            break (cw, cu, cv, weighed, edge_sigma_px);
-        };
+        let mut window = self.window_centre(frame, &disc, (x0 as f64 + mx, y0 as f64 + my))?;
+        if small {
+            window = self.window_centre(frame, &disc, (window.u, window.v))?;
+        }
+        let WindowCentre {
+            u,
+            v,
+            coverage: cw,
+            weighed,
+            edge_sigma_px,
+        } = window;
         let plateau = p_at(seed.0, seed.1);
         let contrast = plateau - b_at(seed.0, seed.1);
-        let (u, v) = (cu / cw, cv / cw);
         Ok(Candidate {
             u,
             v,
@@ -328,6 +230,155 @@ impl Detector {
             edge_sigma_px,
         })
     }
+
+    /// The coverage-weighted centre of a disc in a window around `(cx, cy)` (see `measure`),
+    /// its reach from the edge's measured blur.
+    fn window_centre(
+        &self,
+        frame: GrayView<'_>,
+        disc: &DiscWindow,
+        (cx, cy): (f64, f64),
+    ) -> Result<WindowCentre, Rejection> {
+        let (x0, y0, x1, y1) = disc.roi;
+        let (rw, reach, band_r2) = (disc.region_width, disc.reach, disc.band_r2);
+        let wx0 = ((cx - reach).floor().max(x0 as f64)) as usize;
+        let wx1 = ((cx + reach).ceil().min((x1 - 1) as f64)) as usize;
+        let wy0 = ((cy - reach).floor().max(y0 as f64)) as usize;
+        let wy1 = ((cy + reach).ceil().min((y1 - 1) as f64)) as usize;
+        let (mut full_n, mut full_x, mut full_y) = (0u64, 0u64, 0u64);
+        // The pixels that are not full: per band (the inner pixels, 2 deep, about 1.5 px inside
+        // the edge, as band `INNER`), their count and moments (x, x^2, y, y^2) for the
+        // centre's noise; their coverage with its x and y moments; and the sum of c (1 - c),
+        // the edge's width (for a Gaussian edge of deviation s, s / sqrt(pi) per pixel of
+        // perimeter).
+        let mut sums = WindowSums::default();
+        let plane_coverage = Coverage::new(disc.background, disc.plateau, (x0, y0), (cx, cy));
+        for y in wy0..=wy1 {
+            let dy = y as f64 - cy;
+            let dy2 = dy * dy;
+            // The row's pixels within reach: a chord. (No `floor` or `ceil`: without SSE4.1
+            // they are library calls.)
+            let h2 = reach * reach - dy2;
+            if h2 < 0.0 {
+                continue;
+            }
+            let h = h2.sqrt();
+            let xa = ceil_at_least(cx - h, wx0);
+            let Some(xb) = floor_at_most(cx + h, wx1) else {
+                continue;
+            };
+            if xa > xb {
+                continue;
+            }
+            let mrow = &self.mask[(y - y0) * rw + (xa - x0)..=(y - y0) * rw + (xb - x0)];
+            let row = &frame.row(y)[xa..=xb];
+            // The full pixels in a pass of their own (vectorised).
+            let [rn, rxl] = if mrow.len() <= 1024 {
+                full_row_sums::<u32>(mrow).map(u64::from)
+            } else {
+                full_row_sums::<u64>(mrow)
+            };
+            let yu = y as u64;
+            full_n += rn;
+            full_x += rxl + rn * xa as u64;
+            full_y += rn * yu;
+            // The others: the row's two ends up to its first and last full pixel, and between
+            // them only where the mask has a hole (checked vectorised).
+            let mut row_sums = RowSums::default();
+            let at = RowPixels {
+                coverage: plane_coverage.row(y),
+                dy2,
+                band_r2,
+            };
+            match mrow.iter().position(|&m| m >= 3) {
+                None => row_sums.add(&at, xa, mrow, row),
+                Some(first) => {
+                    let last = mrow.len() - 1 - mrow.iter().rev().position(|&m| m >= 3).unwrap_or(0);
+                    row_sums.add(&at, xa, &mrow[..first], &row[..first]);
+                    if !mrow[first..=last].iter().fold(true, |all, &m| all & (m >= 3)) {
+                        row_sums.add(&at, xa + first, &mrow[first..=last], &row[first..=last]);
+                    }
+                    row_sums.add(&at, xa + last + 1, &mrow[last + 1..], &row[last + 1..]);
+                }
+            }
+            sums.add_row(&row_sums, y);
+        }
+        // The edge's deviation from its width over the ellipse's perimeter (Ramanujan), the
+        // inner pixels' part counted once the blur reaches them (a sharp edge's inner pixels
+        // are covered, and their noise would read as width); and the reach it asks for: each
+        // band counts by the share of it within the reach.
+        let sigma_of = |partial: f64| std::f64::consts::PI.sqrt() * partial / disc.perimeter.max(1.0);
+        let outer_partial: f64 = sums.partial[..BANDS].iter().sum();
+        let mut edge_sigma_px = sigma_of(outer_partial);
+        if REACH_PER_EDGE_SIGMA * edge_sigma_px > INNER_MEASURED_FROM_PX - BAND_LOOKAHEAD_PX {
+            edge_sigma_px = sigma_of(outer_partial + sums.partial[INNER]);
+        }
+        let wanted =
+            (REACH_PER_EDGE_SIGMA * edge_sigma_px).clamp(REACH_BANDS_PX[0], REACH_BANDS_PX[BANDS - 1]);
+        let share = |k: usize| match k {
+            0 => 1.0,
+            _ => ((wanted - REACH_BANDS_PX[k - 1]) / (REACH_BANDS_PX[k] - REACH_BANDS_PX[k - 1]))
+                .clamp(0.0, 1.0),
+        };
+        let (inner, inner_cover) = (sums.counts[INNER], sums.cover[INNER]);
+        let (edge, cover) = (&sums.counts, &sums.cover);
+        let (mut cw, mut cu, mut cv) = (full_n as f64, full_x as f64, full_y as f64);
+        // The pixels 2 deep by their coverage as far as the blur reaches them (from none
+        // at 2 deviations of 0.75 px to all at 2 of 1 px), as covered for the rest.
+        let measured_inner = ((REACH_PER_EDGE_SIGMA * edge_sigma_px - INNER_MEASURED_FROM_PX)
+            / INNER_MEASURED_SPAN_PX)
+            .clamp(0.0, 1.0);
+        let [n_in, x_in, _, y_in, _] = inner.map(|v| v as f64);
+        let f = measured_inner;
+        cw += f * inner_cover[0] + (1.0 - f) * n_in;
+        cu += f * inner_cover[1] + (1.0 - f) * x_in;
+        cv += f * inner_cover[2] + (1.0 - f) * y_in;
+        let mut weighed = inner.map(|v| f * f * v as f64);
+        for k in 0..BANDS {
+            let f = share(k);
+            (cw, cu, cv) = (cw + f * cover[k][0], cu + f * cover[k][1], cv + f * cover[k][2]);
+            // A pixel counted by f moves the centre f times as much: its noise by f^2.
+            for (acc, v) in weighed.iter_mut().zip(edge[k]) {
+                *acc += f * f * v as f64;
+            }
+        }
+        if !(cw > 0.0) {
+            return Err(Rejection::Shape);
+        }
+        if !(cw > 0.0) {
+            return Err(Rejection::Shape);
+        }
+        Ok(WindowCentre {
+            u: cu / cw,
+            v: cv / cw,
+            coverage: cw,
+            weighed,
+            edge_sigma_px,
+        })
+    }
+}
+
+/// What a disc's window needs beyond its centre: its region (x0, y0, x1, y1) and width, the
+/// widest reach and the bands' squared radii, the ellipse's perimeter, and the background and
+/// plateau planes.
+struct DiscWindow {
+    roi: (usize, usize, usize, usize),
+    region_width: usize,
+    reach: f64,
+    band_r2: [f64; BANDS],
+    perimeter: f64,
+    background: [f64; 3],
+    plateau: [f64; 3],
+}
+
+/// A disc's coverage-weighted centre, its total coverage, the moments of its weighed pixels
+/// (for the centre's noise) and its edge's blur.
+struct WindowCentre {
+    u: f64,
+    v: f64,
+    coverage: f64,
+    weighed: [f64; 5],
+    edge_sigma_px: f64,
 }
 
 /// The smallest integer at least `v`, and at least `min`.

@@ -50,14 +50,15 @@ impl LandingDecider {
         let (roll, pitch) = (&m.tracks[ROLL], &m.tracks[PITCH]);
         let heave = m.tracks.get(HEAVE);
         let [sr, sp, _] = m.band_scale;
-        let [rr, rp, rh] = m.rate_band_scale;
-        // A channel whose band has been measured far too narrow (value or rate) has a forecast
-        // that is not the deck's motion: its rate is then also judged as the history knows it
-        // without a model (zero mean, the history's spread), and the larger risk counts. A
-        // campaign cleared on heave bands scaled 3.4-200 times, three times into more than
-        // 0.64 m/s of heave rate (BENCHMARKS.md, "A campaign of 2 016 approaches").
+        // A channel whose band has been measured far too narrow (value or rate) states
+        // deviations that are not its forecast's error. A campaign cleared on heave bands scaled
+        // 3.4-200 times, three times into more than 0.64 m/s of heave rate (BENCHMARKS.md, "A
+        // campaign of 2 016 approaches"). Its rate is given at least the spread of its own
+        // recent misses (`Models::rate_std`); until those are measured, it is also judged as
+        // the history knows it without a model (zero mean, the history's spread), and the
+        // larger risk counts.
         let climate = |k: usize, limit: f64| -> f64 {
-            let unreliable = m.band_scale[k] > MAX_BAND_SCALE || m.rate_band_scale[k] > MAX_BAND_SCALE;
+            let unreliable = m.band_unreliable(k) && !m.rate_miss_std[k].is_finite();
             if unreliable && k < m.tracks.len() {
                 // No spread known (too few distinct sample times): nothing to clear on.
                 match m.rate_climate_std[k] {
@@ -81,10 +82,10 @@ impl LandingDecider {
                 outside_probability(rm, rs, limits[0]),
                 outside_probability(pm, ps, limits[1]),
                 tilt_outside_probability((rm, rs), (pm, ps), limits[2]),
-                outside_probability(roll.rate(t), rr * roll.rate_std(t), limits[3]),
-                outside_probability(pitch.rate(t), rp * pitch.rate_std(t), limits[4]),
+                outside_probability(roll.rate(t), m.rate_std(ROLL, t), limits[3]),
+                outside_probability(pitch.rate(t), m.rate_std(PITCH, t), limits[4]),
                 heave.map_or(0.0, |h| {
-                    outside_probability(h.rate(t), rh * h.rate_std(t), limits[5])
+                    outside_probability(h.rate(t), m.rate_std(HEAVE, t), limits[5])
                 }),
             ];
             for (w, p) in worst.iter_mut().zip(tails) {

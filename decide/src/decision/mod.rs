@@ -26,7 +26,7 @@ mod models;
 
 pub use config::{DecisionConfig, HeaveUse, Predictor, MAX_FROZEN_INPUT_COUNT, SAFETY_BOUNDS};
 pub use envelope::tilt_deg;
-use models::{fit_line, Margins, Models, Track};
+use models::{fit_line, BandMiss, Margins, Models, Track};
 
 /// What the decider sees of one frame: the deck's roll and pitch in W and the deck centre's
 /// height in W (the heave; NaN when not measured).
@@ -150,12 +150,12 @@ pub struct LandingDecider {
     past: VecDeque<Vec<Track>>,
     /// (time, held-out angle error, held-out heave error) of recent refits.
     errors: VecDeque<(f64, f64, f64)>,
-    /// (time, per channel: the held-out miss in the stated standard deviations) of the samples
-    /// recent refits were checked on, over `BAND_MEMORY_S`.
-    band_misses: VecDeque<(f64, [f64; 6])>,
+    /// The held-out misses (in the stated standard deviations and in each channel's unit) of
+    /// the samples recent refits were checked on, over `BAND_MEMORY_S`.
+    band_misses: VecDeque<BandMiss>,
     /// The same from the warm-up's backtests (`LandingDecider::backtest_band`): the band's
     /// evidence only while the real misses are too few.
-    backtest_misses: VecDeque<(f64, [f64; 6])>,
+    backtest_misses: VecDeque<BandMiss>,
     last_fit: f64,
     last_grid: f64,
     jump_run: u32,
@@ -314,7 +314,7 @@ impl LandingDecider {
             f.rate[k] = track.rate(t);
             if banded {
                 f.band95[k] = Z95 * m.band_scale[k] * track.std(t);
-                f.rate_band95[k] = Z95 * m.rate_band_scale[k] * track.rate_std(t);
+                f.rate_band95[k] = Z95 * m.rate_std(k, t);
             } else {
                 f.band95[k] = if k == HEAVE {
                     m.heave_error
@@ -731,6 +731,7 @@ impl LandingDecider {
 #[cfg(test)]
 mod tests {
     use super::envelope::{outside_probability, tilt_outside_probability};
+    use super::models::BandScale;
     use super::*;
     use std::f64::consts::TAU;
 
@@ -1255,6 +1256,9 @@ mod tests {
         m.band_scale = [1.0; 3];
         m.rate_band_scale = [1.0; 3];
         m.rate_climate_std = [0.1, 0.1, 0.5];
+        // Without the rates' misses in their own units (the case this test is about; see
+        // `an_unreliable_rate_is_given_at_least_the_spread_of_its_own_misses` for the other).
+        m.rate_miss_std = [f64::NAN; 3];
         let honest = d.exceedance_risk(&m, times(), &limits);
         assert!(
             honest < c.risk_per_touchdown,
@@ -1274,6 +1278,90 @@ mod tests {
         assert!(d.exceedance_risk(&m, times(), &limits) < c.risk_per_touchdown);
     }
 
+    /// A channel whose band is unreliable (measured more than `MAX_BAND_SCALE` times too
+    /// narrow) has its rate given at least the spread of its recent misses in its own unit,
+    /// whatever each fit stated; with that spread measured, it is judged by it rather than by
+    /// the history's spread (a nearly noise-free heave states mm/s; its misses are what it is
+    /// worth). An honest band is left as it is.
+    #[test]
+    fn an_unreliable_rate_is_given_at_least_the_spread_of_its_own_misses() {
+        let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
+        run(&mut d, 0.0, 60.0, |t| Some(sea(t, 0.3)));
+        let mut m = d.models.clone().expect("fitted");
+        let c = d.config().clone();
+        let limits = [
+            c.max_abs_roll_deg,
+            c.max_abs_pitch_deg,
+            c.max_tilt_deg,
+            c.max_abs_roll_rate_dps,
+            c.max_abs_pitch_rate_dps,
+            c.max_abs_heave_rate_mps,
+        ];
+        let times = || (0..=40).map(|k| 60.0 + 0.05 * k as f64);
+        m.band_scale = [1.0; 3];
+        m.rate_band_scale = [1.0; 3];
+        m.rate_climate_std = [0.1, 0.1, 0.5];
+        let stated = m.tracks[HEAVE].rate_std(60.5);
+        m.rate_miss_std = [10.0 * stated + 0.01; 3];
+        assert_eq!(m.rate_std(HEAVE, 60.5), stated, "an honest band: as stated");
+        // The heave's value band measured 20 times too narrow, its rate's misses 0.02 m/s: a
+        // calm sea's forecast to believe at that spread, not at the history's 0.5 m/s.
+        m.band_scale[HEAVE] = 20.0;
+        assert_eq!(
+            m.rate_std(HEAVE, 60.5),
+            10.0 * stated + 0.01,
+            "the misses' spread"
+        );
+        m.rate_miss_std[HEAVE] = 0.02;
+        let small_misses = d.exceedance_risk(&m, times(), &limits);
+        assert!(small_misses < c.risk_per_touchdown, "{small_misses}");
+        // Misses of 0.3 m/s: the heave rate to come may well be beyond 0.6 m/s.
+        m.rate_miss_std[HEAVE] = 0.3;
+        let large_misses = d.exceedance_risk(&m, times(), &limits);
+        assert!(large_misses > 0.01, "{large_misses}");
+        // Without the spread of its misses, it falls back on the history's spread.
+        m.rate_miss_std[HEAVE] = f64::NAN;
+        let spread_alone = outside_probability(0.0, 0.5, c.max_abs_heave_rate_mps);
+        assert!(d.exceedance_risk(&m, times(), &limits) >= spread_alone);
+    }
+
+    /// The misses' spread is their `BAND_EVIDENCE_QUANTILE` in the rate's own unit as a normal
+    /// deviation, measured only with `MIN_BAND_EVIDENCE` of them.
+    #[test]
+    fn the_rates_misses_spread_is_measured_in_its_own_unit() {
+        let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
+        let miss = |t: f64, heave_rate_mps: f64| BandMiss {
+            t_s: t,
+            z: [1.0, 1.0, 1.0, 1.0, 1.0, 100.0 * heave_rate_mps],
+            abs: [0.1, 0.1, 0.01, 0.1, 0.1, heave_rate_mps],
+        };
+        for k in 0..MIN_BAND_EVIDENCE - 1 {
+            d.band_misses.push_back(miss(0.1 * k as f64, 0.01));
+        }
+        assert!(d.band_scale().rate_miss_std[HEAVE].is_nan(), "too few");
+        // 40 misses: 39 of 0.01 m/s and one of 0.2 (beyond the 97.5th percentile).
+        for k in MIN_BAND_EVIDENCE - 1..39 {
+            d.band_misses.push_back(miss(0.1 * k as f64, 0.01));
+        }
+        d.band_misses.push_back(miss(4.0, 0.2));
+        let s = d.band_scale();
+        assert!(
+            (s.rate_miss_std[HEAVE] - 0.01 / 2.241_402_727_604_947).abs() < 1e-12,
+            "{s:?}"
+        );
+        assert!(
+            (s.rate_miss_std[ROLL] - 0.1 / 2.241_402_727_604_947).abs() < 1e-12,
+            "{s:?}"
+        );
+        // Two of 0.2: the 97.5th percentile of 41 is the 40th.
+        d.band_misses.push_back(miss(4.1, 0.2));
+        let s = d.band_scale();
+        assert!(
+            (s.rate_miss_std[HEAVE] - 0.2 / 2.241_402_727_604_947).abs() < 1e-12,
+            "{s:?}"
+        );
+    }
+
     /// Until a rate's band has evidence of its own, it is taken to be as far off as its value's
     /// has been measured to be (a campaign's sea cleared 0.2 s after the warm-up on the prior
     /// scale alone, with the heave's value band 3.9 times too narrow, and touched down into
@@ -1286,9 +1374,15 @@ mod tests {
         // The heave's values missed by three times their stated band; no rate measured yet.
         let values_only = [1.0, 1.0, 3.0 * Z95, f64::NAN, f64::NAN, f64::NAN];
         for k in 0..2 * MIN_BAND_EVIDENCE {
-            d.band_misses.push_back((0.1 * k as f64, values_only));
+            d.band_misses
+                .push_back(BandMiss::new(0.1 * k as f64, values_only));
         }
-        let (values, rates, checked) = d.band_scale();
+        let BandScale {
+            values,
+            rates,
+            checked,
+            ..
+        } = d.band_scale();
         assert_eq!(values[..2], [1.0; 2]);
         assert!((values[2] - 3.0).abs() < 1e-12, "{values:?}");
         assert_eq!(rates[..2], [PRIOR_BAND_SCALE; 2], "honest values: the prior");
@@ -1300,10 +1394,12 @@ mod tests {
         // The rates' own evidence arrives: small misses, one short of enough for the heave rate.
         for k in 0..MIN_BAND_EVIDENCE {
             let heave_rate = if k + 1 < MIN_BAND_EVIDENCE { 0.5 } else { f64::NAN };
-            d.band_misses
-                .push_back((5.0 + 0.1 * k as f64, [1.0, 1.0, 3.0 * Z95, 0.5, 0.5, heave_rate]));
+            d.band_misses.push_back(BandMiss::new(
+                5.0 + 0.1 * k as f64,
+                [1.0, 1.0, 3.0 * Z95, 0.5, 0.5, heave_rate],
+            ));
         }
-        let (_, rates, _) = d.band_scale();
+        let BandScale { rates, .. } = d.band_scale();
         assert_eq!(
             rates[..2],
             [MIN_RATE_BAND_SCALE; 2],
@@ -1314,8 +1410,8 @@ mod tests {
             "one short: still the value's {rates:?}"
         );
         d.band_misses
-            .push_back((7.0, [1.0, 1.0, 3.0 * Z95, 0.5, 0.5, 0.5]));
-        let (_, rates, _) = d.band_scale();
+            .push_back(BandMiss::new(7.0, [1.0, 1.0, 3.0 * Z95, 0.5, 0.5, 0.5]));
+        let BandScale { rates, .. } = d.band_scale();
         assert_eq!(rates[2], MIN_RATE_BAND_SCALE, "its own evidence stands");
     }
 
@@ -1326,9 +1422,15 @@ mod tests {
         let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
         let far_off = [4.0 * Z95; 6];
         for k in 0..2 * MIN_BAND_EVIDENCE {
-            d.backtest_misses.push_back((0.1 * k as f64, far_off));
+            d.backtest_misses
+                .push_back(BandMiss::new(0.1 * k as f64, far_off));
         }
-        let (values, rates, checked) = d.band_scale();
+        let BandScale {
+            values,
+            rates,
+            checked,
+            ..
+        } = d.band_scale();
         for s in values.iter().chain(&rates) {
             assert!(
                 (s - 4.0).abs() < 1e-12,
@@ -1339,12 +1441,17 @@ mod tests {
         // Real misses of the values, honest, and enough: they alone count, and the rates (with
         // no real misses of their own) are taken to be as far off as their values.
         for k in 0..MIN_BAND_EVIDENCE {
-            d.band_misses.push_back((
+            d.band_misses.push_back(BandMiss::new(
                 5.0 + 0.1 * k as f64,
                 [Z95, Z95, Z95, f64::NAN, f64::NAN, f64::NAN],
             ));
         }
-        let (values, rates, checked) = d.band_scale();
+        let BandScale {
+            values,
+            rates,
+            checked,
+            ..
+        } = d.band_scale();
         assert_eq!(values, [1.0; 3]);
         assert_eq!(rates, [PRIOR_BAND_SCALE; 3], "not the backtests' 4");
         assert!(checked);

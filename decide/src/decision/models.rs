@@ -19,12 +19,78 @@ pub(super) struct Models {
     pub(super) band_scale: [f64; 3],
     /// The same for each channel's rate (see [`LandingDecider::band_scale`]).
     pub(super) rate_band_scale: [f64; 3],
+    /// Per channel, the spread of its rate's recent held-out misses in its own unit, whatever
+    /// each fit stated (NaN without the evidence): the least deviation its forecast is given.
+    pub(super) rate_miss_std: [f64; 3],
     /// Every channel's band has been checked against what followed (`MIN_BAND_EVIDENCE`).
     pub(super) band_checked: bool,
     /// Per channel, the spread of its rate over the fitted history (RMS of the samples' rates):
     /// what is known of a rate to come without a model.
     pub(super) rate_climate_std: [f64; 3],
 }
+
+impl Models {
+    /// Whether channel `k`'s band, value or rate, has been measured more than `MAX_BAND_SCALE`
+    /// times too narrow: its stated deviations are not the forecast's error.
+    pub(super) fn band_unreliable(&self, k: usize) -> bool {
+        self.band_scale[k] > MAX_BAND_SCALE || self.rate_band_scale[k] > MAX_BAND_SCALE
+    }
+
+    /// The standard deviation the decision gives channel `k`'s rate at `t`: the stated one
+    /// scaled by how honest it has been; for a channel whose band is unreliable, never less
+    /// than the spread of the rate's recent misses in its own unit. A nearly noise-free
+    /// measurement (the camera's deck height) lets the autoregressive fit state deviations of
+    /// millimetres per second, 4 to 80 times short of its misses and varying from fit to fit;
+    /// the misses themselves do not depend on what each fit stated.
+    pub(super) fn rate_std(&self, k: usize, t: f64) -> f64 {
+        let scaled = self.rate_band_scale[k] * self.tracks[k].rate_std(t);
+        if self.band_unreliable(k) {
+            scaled.max(self.rate_miss_std[k])
+        } else {
+            scaled
+        }
+    }
+}
+
+/// One sample after a fit, judged by that fit's band: how far the measurement fell from the
+/// forecast (roll, pitch, heave, then their rates; NaN where not measured), in the stated
+/// standard deviations and in the channels' own units (deg, m, deg/s, m/s).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct BandMiss {
+    pub(super) t_s: f64,
+    pub(super) z: [f64; 6],
+    pub(super) abs: [f64; 6],
+}
+
+impl BandMiss {
+    /// A miss known only in stated deviations (no absolute misses).
+    #[cfg(test)]
+    pub(super) fn new(t_s: f64, z: [f64; 6]) -> Self {
+        Self {
+            t_s,
+            z,
+            abs: [f64::NAN; 6],
+        }
+    }
+}
+
+/// What the held-out misses say of each channel's band ([`LandingDecider::band_scale`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct BandScale {
+    /// Per channel, the factor on the stated standard deviation of its value...
+    pub(super) values: [f64; 3],
+    /// ... and of its rate.
+    pub(super) rates: [f64; 3],
+    /// Per channel, the rate's recent misses in its own unit (deg/s, m/s) as a normal
+    /// deviation (NaN without `MIN_BAND_EVIDENCE` of them).
+    pub(super) rate_miss_std: [f64; 3],
+    /// Every channel's value has its evidence.
+    pub(super) checked: bool,
+}
+
+/// The two-sided quantile of the standard normal that holds `BAND_EVIDENCE_QUANTILE` (0.975):
+/// `Phi^-1(0.9875)`.
+const Z_EVIDENCE: f64 = 2.241_402_727_604_947;
 
 /// The RMS of each channel's rate over samples `t` (s) and `y` (one series per channel), by
 /// central differences; NaN with fewer than three samples.
@@ -193,18 +259,23 @@ impl LandingDecider {
         while self
             .band_misses
             .front()
-            .is_some_and(|&(tm, _)| end - tm > BAND_MEMORY_S)
+            .is_some_and(|m| end - m.t_s > BAND_MEMORY_S)
         {
             self.band_misses.pop_front();
         }
         while self
             .backtest_misses
             .front()
-            .is_some_and(|&(tm, _)| end - tm > BAND_MEMORY_S)
+            .is_some_and(|m| end - m.t_s > BAND_MEMORY_S)
         {
             self.backtest_misses.pop_front();
         }
-        let (band_scale, rate_band_scale, band_checked) = self.band_scale();
+        let BandScale {
+            values: band_scale,
+            rates: rate_band_scale,
+            rate_miss_std,
+            checked: band_checked,
+        } = self.band_scale();
         while self
             .errors
             .front()
@@ -249,6 +320,7 @@ impl LandingDecider {
             heave_error,
             band_scale,
             rate_band_scale,
+            rate_miss_std,
             band_checked,
             rate_climate_std: rate_climate_std(&t, &y),
         })
@@ -276,7 +348,7 @@ impl LandingDecider {
 
     /// How far the samples after `old` (a fit `holdout_s` or more ago) fell from its forecast,
     /// in its own stated standard deviations: the evidence of [`Self::band_scale`].
-    fn band_misses_of(&self, old: &[Track]) -> Vec<(f64, [f64; 6])> {
+    fn band_misses_of(&self, old: &[Track]) -> Vec<BandMiss> {
         let c = &self.config;
         let t0 = old[0].t0();
         // The last half of the held-out span: the band matters most at the touchdown's far
@@ -293,17 +365,24 @@ impl LandingDecider {
             // Values, then rates against the deck's rate measured around `ti` (a line through
             // the samples of a second centred on it: unbiased by the deck's acceleration; its
             // noise only makes the misses look larger).
-            let mut z = [f64::NAN; 6];
+            let mut miss = BandMiss {
+                t_s: ti,
+                z: [f64::NAN; 6],
+                abs: [f64::NAN; 6],
+            };
             let measured_rate = (ti >= far_from)
                 .then(|| self.centred_rate(ti, RATE_CHECK_HALF_WINDOW_S))
                 .flatten();
             for (k, track) in old.iter().enumerate() {
-                z[k] = (v[k] - track.value(ti)).abs() / track.std(ti);
+                miss.abs[k] = (v[k] - track.value(ti)).abs();
+                miss.z[k] = miss.abs[k] / track.std(ti);
                 if let Some(rates) = measured_rate {
-                    z[3 + k] = (rates[k] - track.rate(ti)).abs() / track.rate_std(ti);
+                    let rate_std = track.rate_std(ti);
+                    miss.abs[3 + k] = (rates[k] - track.rate(ti)).abs();
+                    miss.z[3 + k] = miss.abs[3 + k] / rate_std;
                 }
             }
-            found.push((ti, z));
+            found.push(miss);
         }
         found
     }
@@ -339,8 +418,9 @@ impl LandingDecider {
     /// fits have `MIN_BAND_EVIDENCE` misses the warm-up's backtests add theirs; with fewer
     /// than that in all there is no track record yet: `PRIOR_BAND_SCALE`, and for a rate at
     /// least its value's scale.
-    pub(super) fn band_scale(&self) -> ([f64; 3], [f64; 3], bool) {
+    pub(super) fn band_scale(&self) -> BandScale {
         let mut scale = [PRIOR_BAND_SCALE; 6];
+        let mut rate_miss_std = [f64::NAN; 3];
         let mut checked = true;
         for k in 0..6 {
             if k % 3 >= self.channels {
@@ -349,7 +429,7 @@ impl LandingDecider {
             let real = |k: usize| {
                 self.band_misses
                     .iter()
-                    .map(move |m| m.1[k])
+                    .map(move |m| m.z[k])
                     .filter(|z| z.is_finite())
             };
             // The warm-up's backtests stand in only while the real fits' misses are too few,
@@ -358,16 +438,14 @@ impl LandingDecider {
             // held the development trials at sea state 4 ten seconds longer).
             let on_backtests =
                 real(k).count() < MIN_BAND_EVIDENCE && (k < 3 || real(k - 3).count() < MIN_BAND_EVIDENCE);
-            let mut z: Vec<f64> = if on_backtests {
-                let backtests = self
-                    .backtest_misses
+            let judged = || {
+                let backtests = self.backtest_misses.iter().filter(move |_| on_backtests);
+                self.band_misses
                     .iter()
-                    .map(|m| m.1[k])
-                    .filter(|z| z.is_finite());
-                real(k).chain(backtests).collect()
-            } else {
-                real(k).collect()
+                    .chain(backtests)
+                    .filter(move |m| m.z[k].is_finite())
             };
+            let mut z: Vec<f64> = judged().map(|m| m.z[k]).collect();
             if z.len() < MIN_BAND_EVIDENCE {
                 if k < 3 {
                     checked = false;
@@ -387,12 +465,23 @@ impl LandingDecider {
             let (_, q95, _) = z.select_nth_unstable_by(i, f64::total_cmp);
             let least = if k < 3 { 1.0 } else { MIN_RATE_BAND_SCALE };
             scale[k] = (*q95 / Z95).max(least);
+            if k >= 3 {
+                // The same misses in m/s or deg/s, whatever each fit stated: the deviation
+                // whose normal band holds `BAND_EVIDENCE_QUANTILE` of them.
+                let mut abs: Vec<f64> = judged().map(|m| m.abs[k]).filter(|a| a.is_finite()).collect();
+                if abs.len() >= MIN_BAND_EVIDENCE {
+                    let i = ((abs.len() as f64 * BAND_EVIDENCE_QUANTILE).ceil() as usize).min(abs.len()) - 1;
+                    let (_, q, _) = abs.select_nth_unstable_by(i, f64::total_cmp);
+                    rate_miss_std[k - 3] = *q / Z_EVIDENCE;
+                }
+            }
         }
-        (
-            [scale[0], scale[1], scale[2]],
-            [scale[3], scale[4], scale[5]],
+        BandScale {
+            values: [scale[0], scale[1], scale[2]],
+            rates: [scale[3], scale[4], scale[5]],
+            rate_miss_std,
             checked,
-        )
+        }
     }
 
     /// Whether the rates measured through the newest samples (`RATE_WINDOW_S`) are beyond the

@@ -124,11 +124,6 @@ const MAX_BAND_SCALE: f64 = 3.0;
 /// development seas (BENCHMARKS "Deck-motion prediction"); 1.5 widens it to about what the
 /// measured scale settles at.
 const PRIOR_BAND_SCALE: f64 = 1.5;
-/// The least scale of a rate's band. A rate's stated deviation counts every innovation as a
-/// kick to the motion, the measurement's noise too, and comes out wide (the rate bands held
-/// 99-100 % of the truths up to 2 s ahead on the development seas): its scale may go below 1,
-/// as far as its own held-out misses say, but not below this.
-const MIN_RATE_BAND_SCALE: f64 = 0.75;
 /// Half the span of the centred line that measures the deck's rate for the rate band's
 /// misses (s).
 const RATE_CHECK_HALF_WINDOW_S: f64 = 0.5;
@@ -1360,6 +1355,14 @@ mod tests {
             (s.rate_miss_std[HEAVE] - 0.2 / 2.241_402_727_604_947).abs() < 1e-12,
             "{s:?}"
         );
+        // The warm-up's backtests are evidence of the band's scale, not of this spread.
+        let mut fresh = LandingDecider::new(DecisionConfig::default()).unwrap();
+        for k in 0..2 * MIN_BAND_EVIDENCE {
+            fresh.backtest_misses.push_back(miss(0.1 * k as f64, 0.01));
+        }
+        let s = fresh.band_scale();
+        assert!(s.checked, "{s:?}");
+        assert!(s.rate_miss_std.iter().all(|x| x.is_nan()), "{s:?}");
     }
 
     /// Until a rate's band has evidence of its own, it is taken to be as far off as its value's
@@ -1400,11 +1403,7 @@ mod tests {
             ));
         }
         let BandScale { rates, .. } = d.band_scale();
-        assert_eq!(
-            rates[..2],
-            [MIN_RATE_BAND_SCALE; 2],
-            "measured small: the least scale"
-        );
+        assert_eq!(rates[..2], [1.0; 2], "measured small: never below the stated");
         assert!(
             (rates[2] - 3.0).abs() < 1e-12,
             "one short: still the value's {rates:?}"
@@ -1412,7 +1411,7 @@ mod tests {
         d.band_misses
             .push_back(BandMiss::new(7.0, [1.0, 1.0, 3.0 * Z95, 0.5, 0.5, 0.5]));
         let BandScale { rates, .. } = d.band_scale();
-        assert_eq!(rates[2], MIN_RATE_BAND_SCALE, "its own evidence stands");
+        assert_eq!(rates[2], 1.0, "its own evidence stands");
     }
 
     /// The warm-up's backtests stand in for the real fits' misses while those are too few, and

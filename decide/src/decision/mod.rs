@@ -1235,22 +1235,9 @@ mod tests {
         assert_eq!(spread[1], 0.0);
         assert!((spread[2] - 0.5 / 2f64.sqrt()).abs() < 0.01, "{spread:?}");
         // A decider's models on a calm sea, then the heave's band found 4 times too narrow.
-        let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
-        run(&mut d, 0.0, 60.0, |t| Some(sea(t, 0.3)));
-        let mut m = d.models.clone().expect("fitted");
+        let (d, mut m, limits) = calm_sea_models();
         let c = d.config().clone();
-        let limits = [
-            c.max_abs_roll_deg,
-            c.max_abs_pitch_deg,
-            c.max_tilt_deg,
-            c.max_abs_roll_rate_dps,
-            c.max_abs_pitch_rate_dps,
-            c.max_abs_heave_rate_mps,
-        ];
         let times = || (0..=40).map(|k| 60.0 + 0.05 * k as f64);
-        m.band_scale = [1.0; 3];
-        m.rate_band_scale = [1.0; 3];
-        m.rate_climate_std = [0.1, 0.1, 0.5];
         // Without the rates' misses in their own units (the case this test is about; see
         // `an_unreliable_rate_is_given_at_least_the_spread_of_its_own_misses` for the other).
         m.rate_miss_std = [f64::NAN; 3];
@@ -1273,17 +1260,24 @@ mod tests {
         assert!(d.exceedance_risk(&m, times(), &limits) < c.risk_per_touchdown);
     }
 
-    /// A channel whose band is unreliable (measured more than `MAX_BAND_SCALE` times too
-    /// narrow) has its rate given at least the spread of its recent misses in its own unit,
-    /// whatever each fit stated; with that spread measured, it is judged by it rather than by
-    /// the history's spread (a nearly noise-free heave states mm/s; its misses are what it is
-    /// worth). An honest band is left as it is.
-    #[test]
-    fn an_unreliable_rate_is_given_at_least_the_spread_of_its_own_misses() {
+    /// The decider's band scales: values, rates, and whether every value has its evidence.
+    fn scales(d: &LandingDecider) -> ([f64; 3], [f64; 3], bool) {
+        let BandScale {
+            values,
+            rates,
+            checked,
+            ..
+        } = d.band_scale();
+        (values, rates, checked)
+    }
+
+    /// A decider after 60 s of a calm sea, its models with honest bands (scales 1) and rates'
+    /// spreads of 0.1 deg/s and 0.5 m/s, and the capacity's limits in `exceedance_risk`'s order.
+    fn calm_sea_models() -> (LandingDecider, Models, [f64; 6]) {
         let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
         run(&mut d, 0.0, 60.0, |t| Some(sea(t, 0.3)));
         let mut m = d.models.clone().expect("fitted");
-        let c = d.config().clone();
+        let c = d.config();
         let limits = [
             c.max_abs_roll_deg,
             c.max_abs_pitch_deg,
@@ -1292,10 +1286,22 @@ mod tests {
             c.max_abs_pitch_rate_dps,
             c.max_abs_heave_rate_mps,
         ];
-        let times = || (0..=40).map(|k| 60.0 + 0.05 * k as f64);
         m.band_scale = [1.0; 3];
         m.rate_band_scale = [1.0; 3];
         m.rate_climate_std = [0.1, 0.1, 0.5];
+        (d, m, limits)
+    }
+
+    /// A channel whose band is unreliable (measured more than `MAX_BAND_SCALE` times too
+    /// narrow) has its rate given at least the spread of its recent misses in its own unit,
+    /// whatever each fit stated; with that spread measured, it is judged by it rather than by
+    /// the history's spread (a nearly noise-free heave states mm/s; its misses are what it is
+    /// worth). An honest band is left as it is.
+    #[test]
+    fn an_unreliable_rate_is_given_at_least_the_spread_of_its_own_misses() {
+        let (d, mut m, limits) = calm_sea_models();
+        let c = d.config().clone();
+        let times = || (0..=40).map(|k| 60.0 + 0.05 * k as f64);
         let stated = m.tracks[HEAVE].rate_std(60.5);
         m.rate_miss_std = [10.0 * stated + 0.01; 3];
         assert_eq!(m.rate_std(HEAVE, 60.5), stated, "an honest band: as stated");
@@ -1380,12 +1386,7 @@ mod tests {
             d.band_misses
                 .push_back(BandMiss::new(0.1 * k as f64, values_only));
         }
-        let BandScale {
-            values,
-            rates,
-            checked,
-            ..
-        } = d.band_scale();
+        let (values, rates, checked) = scales(&d);
         assert_eq!(values[..2], [1.0; 2]);
         assert!((values[2] - 3.0).abs() < 1e-12, "{values:?}");
         assert_eq!(rates[..2], [PRIOR_BAND_SCALE; 2], "honest values: the prior");
@@ -1402,7 +1403,7 @@ mod tests {
                 [1.0, 1.0, 3.0 * Z95, 0.5, 0.5, heave_rate],
             ));
         }
-        let BandScale { rates, .. } = d.band_scale();
+        let (_, rates, _) = scales(&d);
         assert_eq!(rates[..2], [1.0; 2], "measured small: never below the stated");
         assert!(
             (rates[2] - 3.0).abs() < 1e-12,
@@ -1410,7 +1411,7 @@ mod tests {
         );
         d.band_misses
             .push_back(BandMiss::new(7.0, [1.0, 1.0, 3.0 * Z95, 0.5, 0.5, 0.5]));
-        let BandScale { rates, .. } = d.band_scale();
+        let (_, rates, _) = scales(&d);
         assert_eq!(rates[2], 1.0, "its own evidence stands");
     }
 
@@ -1424,12 +1425,7 @@ mod tests {
             d.backtest_misses
                 .push_back(BandMiss::new(0.1 * k as f64, far_off));
         }
-        let BandScale {
-            values,
-            rates,
-            checked,
-            ..
-        } = d.band_scale();
+        let (values, rates, checked) = scales(&d);
         for s in values.iter().chain(&rates) {
             assert!(
                 (s - 4.0).abs() < 1e-12,
@@ -1445,12 +1441,7 @@ mod tests {
                 [Z95, Z95, Z95, f64::NAN, f64::NAN, f64::NAN],
             ));
         }
-        let BandScale {
-            values,
-            rates,
-            checked,
-            ..
-        } = d.band_scale();
+        let (values, rates, checked) = scales(&d);
         assert_eq!(values, [1.0; 3]);
         assert_eq!(rates, [PRIOR_BAND_SCALE; 3], "not the backtests' 4");
         assert!(checked);

@@ -116,8 +116,9 @@ const MIN_BAND_EVIDENCE: usize = 20;
 const WARMUP_BACKTESTS: usize = 4;
 const WARMUP_BACKTEST_STEP_S: f64 = 0.5;
 const WARMUP_BACKTEST_MIN_HISTORY_S: f64 = 4.0;
-/// The band scale (value or rate) beyond which a channel's forecast is taken to be unreliable,
-/// and its rate also judged by the history's spread (`LandingDecider::exceedance_risk`).
+/// The band scale (value or rate) beyond which a channel's forecast is taken to be unreliable:
+/// its rate is given at least the spread of its own misses, and until that is measured also
+/// judged by the history's spread (`Models::rate_std`, `LandingDecider::exceedance_risk`).
 const MAX_BAND_SCALE: f64 = 3.0;
 /// The band's scale before there is evidence (forecasts shown, never a clearance): the
 /// autoregressive predictor's raw 95 % band held about 87 % of the truths 2 s ahead on the
@@ -1345,22 +1346,15 @@ mod tests {
             d.band_misses.push_back(miss(0.1 * k as f64, 0.01));
         }
         d.band_misses.push_back(miss(4.0, 0.2));
+        let z = super::models::evidence_z();
+        assert!((z - 2.241_402_727_604_947).abs() < 1e-8, "Phi^-1(0.9875): {z}");
         let s = d.band_scale();
-        assert!(
-            (s.rate_miss_std[HEAVE] - 0.01 / 2.241_402_727_604_947).abs() < 1e-12,
-            "{s:?}"
-        );
-        assert!(
-            (s.rate_miss_std[ROLL] - 0.1 / 2.241_402_727_604_947).abs() < 1e-12,
-            "{s:?}"
-        );
+        assert!((s.rate_miss_std[HEAVE] - 0.01 / z).abs() < 1e-12, "{s:?}");
+        assert!((s.rate_miss_std[ROLL] - 0.1 / z).abs() < 1e-12, "{s:?}");
         // Two of 0.2: the 97.5th percentile of 41 is the 40th.
         d.band_misses.push_back(miss(4.1, 0.2));
         let s = d.band_scale();
-        assert!(
-            (s.rate_miss_std[HEAVE] - 0.2 / 2.241_402_727_604_947).abs() < 1e-12,
-            "{s:?}"
-        );
+        assert!((s.rate_miss_std[HEAVE] - 0.2 / z).abs() < 1e-12, "{s:?}");
         // The warm-up's backtests are evidence of the band's scale, not of this spread.
         let mut fresh = LandingDecider::new(DecisionConfig::default()).unwrap();
         for k in 0..2 * MIN_BAND_EVIDENCE {

@@ -3,6 +3,7 @@
 //! calibration of their stated bands by their own held-out misses.
 
 use super::*;
+use deckwatch_common::stats::normal_quantile;
 
 #[derive(Debug, Clone)]
 pub(super) struct Models {
@@ -88,9 +89,17 @@ pub(super) struct BandScale {
     pub(super) checked: bool,
 }
 
-/// The two-sided quantile of the standard normal that holds `BAND_EVIDENCE_QUANTILE` (0.975):
-/// `Phi^-1(0.9875)`.
-const Z_EVIDENCE: f64 = 2.241_402_727_604_947;
+/// The `BAND_EVIDENCE_QUANTILE` of `values` (reordered; at least one).
+fn evidence_quantile(values: &mut [f64]) -> f64 {
+    let i = ((values.len() as f64 * BAND_EVIDENCE_QUANTILE).ceil() as usize).min(values.len()) - 1;
+    *values.select_nth_unstable_by(i, f64::total_cmp).1
+}
+
+/// The deviation of a normal whose two-sided band holds `BAND_EVIDENCE_QUANTILE`, per unit:
+/// what a band's misses at that quantile are in standard deviations.
+pub(super) fn evidence_z() -> f64 {
+    normal_quantile(0.5 + 0.5 * BAND_EVIDENCE_QUANTILE)
+}
 
 /// The RMS of each channel's rate over samples `t` (s) and `y` (one series per channel), by
 /// central differences; NaN with fewer than three samples.
@@ -462,14 +471,12 @@ impl LandingDecider {
                 }
                 continue;
             }
-            let i = ((z.len() as f64 * BAND_EVIDENCE_QUANTILE).ceil() as usize).min(z.len()) - 1;
-            let (_, q95, _) = z.select_nth_unstable_by(i, f64::total_cmp);
             // Never narrower than stated, a rate's band neither: the scale is measured at the
             // 97.5th percentile of about a hundred misses and read at 3 standard deviations.
             // Rate bands allowed down to 0.75 of their stated deviation cleared twice into a
             // heave rate beyond the capacity at the touchdown's end on fresh seas, both with the
             // band at 0.77-0.78 (BENCHMARKS.md, "A rate's misses in its own unit").
-            scale[k] = (*q95 / Z95).max(1.0);
+            scale[k] = (evidence_quantile(&mut z) / Z95).max(1.0);
             if k >= 3 && !on_backtests {
                 // The same misses in m/s or deg/s, whatever each fit stated: the deviation
                 // whose normal band holds `BAND_EVIDENCE_QUANTILE` of them. Of real fits only:
@@ -477,9 +484,7 @@ impl LandingDecider {
                 // first clearance on them touched down 0.083 m/s beyond its forecast.
                 let mut abs: Vec<f64> = judged().map(|m| m.abs[k]).filter(|a| a.is_finite()).collect();
                 if abs.len() >= MIN_BAND_EVIDENCE {
-                    let i = ((abs.len() as f64 * BAND_EVIDENCE_QUANTILE).ceil() as usize).min(abs.len()) - 1;
-                    let (_, q, _) = abs.select_nth_unstable_by(i, f64::total_cmp);
-                    rate_miss_std[k - 3] = *q / Z_EVIDENCE;
+                    rate_miss_std[k - 3] = evidence_quantile(&mut abs) / evidence_z();
                 }
             }
         }

@@ -1368,8 +1368,8 @@ mod tests {
     /// Until a rate's band has evidence of its own, it is taken to be as far off as its value's
     /// has been measured to be (a campaign's sea cleared 0.2 s after the warm-up on the prior
     /// scale alone, with the heave's value band 3.9 times too narrow, and touched down into
-    /// 0.678 m/s of heave rate; BENCHMARKS.md, "The first clearance after the warm-up"); once
-    /// it has its own, that stands.
+    /// 0.678 m/s of heave rate; BENCHMARKS.md, "The first clearance after the warm-up"), and
+    /// nothing is cleared on it; once it has its own, that stands and clears.
     #[test]
     fn a_rate_band_without_evidence_is_as_far_off_as_its_value_band() {
         let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
@@ -1388,7 +1388,10 @@ mod tests {
             (rates[2] - 3.0).abs() < 1e-12,
             "the heave's value scale: {rates:?}"
         );
-        assert!(checked, "every value has its evidence");
+        assert!(
+            !checked,
+            "every value has its evidence, no rate has: not cleared on"
+        );
         // The rates' own evidence arrives: small misses, one short of enough for the heave rate.
         for k in 0..MIN_BAND_EVIDENCE {
             let heave_rate = if k + 1 < MIN_BAND_EVIDENCE { 0.5 } else { f64::NAN };
@@ -1397,20 +1400,46 @@ mod tests {
                 [1.0, 1.0, 3.0 * Z95, 0.5, 0.5, heave_rate],
             ));
         }
-        let (_, rates, _) = scales(&d);
+        let (_, rates, checked) = scales(&d);
         assert_eq!(rates[..2], [1.0; 2], "measured small: never below the stated");
         assert!(
             (rates[2] - 3.0).abs() < 1e-12,
             "one short: still the value's {rates:?}"
         );
+        assert!(
+            !checked,
+            "the heave rate one short of its own evidence: not cleared on"
+        );
         d.band_misses
             .push_back(BandMiss::new(7.0, [1.0, 1.0, 3.0 * Z95, 0.5, 0.5, 0.5]));
-        let (_, rates, _) = scales(&d);
+        let (_, rates, checked) = scales(&d);
         assert_eq!(rates[2], 1.0, "its own evidence stands");
+        assert!(checked, "every value and rate has its own evidence");
     }
 
-    /// The warm-up's backtests stand in for the real fits' misses while those are too few, and
-    /// for a rate only while its value's are too; then the real ones alone count.
+    /// Each fit checked against what followed gives its rates' misses as well as its values':
+    /// a fit is checked once the rates of its whole held-out span are measured. Checked at
+    /// `holdout_s` instead, a fit refitted every second gave rate misses only when a frame's
+    /// rounding made it the one 3 s old, and a rate's band cleared on its value's scale.
+    #[test]
+    fn every_checked_fit_measures_its_rates_misses_too() {
+        let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
+        run(&mut d, 0.0, 60.0, |t| Some(measured(sea(t, 0.3), t)));
+        let count = |k: usize| d.band_misses.iter().filter(|m| m.z[k].is_finite()).count();
+        let (values, rates) = (count(HEAVE), count(3 + HEAVE));
+        // A fit a second at 10 Hz: its value's misses over the last half of the held-out span, its
+        // rate's over the last quarter.
+        let fits = BAND_MEMORY_S / d.config().refit_interval_s;
+        assert!(values as f64 >= 0.8 * fits * 10.0, "{values} value misses");
+        assert!(
+            2 * rates + 2 >= values && rates >= MIN_BAND_EVIDENCE,
+            "{rates} rate misses against {values} value misses"
+        );
+        assert!(scales(&d).2, "checked on the real misses alone");
+    }
+
+    /// The warm-up's backtests stand in for the real fits' misses of each quantity while those
+    /// are too few; then the real ones alone count.
     #[test]
     fn backtests_stand_in_only_until_the_real_misses_suffice() {
         let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
@@ -1427,8 +1456,8 @@ mod tests {
             );
         }
         assert!(checked, "the backtests are evidence");
-        // Real misses of the values, honest, and enough: they alone count, and the rates (with
-        // no real misses of their own) are taken to be as far off as their values.
+        // Real misses of the values, honest, and enough: they alone count for the values; the
+        // rates, with no real misses of their own yet, are still judged on the backtests.
         for k in 0..MIN_BAND_EVIDENCE {
             d.band_misses.push_back(BandMiss::new(
                 5.0 + 0.1 * k as f64,
@@ -1437,7 +1466,18 @@ mod tests {
         }
         let (values, rates, checked) = scales(&d);
         assert_eq!(values, [1.0; 3]);
-        assert_eq!(rates, [PRIOR_BAND_SCALE; 3], "not the backtests' 4");
+        assert_eq!(
+            rates, [4.0; 3],
+            "the backtests' 4 until the rates' own misses suffice"
+        );
+        assert!(checked);
+        // The rates' own misses, honest, and enough: they alone count.
+        for k in 0..MIN_BAND_EVIDENCE {
+            d.band_misses
+                .push_back(BandMiss::new(7.0 + 0.1 * k as f64, [Z95; 6]));
+        }
+        let (values, rates, checked) = scales(&d);
+        assert_eq!((values, rates), ([1.0; 3], [1.0; 3]));
         assert!(checked);
     }
 

@@ -266,8 +266,8 @@ impl AttitudeStreamModel {
                     Some(DeckObservation::new(m[0], m[1], height))
                 };
                 // A frozen camera: the same image again and again. The estimator sees the same
-                // markers and, from the `FROZEN_IMAGE_REPEATS`-th repeat on, says so (no valid
-                // attitude); the repeats before pass as the same measurement.
+                // markers and, from the `FROZEN_IMAGE_REPEATS`-th repeat on (the first), says so
+                // (no valid attitude).
                 let (deck, frozen_image) = if frozen_now {
                     let frozen = *frozen_deck.get_or_insert(deck);
                     let seen = frozen.is_some() && repeats >= FROZEN_IMAGE_REPEATS;

@@ -142,10 +142,12 @@ mod tests {
         }
         let mut s = EstimateStage::new(&EstimateConfig::default(), &VehicleConfig::default(), false);
         let out: Vec<AttitudeMessage> = (0..3).map(|k| s.process(&m, 1000 + k)).collect();
+        assert_ne!(out[0].failure, AttitudeFailure::FrozenImage);
+        assert_eq!(out[1].failure, AttitudeFailure::FrozenImage, "the first repeat");
         assert_eq!(out[2].failure, AttitudeFailure::FrozenImage);
         assert_eq!(out[1].stamp.times.estimate_received_ns, 1001);
         assert!(out[1].stamp.times.estimate_finished_ns > 0);
-        assert_eq!((s.processed, s.estimator().frozen), (3, 1));
+        assert_eq!((s.processed, s.estimator().frozen), (3, 2));
         let mut d =
             crate::stages::DecideStage::new(deckwatch_decide::DecisionConfig::default(), false).unwrap();
         let mut frozen = out[2];

@@ -75,11 +75,14 @@ wire_enum!(
 
 /// Repeats of a marker set (after the first) that make an image frozen: the first repeat, the
 /// second bit-identical set in a row. A repeated image is one captured earlier, stamped now and
-/// compensated with the vehicle's attitude and height of now: not the deck at any instant. In
-/// the closed-loop trials the first repeat of a frozen camera during a descent moved the deck's
-/// height by 0.14 m and its roll by 0.3 deg, and the touchdown went around for
-/// `predicted-outside` on it instead of `frozen-input` (it passed while only the third set in a
-/// row was refused; BENCHMARKS.md, "A rate's band cleared on only with misses of its own").
+/// compensated with the vehicle's attitude and height of now: not the deck at any instant.
+/// The detector's tracking places its windows from the frame before, so a frozen camera's
+/// first repeated image gives marker centres a little different from the original's, and only
+/// the repeats after it are bit-identical: in the closed-loop trials that first repeat, during
+/// a descent, moved the deck's height by 0.14 m and its roll by 0.3 deg, and a touchdown went
+/// around on it for `predicted-outside`; the next one, which passed too while the third set in
+/// a row was the first refused, is now refused (BENCHMARKS.md, "A rate's band cleared on only
+/// with misses of its own"). Catching the first repeat needs the image's own fingerprint.
 pub const FROZEN_IMAGE_REPEATS: u32 = 1;
 
 /// Estimate's output for one frame.

@@ -1438,6 +1438,21 @@ mod tests {
         assert!(scales(&d).2, "checked on the real misses alone");
     }
 
+    /// A fit is kept until it is old enough to be checked, however often the models are
+    /// refitted: at a refit every 0.1 s the fits were dropped 2.2 s old, before their check at
+    /// 2.5 s, and no band was ever checked.
+    #[test]
+    fn a_fast_refit_still_checks_its_band() {
+        let config = DecisionConfig {
+            refit_interval_s: 0.1,
+            ..DecisionConfig::default()
+        };
+        let mut d = LandingDecider::new(config).unwrap();
+        run(&mut d, 0.0, 40.0, |t| Some(measured(sea(t, 0.3), t)));
+        assert!(scales(&d).2, "checked on its own misses");
+        assert!(d.band_misses.iter().any(|m| m.z[3 + HEAVE].is_finite()));
+    }
+
     /// The warm-up's backtests stand in for the real fits' misses of each quantity while those
     /// are too few; then the real ones alone count.
     #[test]

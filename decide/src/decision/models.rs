@@ -323,10 +323,11 @@ impl LandingDecider {
         let holdout_error = c.error_factor * recent_angle.max(disagreement.0);
         let heave_error = c.error_factor * recent_heave.max(disagreement.1);
         self.past.push_back(tracks.clone());
+        // Kept until checked: the band's check wants them `banded_span_s` old.
         while self
             .past
             .front()
-            .is_some_and(|m| end - m[0].t0() > c.holdout_s + 2.0 * c.refit_interval_s)
+            .is_some_and(|m| end - m[0].t0() > banded_span_s + 2.0 * c.refit_interval_s)
         {
             self.past.pop_front();
         }

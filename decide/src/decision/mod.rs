@@ -1261,7 +1261,8 @@ mod tests {
         assert!(d.exceedance_risk(&m, times(), &limits) < c.risk_per_touchdown);
     }
 
-    /// The decider's band scales: values, rates, and whether every value has its evidence.
+    /// The decider's band scales: values, rates, and whether every value and rate has its
+    /// evidence.
     fn scales(d: &LandingDecider) -> ([f64; 3], [f64; 3], bool) {
         let BandScale {
             values,

@@ -84,6 +84,12 @@ impl FlightPath {
         });
     }
 
+    /// Where the last command sends it, if that is a height in W (not one over the deck).
+    pub fn target_in_w_m(&self) -> Option<f64> {
+        let l = self.legs.last().expect("a path has a leg");
+        (!l.over_deck).then_some(l.target_m)
+    }
+
     /// The leg's end: when it reaches its target (the start of time for a hover).
     pub fn arrival_s(&self) -> f64 {
         let l = self.legs.last().expect("a path has a leg");

@@ -116,7 +116,10 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
         let t = k as f64 / timing.rate_hz;
         let t_decided = t + reaction_s;
         if let Some(contact) = autopilot.contact_s().filter(|&c| c <= t_decided) {
-            out.touchdown = Some(judge(contact));
+            out.touchdown = Some(TouchdownVerdict {
+                descent_mps: autopilot.descent_mps,
+                ..judge(contact)
+            });
             break;
         }
         if t > model.max_approach_s {
@@ -184,8 +187,8 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
                 )
             } else {
                 format!(
-                    "GO-AROUND at {t_decided:.2} s: climbing back to {} m",
-                    model.hover_m
+                    "GO-AROUND at {t_decided:.2} s: climbing back to {:.2} m",
+                    autopilot.waiting_m()
                 )
             };
             pipeline.note(timing.time_ns(t_decided), &what);

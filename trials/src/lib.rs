@@ -27,8 +27,13 @@ use std::collections::BTreeMap;
 /// How the simulated vehicle flies an approach.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct ApproachModel {
-    /// Where it waits: the camera's height in W over the deck's mean level (m).
+    /// Where it waits at the least: the camera's height in W over the deck's mean level (m).
     pub hover_m: f64,
+    /// While it waits it keeps its camera at least this high over the highest the deck has been
+    /// in the last [`RANGED_WINDOW_S`] (its range finder and altimeter measure the deck's
+    /// height), so that at a swell's crest the whole pattern stays in view (m). It waits at
+    /// `hover_m` where the sea is lower.
+    pub wait_clearance_m: f64,
     /// The camera's height over the deck at contact (gear on the deck, m).
     pub contact_m: f64,
     /// From commit to contact (s): the decision's `touchdown_s`. The descent follows the deck
@@ -43,11 +48,13 @@ pub struct ApproachModel {
 }
 
 impl ApproachModel {
-    /// A small quadrotor that waits 3 m over the deck and touches down with its camera 0.25 m
-    /// over it, from `touchdown_s` after the commit.
+    /// A small quadrotor that waits 3 m over the deck's mean level, and 2.5 m over its highest
+    /// in a swell, and touches down with its camera 0.25 m over it, from `touchdown_s` after the
+    /// commit.
     pub fn quadrotor(touchdown_s: f64) -> Self {
         Self {
             hover_m: 3.0,
+            wait_clearance_m: 2.5,
             contact_m: 0.25,
             touchdown_s,
             climb_mps: 1.5,
@@ -58,6 +65,7 @@ impl ApproachModel {
 
     pub fn validate(&self) -> Result<(), deckwatch_common::InvalidOption> {
         let ok = self.hover_m > self.contact_m
+            && self.wait_clearance_m > self.contact_m
             && self.contact_m > 0.0
             && self.touchdown_s > 0.0
             && self.climb_mps > 0.0
@@ -68,7 +76,7 @@ impl ApproachModel {
         } else {
             Err(deckwatch_common::InvalidOption::new(
                 "approach",
-                format!("hover height over contact height over 0, positive touchdown time, climb rate and tilt limit, an approach longer than a touchdown; got {self:?}"),
+                format!("hover height and wait clearance over contact height over 0, positive touchdown time, climb rate and tilt limit, an approach longer than a touchdown; got {self:?}"),
             ))
         }
     }
@@ -118,6 +126,17 @@ pub enum Phase {
     },
 }
 
+/// How far back the waiting vehicle remembers the deck's highest (s): two swell periods at sea
+/// state 6.
+pub const RANGED_WINDOW_S: f64 = 30.0;
+
+/// The waiting vehicle climbs as soon as it is this much below its waiting height (m)...
+const WAIT_RAISE_M: f64 = 0.05;
+/// ... and comes down only once it is this much above it (m), at [`WAIT_LOWER_MPS`]: the
+/// crests of a swell come in groups, and a lull is no reason to go down and up again.
+const WAIT_LOWER_M: f64 = 0.5;
+const WAIT_LOWER_MPS: f64 = 0.5;
+
 /// The simulated autopilot: flies the shared [`deckwatch_sim::landing::FlightPath`] as the
 /// commands come.
 pub struct SimulatedAutopilot {
@@ -126,6 +145,12 @@ pub struct SimulatedAutopilot {
     path: SharedFlightPath,
     pub commits: u32,
     pub go_arounds: u32,
+    /// The deck's height as ranged, (t s, m), over the last [`RANGED_WINDOW_S`].
+    ranged: std::collections::VecDeque<(f64, f64)>,
+    /// The height in W it waits at (m).
+    waiting_m: f64,
+    /// The last descent's speed over the deck (m/s).
+    pub descent_mps: f64,
 }
 
 impl SimulatedAutopilot {
@@ -136,6 +161,9 @@ impl SimulatedAutopilot {
             path,
             commits: 0,
             go_arounds: 0,
+            ranged: Default::default(),
+            waiting_m: model.hover_m,
+            descent_mps: 0.0,
         }
     }
 
@@ -156,9 +184,40 @@ impl SimulatedAutopilot {
         }
     }
 
-    /// Acts on `command` at `t_s` (the deck being `heave_m` high then); true if it changed
-    /// what the vehicle does.
+    /// The height in W it waits at now (m).
+    pub fn waiting_m(&self) -> f64 {
+        self.waiting_m
+    }
+
+    /// The deck ranged at `heave_m` at `t_s`: the waiting height follows the highest deck of the
+    /// last [`RANGED_WINDOW_S`].
+    fn range(&mut self, t_s: f64, heave_m: f64) {
+        if heave_m.is_finite() {
+            self.ranged.push_back((t_s, heave_m));
+        }
+        while self
+            .ranged
+            .front()
+            .is_some_and(|&(t, _)| t < t_s - RANGED_WINDOW_S)
+        {
+            self.ranged.pop_front();
+        }
+        let highest_m = self
+            .ranged
+            .iter()
+            .map(|&(_, h)| h)
+            .fold(f64::NEG_INFINITY, f64::max);
+        let wanted_m = self.model.hover_m.max(highest_m + self.model.wait_clearance_m);
+        if wanted_m > self.waiting_m + WAIT_RAISE_M || wanted_m < self.waiting_m - WAIT_LOWER_M {
+            self.waiting_m = wanted_m;
+        }
+    }
+
+    /// Acts on `command` at `t_s` (the deck being `heave_m` high then, as its range finder
+    /// measures); true if it changed what the vehicle does (a commit or a go-around; a change
+    /// of its waiting height is not).
     pub fn act(&mut self, t_s: f64, heave_m: f64, command: Command) -> bool {
+        self.range(t_s, heave_m);
         let mut path = self.path.lock().unwrap_or_else(|e| e.into_inner());
         match command {
             Command::Land if self.ready(t_s) => {
@@ -169,11 +228,12 @@ impl SimulatedAutopilot {
                     commit_s: t_s,
                     contact_s: t_s + self.model.touchdown_s,
                 };
+                self.descent_mps = speed;
                 self.commits += 1;
                 true
             }
             Command::GoAround if matches!(self.phase, Phase::Descent { .. }) => {
-                path.move_to(t_s, heave_m, self.model.hover_m, self.model.climb_mps, false);
+                path.move_to(t_s, heave_m, self.waiting_m, self.model.climb_mps, false);
                 self.phase = Phase::Climb {
                     ready_s: path.arrival_s(),
                 };
@@ -185,6 +245,16 @@ impl SimulatedAutopilot {
                     if t_s >= ready_s {
                         self.phase = Phase::Hover;
                     }
+                }
+                let to_m = self.waiting_m;
+                if self.phase == Phase::Hover && path.target_in_w_m() != Some(to_m) {
+                    let now_m = path.height_m(t_s, heave_m);
+                    let speed = if to_m > now_m {
+                        self.model.climb_mps
+                    } else {
+                        WAIT_LOWER_MPS
+                    };
+                    path.move_to(t_s, heave_m, to_m, speed, false);
                 }
                 false
             }
@@ -202,6 +272,9 @@ pub struct TouchdownVerdict {
     pub relative_tilt_deg: f64,
     /// The limits broken (empty: a safe touchdown).
     pub violations: Vec<String>,
+    /// The descent's speed over the deck, from the commit to contact (m/s).
+    #[serde(default)]
+    pub descent_mps: f64,
 }
 
 impl TouchdownVerdict {
@@ -228,6 +301,7 @@ impl TouchdownVerdict {
             deck,
             relative_tilt_deg,
             violations,
+            descent_mps: f64::NAN,
         }
     }
 
@@ -283,6 +357,8 @@ pub struct RuleSummary {
     pub timeouts: u64,
     /// Arrival to touchdown of each touchdown (s).
     pub arrival_to_touchdown_s: Vec<f64>,
+    /// Each touchdown's descent speed over the deck (m/s).
+    pub descent_mps: Vec<f64>,
     pub frames: u64,
     pub decisions_by_reason: BTreeMap<String, u64>,
 }
@@ -303,6 +379,9 @@ impl RuleSummary {
             Some(v) => {
                 self.touchdowns += 1;
                 self.arrival_to_touchdown_s.push(v.t_s);
+                if v.descent_mps.is_finite() {
+                    self.descent_mps.push(v.descent_mps);
+                }
                 if !v.safe() {
                     self.unsafe_touchdowns += 1;
                     for name in &v.violations {
@@ -324,6 +403,7 @@ impl RuleSummary {
         self.frames += other.frames;
         self.arrival_to_touchdown_s
             .extend_from_slice(&other.arrival_to_touchdown_s);
+        self.descent_mps.extend_from_slice(&other.descent_mps);
         for (k, v) in &other.violations {
             *self.violations.entry(k.clone()).or_default() += v;
         }
@@ -459,6 +539,49 @@ mod tests {
         assert!(ap.ready(ready_s));
         assert!(ap.act(ready_s + 0.1, 0.0, Command::Land));
         assert_eq!((ap.commits, ap.go_arounds), (2, 1));
+    }
+
+    #[test]
+    fn the_waiting_vehicle_keeps_its_clearance_over_a_swells_crests() {
+        let model = ApproachModel::quadrotor(2.0);
+        let run = |amplitude_m: f64| {
+            let path = Arc::new(Mutex::new(FlightPath::hover(model.hover_m)));
+            let mut ap = SimulatedAutopilot::new(model, path.clone());
+            let heave = |t: f64| amplitude_m * (std::f64::consts::TAU * t / 12.0).sin();
+            let mut least_over_deck_m = f64::INFINITY;
+            for k in 0..600 {
+                let t = k as f64 * 0.1;
+                ap.act(t, heave(t), Command::Wait);
+                least_over_deck_m = least_over_deck_m.min(path.lock().unwrap().over_deck_m(t, heave(t)));
+            }
+            let at_60_m = path.lock().unwrap().height_m(60.0, 0.0);
+            (least_over_deck_m, ap.waiting_m(), at_60_m)
+        };
+        // A calm sea: it waits where it arrived.
+        let (least_m, waiting_m, at_60_m) = run(0.2);
+        assert!((least_m - 2.8).abs() < 1e-6 && waiting_m == 3.0 && at_60_m == 3.0);
+        // A 2 m swell: it climbs with the first crest (1 m/s of heave against 1.5 m/s of climb,
+        // a frame late) and waits 2.5 m over the crests (less its 5 cm of hysteresis), never
+        // coming down between them.
+        let (least_m, waiting_m, at_60_m) = run(2.0);
+        assert!(least_m > 2.5 - 0.2, "{least_m}");
+        assert!((4.45..=4.5).contains(&waiting_m), "{waiting_m}");
+        assert!((at_60_m - waiting_m).abs() < 1e-9, "{at_60_m}");
+        // A go-around climbs back to the waiting height, not to `hover_m`.
+        let path = Arc::new(Mutex::new(FlightPath::hover(model.hover_m)));
+        let mut ap = SimulatedAutopilot::new(model, path.clone());
+        ap.act(0.0, 2.0, Command::Wait);
+        assert!(ap.act(5.0, 0.0, Command::Land));
+        assert!(
+            (ap.descent_mps - (4.5 - 0.25) / 2.0).abs() < 1e-9,
+            "{}",
+            ap.descent_mps
+        );
+        assert!(ap.act(6.0, 0.0, Command::GoAround));
+        let Phase::Climb { ready_s } = ap.phase else {
+            panic!()
+        };
+        assert!((path.lock().unwrap().height_m(ready_s, 0.0) - 4.5).abs() < 1e-9);
     }
 
     #[test]

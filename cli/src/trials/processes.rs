@@ -210,14 +210,10 @@ fn fly_with(
         let t = t_of(now);
         if let Some(contact) = autopilot.contact_s().filter(|&c| c <= t) {
             let (r_d, r_v) = world.attitudes(contact);
-            out.touchdown = Some(TouchdownVerdict::judge(
-                &|t| world.truth(t),
-                &r_d,
-                &r_v,
-                contact,
-                capacity,
-                &model,
-            ));
+            out.touchdown = Some(TouchdownVerdict {
+                descent_mps: autopilot.descent_mps,
+                ..TouchdownVerdict::judge(&|t| world.truth(t), &r_d, &r_v, contact, capacity, &model)
+            });
             break Ok(());
         }
         if t > model.max_approach_s || stop.load(Ordering::Relaxed) {

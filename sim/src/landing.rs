@@ -84,10 +84,10 @@ impl FlightPath {
         });
     }
 
-    /// Where the last command sends it, if that is a height in W (not one over the deck).
-    pub fn target_in_w_m(&self) -> Option<f64> {
+    /// Where the last command sends it: a height (m), and whether over the deck (else in W).
+    pub fn target(&self) -> (f64, bool) {
         let l = self.legs.last().expect("a path has a leg");
-        (!l.over_deck).then_some(l.target_m)
+        (l.target_m, l.over_deck)
     }
 
     /// The leg's end: when it reaches its target (the start of time for a hover).

@@ -27,12 +27,18 @@ use std::collections::BTreeMap;
 /// How the simulated vehicle flies an approach.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct ApproachModel {
-    /// Where it waits at the least: the camera's height in W over the deck's mean level (m).
+    /// Where it waits: its camera's height over the deck (m) when it follows the deck, else, at
+    /// the least, over the deck's mean level.
     pub hover_m: f64,
-    /// While it waits it keeps its camera at least this high over the highest the deck has been
-    /// in the last [`RANGED_WINDOW_S`] (its range finder and altimeter measure the deck's
-    /// height), so that at a swell's crest the whole pattern stays in view (m). It waits at
-    /// `hover_m` where the sea is lower.
+    /// While it waits it holds its camera `hover_m` over the deck on its range finder, rising and
+    /// falling with the heave (ArduPilot's surface tracking, PX4's terrain following): the
+    /// pattern stays in view at one size, and every descent is `hover_m` long. Else it holds a
+    /// height in W (see `wait_clearance_m`).
+    pub follow_deck: bool,
+    /// Holding a height in W, it keeps its camera at least this high over the highest the deck
+    /// has been in the last [`RANGED_WINDOW_S`] (its range finder and altimeter measure the
+    /// deck's height), so that at a swell's crest the whole pattern stays in view (m). It waits
+    /// at `hover_m` where the sea is lower.
     pub wait_clearance_m: f64,
     /// The camera's height over the deck at contact (gear on the deck, m).
     pub contact_m: f64,
@@ -48,12 +54,12 @@ pub struct ApproachModel {
 }
 
 impl ApproachModel {
-    /// A small quadrotor that waits 3 m over the deck's mean level, and 2.5 m over its highest
-    /// in a swell, and touches down with its camera 0.25 m over it, from `touchdown_s` after the
-    /// commit.
+    /// A small quadrotor that waits with its camera 3 m over the deck, following it, and touches
+    /// down with its camera 0.25 m over it, `touchdown_s` after the commit.
     pub fn quadrotor(touchdown_s: f64) -> Self {
         Self {
             hover_m: 3.0,
+            follow_deck: true,
             wait_clearance_m: 2.5,
             contact_m: 0.25,
             touchdown_s,
@@ -184,9 +190,18 @@ impl SimulatedAutopilot {
         }
     }
 
-    /// The height in W it waits at now (m).
+    /// The height it waits at now (m): over the deck when it follows the deck, else in W.
     pub fn waiting_m(&self) -> f64 {
-        self.waiting_m
+        self.waiting_target().0
+    }
+
+    /// Where it waits: a height (m), and whether over the deck (else in W).
+    fn waiting_target(&self) -> (f64, bool) {
+        if self.model.follow_deck {
+            (self.model.hover_m, true)
+        } else {
+            (self.waiting_m, false)
+        }
     }
 
     /// The deck ranged at `heave_m` at `t_s`: the waiting height follows the highest deck of the
@@ -233,7 +248,8 @@ impl SimulatedAutopilot {
                 true
             }
             Command::GoAround if matches!(self.phase, Phase::Descent { .. }) => {
-                path.move_to(t_s, heave_m, self.waiting_m, self.model.climb_mps, false);
+                let (to_m, over_deck) = self.waiting_target();
+                path.move_to(t_s, heave_m, to_m, self.model.climb_mps, over_deck);
                 self.phase = Phase::Climb {
                     ready_s: path.arrival_s(),
                 };
@@ -246,15 +262,15 @@ impl SimulatedAutopilot {
                         self.phase = Phase::Hover;
                     }
                 }
-                let to_m = self.waiting_m;
-                if self.phase == Phase::Hover && path.target_in_w_m() != Some(to_m) {
-                    let now_m = path.height_m(t_s, heave_m);
+                let (to_m, over_deck) = self.waiting_target();
+                if self.phase == Phase::Hover && path.target() != (to_m, over_deck) {
+                    let now_m = path.height_m(t_s, heave_m) - if over_deck { heave_m } else { 0.0 };
                     let speed = if to_m > now_m {
                         self.model.climb_mps
                     } else {
                         WAIT_LOWER_MPS
                     };
-                    path.move_to(t_s, heave_m, to_m, speed, false);
+                    path.move_to(t_s, heave_m, to_m, speed, over_deck);
                 }
                 false
             }
@@ -542,8 +558,11 @@ mod tests {
     }
 
     #[test]
-    fn the_waiting_vehicle_keeps_its_clearance_over_a_swells_crests() {
-        let model = ApproachModel::quadrotor(2.0);
+    fn holding_a_height_the_waiting_vehicle_keeps_its_clearance_over_a_swells_crests() {
+        let model = ApproachModel {
+            follow_deck: false,
+            ..ApproachModel::quadrotor(2.0)
+        };
         let run = |amplitude_m: f64| {
             let path = Arc::new(Mutex::new(FlightPath::hover(model.hover_m)));
             let mut ap = SimulatedAutopilot::new(model, path.clone());
@@ -582,6 +601,31 @@ mod tests {
             panic!()
         };
         assert!((path.lock().unwrap().height_m(ready_s, 0.0) - 4.5).abs() < 1e-9);
+    }
+
+    #[test]
+    fn following_the_deck_the_waiting_vehicle_rises_and_falls_with_it() {
+        let model = ApproachModel::quadrotor(2.0);
+        assert!(model.follow_deck);
+        let path = Arc::new(Mutex::new(FlightPath::hover(model.hover_m)));
+        let mut ap = SimulatedAutopilot::new(model, path.clone());
+        let heave = |t: f64| 2.0 * (std::f64::consts::TAU * t / 12.0).sin();
+        for k in 0..600 {
+            let t = k as f64 * 0.1;
+            ap.act(t, heave(t), Command::Wait);
+            let over_m = path.lock().unwrap().over_deck_m(t, heave(t));
+            assert!((over_m - 3.0).abs() < 1e-9, "{t} s: {over_m}");
+        }
+        // Every descent is the same: 2.75 m in 2 s.
+        assert!(ap.act(60.0, heave(60.0), Command::Land));
+        assert!((ap.descent_mps - 2.75 / 2.0).abs() < 1e-9);
+        // A go-around climbs back to 3 m over the deck.
+        assert!(ap.act(61.0, heave(61.0), Command::GoAround));
+        let Phase::Climb { ready_s } = ap.phase else {
+            panic!()
+        };
+        let over_m = path.lock().unwrap().over_deck_m(ready_s, heave(ready_s));
+        assert!((over_m - 3.0).abs() < 1e-9, "{over_m}");
     }
 
     #[test]

@@ -159,7 +159,9 @@ fn closed_loop_landings_touch_down_safely_in_one_process_and_through_the_process
 /// "The first clearance after the warm-up"): sea state 6, seed 26, waves from ahead, approach
 /// 16. It cleared 0.2 s after the warm-up, on heave-rate bands not yet checked against what
 /// followed, and touched down into 0.678 m/s of heave rate. Flown again alone (the last of 17
-/// shards is that approach): it must not touch down unsafely.
+/// shards is that approach): it must not touch down unsafely. The campaign's vehicle held 3 m
+/// over the deck's mean level; `--hold-height` with a clearance too small to matter flies that
+/// approach again.
 #[test]
 fn the_campaigns_unsafe_approach_waits_for_its_rate_bands_evidence() {
     let out = Command::new(workspace_binary("deckwatch"))
@@ -180,6 +182,9 @@ fn the_campaigns_unsafe_approach_waits_for_its_rate_bands_evidence() {
             "17/17",
             "--max-approach-s",
             "60",
+            "--hold-height",
+            "--wait-clearance-m",
+            "0.3",
         ])
         .output()
         .unwrap();

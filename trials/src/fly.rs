@@ -117,7 +117,7 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
         let t_decided = t + reaction_s;
         if let Some(contact) = autopilot.contact_s().filter(|&c| c <= t_decided) {
             out.touchdown = Some(TouchdownVerdict {
-                descent_mps: autopilot.descent_mps,
+                descent_mps: Some(autopilot.descent_mps),
                 ..judge(contact)
             });
             break;

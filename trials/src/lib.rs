@@ -288,9 +288,10 @@ pub struct TouchdownVerdict {
     pub relative_tilt_deg: f64,
     /// The limits broken (empty: a safe touchdown).
     pub violations: Vec<String>,
-    /// The descent's speed over the deck, from the commit to contact (m/s).
-    #[serde(default)]
-    pub descent_mps: f64,
+    /// The descent's speed over the deck, from the commit to contact (m/s); None where no
+    /// descent was flown (the oracle's touchdowns).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub descent_mps: Option<f64>,
 }
 
 impl TouchdownVerdict {
@@ -317,7 +318,7 @@ impl TouchdownVerdict {
             deck,
             relative_tilt_deg,
             violations,
-            descent_mps: f64::NAN,
+            descent_mps: None,
         }
     }
 
@@ -395,9 +396,7 @@ impl RuleSummary {
             Some(v) => {
                 self.touchdowns += 1;
                 self.arrival_to_touchdown_s.push(v.t_s);
-                if v.descent_mps.is_finite() {
-                    self.descent_mps.push(v.descent_mps);
-                }
+                self.descent_mps.extend(v.descent_mps);
                 if !v.safe() {
                     self.unsafe_touchdowns += 1;
                     for name in &v.violations {

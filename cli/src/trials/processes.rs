@@ -211,7 +211,7 @@ fn fly_with(
         if let Some(contact) = autopilot.contact_s().filter(|&c| c <= t) {
             let (r_d, r_v) = world.attitudes(contact);
             out.touchdown = Some(TouchdownVerdict {
-                descent_mps: autopilot.descent_mps,
+                descent_mps: Some(autopilot.descent_mps),
                 ..TouchdownVerdict::judge(&|t| world.truth(t), &r_d, &r_v, contact, capacity, &model)
             });
             break Ok(());

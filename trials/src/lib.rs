@@ -35,6 +35,9 @@ pub struct ApproachModel {
     /// pattern stays in view at one size, and every descent is `hover_m` long. Else it holds a
     /// height in W (see `wait_clearance_m`).
     pub follow_deck: bool,
+    /// Following the deck, its height lags the deck's by a first-order filter of this time
+    /// constant (s; ArduPilot's `SURFTRAK_TC`, 1 s by default); 0 follows it exactly.
+    pub follow_lag_s: f64,
     /// Holding a height in W, it keeps its camera at least this high over the highest the deck
     /// has been in the last [`RANGED_WINDOW_S`] (its range finder and altimeter measure the
     /// deck's height), so that at a swell's crest the whole pattern stays in view (m). It waits
@@ -60,6 +63,7 @@ impl ApproachModel {
         Self {
             hover_m: 3.0,
             follow_deck: true,
+            follow_lag_s: 1.0,
             wait_clearance_m: 2.5,
             contact_m: 0.25,
             touchdown_s,
@@ -72,6 +76,7 @@ impl ApproachModel {
     pub fn validate(&self) -> Result<(), deckwatch_common::InvalidOption> {
         let ok = self.hover_m > self.contact_m
             && self.wait_clearance_m > self.contact_m
+            && self.follow_lag_s >= 0.0
             && self.contact_m > 0.0
             && self.touchdown_s > 0.0
             && self.climb_mps > 0.0
@@ -142,6 +147,9 @@ const WAIT_RAISE_M: f64 = 0.05;
 /// crests of a swell come in groups, and a lull is no reason to go down and up again.
 const WAIT_LOWER_M: f64 = 0.5;
 const WAIT_LOWER_MPS: f64 = 0.5;
+/// A vehicle following the deck with a lag moves to its lagged height within this long (s):
+/// about a frame, when the autopilot hears from deckwatch.
+const FOLLOW_STEP_S: f64 = 0.1;
 
 /// The simulated autopilot: flies the shared [`deckwatch_sim::landing::FlightPath`] as the
 /// commands come.
@@ -153,8 +161,10 @@ pub struct SimulatedAutopilot {
     pub go_arounds: u32,
     /// The deck's height as ranged, (t s, m), over the last [`RANGED_WINDOW_S`].
     ranged: std::collections::VecDeque<(f64, f64)>,
-    /// The height in W it waits at (m).
+    /// The height in W it waits at (m), holding a height.
     waiting_m: f64,
+    /// When (s) and where (m) its lagged surface tracking last put the deck.
+    followed: Option<(f64, f64)>,
     /// The last descent's speed over the deck (m/s).
     pub descent_mps: f64,
 }
@@ -169,6 +179,7 @@ impl SimulatedAutopilot {
             go_arounds: 0,
             ranged: Default::default(),
             waiting_m: model.hover_m,
+            followed: None,
             descent_mps: 0.0,
         }
     }
@@ -197,10 +208,12 @@ impl SimulatedAutopilot {
 
     /// Where it waits: a height (m), and whether over the deck (else in W).
     fn waiting_target(&self) -> (f64, bool) {
-        if self.model.follow_deck {
-            (self.model.hover_m, true)
-        } else {
-            (self.waiting_m, false)
+        match (self.model.follow_deck, self.followed) {
+            (true, Some((_, deck_m))) if self.model.follow_lag_s > 0.0 => {
+                (deck_m + self.model.hover_m, false)
+            }
+            (true, _) => (self.model.hover_m, true),
+            (false, _) => (self.waiting_m, false),
         }
     }
 
@@ -209,6 +222,15 @@ impl SimulatedAutopilot {
     fn range(&mut self, t_s: f64, heave_m: f64) {
         if heave_m.is_finite() {
             self.ranged.push_back((t_s, heave_m));
+            self.followed = Some(match self.followed {
+                Some((t0, deck_m)) if t_s > t0 => {
+                    let k = 1.0 - (-(t_s - t0) / self.model.follow_lag_s).exp();
+                    (t_s, deck_m + k * (heave_m - deck_m))
+                }
+                Some(followed) => followed,
+                // It arrives holding `hover_m` over the deck's mean level.
+                None => (t_s, 0.0),
+            });
         }
         while self
             .ranged
@@ -265,7 +287,10 @@ impl SimulatedAutopilot {
                 let (to_m, over_deck) = self.waiting_target();
                 if self.phase == Phase::Hover && path.target() != (to_m, over_deck) {
                     let now_m = path.height_m(t_s, heave_m) - if over_deck { heave_m } else { 0.0 };
-                    let speed = if to_m > now_m {
+                    let speed = if !over_deck && self.model.follow_deck {
+                        // Tracking with a lag: there by the next frame.
+                        ((to_m - now_m).abs() / FOLLOW_STEP_S).max(1e-3)
+                    } else if to_m > now_m {
                         self.model.climb_mps
                     } else {
                         WAIT_LOWER_MPS
@@ -604,7 +629,10 @@ mod tests {
 
     #[test]
     fn following_the_deck_the_waiting_vehicle_rises_and_falls_with_it() {
-        let model = ApproachModel::quadrotor(2.0);
+        let model = ApproachModel {
+            follow_lag_s: 0.0,
+            ..ApproachModel::quadrotor(2.0)
+        };
         assert!(model.follow_deck);
         let path = Arc::new(Mutex::new(FlightPath::hover(model.hover_m)));
         let mut ap = SimulatedAutopilot::new(model, path.clone());
@@ -625,6 +653,37 @@ mod tests {
         };
         let over_m = path.lock().unwrap().over_deck_m(ready_s, heave(ready_s));
         assert!((over_m - 3.0).abs() < 1e-9, "{over_m}");
+    }
+
+    #[test]
+    fn following_the_deck_with_a_lag_the_waiting_vehicle_trails_the_swell() {
+        let model = ApproachModel::quadrotor(2.0);
+        assert_eq!((model.follow_deck, model.follow_lag_s), (true, 1.0));
+        let path = Arc::new(Mutex::new(FlightPath::hover(model.hover_m)));
+        let mut ap = SimulatedAutopilot::new(model, path.clone());
+        // A 2 m swell of 12 s: a first-order lag of 1 s trails it by 2 wt / sqrt(1 + (wt)^2)
+        // = 0.93 m at the most, plus the frame it takes to move.
+        let w = std::f64::consts::TAU / 12.0;
+        let heave = |t: f64| 2.0 * (w * t).sin();
+        let (mut least_m, mut most_m) = (f64::INFINITY, f64::NEG_INFINITY);
+        for k in 0..1200 {
+            let t = k as f64 * 0.1;
+            ap.act(t, heave(t), Command::Wait);
+            let over_m = path.lock().unwrap().over_deck_m(t, heave(t));
+            if t > 30.0 {
+                least_m = least_m.min(over_m);
+                most_m = most_m.max(over_m);
+            }
+        }
+        let trail_m = 2.0 * w / (1.0 + w * w).sqrt();
+        assert!((trail_m - 0.93).abs() < 0.01);
+        assert!((3.0 - least_m - trail_m).abs() < 0.15, "{least_m}");
+        assert!((most_m - 3.0 - trail_m).abs() < 0.15, "{most_m}");
+        // A commit descends from where it is: at a rising deck, less than 2.75 m.
+        let t = 120.0 + 0.25 / w; // just after an upward crossing of the mean
+        ap.act(t, heave(t), Command::Wait);
+        assert!(ap.act(t + 0.1, heave(t + 0.1), Command::Land));
+        assert!(ap.descent_mps < 2.75 / 2.0 - 0.2, "{}", ap.descent_mps);
     }
 
     #[test]

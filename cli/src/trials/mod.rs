@@ -74,6 +74,10 @@ pub struct TrialsArgs {
     /// deck has been in the last 30 s.
     #[arg(long)]
     pub hold_height: bool,
+    /// Following the deck, its height lags the deck's by a first-order filter of this time
+    /// constant (s; ArduPilot's SURFTRAK_TC defaults to 1 s); 0 follows it exactly.
+    #[arg(long, default_value_t = 1.0)]
+    pub follow_lag_s: f64,
     /// With `--hold-height`: the least height of the camera over the deck's highest (m).
     #[arg(long, default_value_t = 2.5)]
     pub wait_clearance_m: f64,
@@ -447,6 +451,7 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
         hover_m: a.hover_m,
         wait_clearance_m: a.wait_clearance_m,
         follow_deck: !a.hold_height,
+        follow_lag_s: a.follow_lag_s,
         max_approach_s: a.max_approach_s,
         ..ApproachModel::quadrotor(capacity.touchdown_s)
     };
@@ -465,7 +470,7 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
     if !a.json {
         println!(
             "closed-loop trials: {} approaches per sea state, seed and heading ({} x {} x {:?} deg); {}x{} at {} Hz, waiting {}, touchdown {} s, sway x{}, ride-through {} ms; faults: drops {}, glints {}, frozen {}/min of {} s, vehicle stream outages {}/min of {} s",
-            a.approaches, a.seeds.len(), a.headings_deg.len(), a.headings_deg, a.width, a.height, a.rate, if model.follow_deck { format!("{} m over the deck", model.hover_m) } else { format!("{} m over the mean deck, {} m over its highest", model.hover_m, model.wait_clearance_m) },
+            a.approaches, a.seeds.len(), a.headings_deg.len(), a.headings_deg, a.width, a.height, a.rate, if model.follow_deck { format!("{} m over the deck, lagging it by {} s", model.hover_m, model.follow_lag_s) } else { format!("{} m over the mean deck, {} m over its highest", model.hover_m, model.wait_clearance_m) },
             model.touchdown_s, a.sway, capacity.ride_through_ms, a.drop_share, a.glints, a.frozen_per_min, a.frozen_s, a.vehicle_outages_per_min, a.vehicle_outage_s
         );
         println!(

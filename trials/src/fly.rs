@@ -186,10 +186,12 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
                     t_decided + model.touchdown_s
                 )
             } else {
-                format!(
-                    "GO-AROUND at {t_decided:.2} s: climbing back to {:.2} m",
-                    autopilot.waiting_m()
-                )
+                let to = if model.follow_deck {
+                    format!("{} m over the deck", model.hover_m)
+                } else {
+                    format!("{:.2} m", autopilot.waiting_m())
+                };
+                format!("GO-AROUND at {t_decided:.2} s: climbing back to {to}")
             };
             pipeline.note(timing.time_ns(t_decided), &what);
         }

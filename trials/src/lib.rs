@@ -32,8 +32,8 @@ pub struct ApproachModel {
     pub hover_m: f64,
     /// While it waits it holds its camera `hover_m` over the deck on its range finder, rising and
     /// falling with the heave (ArduPilot's surface tracking, PX4's terrain following): the
-    /// pattern stays in view at one size, and every descent is `hover_m` long. Else it holds a
-    /// height in W (see `wait_clearance_m`).
+    /// pattern stays in view, and a descent is about `hover_m` long. Else it holds a height in
+    /// W (see `wait_clearance_m`).
     pub follow_deck: bool,
     /// Following the deck, its height lags the deck's by a first-order filter of this time
     /// constant (s; ArduPilot's `SURFTRAK_TC`, 1 s by default); 0 follows it exactly.
@@ -201,7 +201,8 @@ impl SimulatedAutopilot {
         }
     }
 
-    /// The height it waits at now (m): over the deck when it follows the deck, else in W.
+    /// The height it waits at now (m): over the deck when it follows the deck exactly, else in
+    /// W.
     pub fn waiting_m(&self) -> f64 {
         self.waiting_target().0
     }

@@ -61,6 +61,11 @@ pub struct FrameFaultModel {
     pub vehicle_outages_per_min: f64,
     /// ... each this long (s).
     pub vehicle_outage_s: f64,
+    /// The autopilot's height estimate: white noise on each sample (m, standard deviation)...
+    pub vehicle_height_noise_m: f64,
+    /// ... and a slow error whose rate has this standard deviation (m/s): an estimator's
+    /// vertical-speed error, which goes into the heave rate estimate measures.
+    pub vehicle_height_drift_mps: f64,
 }
 
 /// No faults (episodes of the command line's default lengths, none of them starting).
@@ -72,6 +77,8 @@ impl Default for FrameFaultModel {
             frozen_s: 2.0,
             vehicle_outages_per_min: 0.0,
             vehicle_outage_s: 1.0,
+            vehicle_height_noise_m: 0.0,
+            vehicle_height_drift_mps: 0.0,
         }
     }
 }
@@ -92,7 +99,70 @@ impl FrameFaultModel {
             self.vehicle_outages_per_min >= 0.0 && self.vehicle_outage_s > 0.0,
             "--vehicle-outages-per-min, --vehicle-outage-s",
             "not negative, and outages must last",
+        )?;
+        require(
+            (0.0..=10.0).contains(&self.vehicle_height_noise_m)
+                && (0.0..=10.0).contains(&self.vehicle_height_drift_mps),
+            "--vehicle-height-noise-m, --vehicle-height-drift-mps",
+            "in [0, 10]",
         )
+    }
+}
+
+/// Periods of the slow part of [`VehicleHeightError`] (s): a barometer's and an estimator's
+/// drift over tens of seconds to minutes.
+const HEIGHT_DRIFT_PERIODS_S: [f64; 4] = [23.0, 41.0, 67.0, 113.0];
+
+/// The error of the autopilot's height estimate in one approach ([`FrameFaultModel`]'s
+/// `vehicle_height_*`): the sum of slow sinusoids of random phases whose rate has the stated
+/// standard deviation, and white noise on each sample. A function of time, so that the
+/// in-process runner and the processes' autopilot stream give the same error.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VehicleHeightError {
+    seed: u64,
+    noise_m: f64,
+    /// (amplitude m, angular frequency rad/s, phase rad) of each slow component.
+    drift: Vec<(f64, f64, f64)>,
+}
+
+impl VehicleHeightError {
+    pub fn new(model: &FrameFaultModel, approach_seed: u64) -> Self {
+        let mut rng = SplitMix64::new(approach_seed ^ 0x4E16);
+        let n = HEIGHT_DRIFT_PERIODS_S.len() as f64;
+        let drift = HEIGHT_DRIFT_PERIODS_S
+            .iter()
+            .map(|&period_s| {
+                let w = std::f64::consts::TAU / period_s;
+                // Each component's rate has RMS a w / sqrt(2); the n of them add to the stated one.
+                let a = model.vehicle_height_drift_mps * (2.0 / n).sqrt() / w;
+                (a, w, std::f64::consts::TAU * rng.next_f64())
+            })
+            .collect();
+        Self {
+            seed: approach_seed ^ 0x4E17,
+            noise_m: model.vehicle_height_noise_m,
+            drift,
+        }
+    }
+
+    /// The error of the height estimate sampled at `t_s` (m).
+    pub fn error_m(&self, t_s: f64) -> f64 {
+        let slow: f64 = self.drift.iter().map(|&(a, w, p)| a * (w * t_s + p).sin()).sum();
+        if self.noise_m == 0.0 {
+            return slow;
+        }
+        // The same sample time gives the same noise (microsecond stamps).
+        let stamp_us = (t_s * 1e6).round() as i64 as u64;
+        slow + self.noise_m
+            * SplitMix64::new(self.seed ^ stamp_us.wrapping_mul(0x9E37_79B9_7F4A_7C15)).next_gaussian()
+    }
+
+    /// The error of the vertical speed estimate at `t_s` (m/s, up): the slow part's rate.
+    pub fn rate_error_mps(&self, t_s: f64) -> f64 {
+        self.drift
+            .iter()
+            .map(|&(a, w, p)| a * w * (w * t_s + p).cos())
+            .sum()
     }
 }
 
@@ -103,6 +173,8 @@ pub struct FrameFaults {
     frozen: Episodes,
     frozen_pixels: Option<Vec<u8>>,
     vehicle_outages: Episodes,
+    /// The error of the autopilot's height estimate.
+    pub vehicle_height: VehicleHeightError,
 }
 
 impl FrameFaults {
@@ -113,6 +185,7 @@ impl FrameFaults {
             frozen: Episodes::new(model.frozen_per_min, model.frozen_s, rate_hz),
             frozen_pixels: None,
             vehicle_outages: Episodes::new(model.vehicle_outages_per_min, model.vehicle_outage_s, rate_hz),
+            vehicle_height: VehicleHeightError::new(model, approach_seed),
         }
     }
 
@@ -299,6 +372,46 @@ impl AttitudeStreamModel {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The height estimate's error: its slow part's rate has the stated deviation and is the
+    /// derivative of its value; its noise has the stated deviation; the same approach and time
+    /// give the same error (the in-process runner and the processes' stream agree).
+    #[test]
+    fn the_height_estimates_error_has_its_stated_size() {
+        let model = FrameFaultModel {
+            vehicle_height_drift_mps: 0.05,
+            ..FrameFaultModel::default()
+        };
+        let slow = VehicleHeightError::new(&model, 3);
+        let n = 200_000;
+        let (mut rate2, mut worst_diff) = (0.0, 0.0f64);
+        for k in 0..n {
+            let t = k as f64 * 0.01;
+            let r = slow.rate_error_mps(t);
+            rate2 += r * r;
+            let numeric = (slow.error_m(t + 1e-4) - slow.error_m(t - 1e-4)) / 2e-4;
+            worst_diff = worst_diff.max((numeric - r).abs());
+        }
+        let rate_rms = (rate2 / n as f64).sqrt();
+        assert!((rate_rms - 0.05).abs() < 0.01, "{rate_rms}");
+        assert!(worst_diff < 1e-6, "{worst_diff}");
+        let noisy = VehicleHeightError::new(
+            &FrameFaultModel {
+                vehicle_height_noise_m: 0.02,
+                ..FrameFaultModel::default()
+            },
+            3,
+        );
+        let e: Vec<f64> = (0..n).map(|k| noisy.error_m(k as f64 * 0.01)).collect();
+        let sd = (e.iter().map(|x| x * x).sum::<f64>() / n as f64).sqrt();
+        assert!((sd - 0.02).abs() < 0.001, "{sd}");
+        assert_eq!(noisy.error_m(12.34), noisy.error_m(12.34));
+        assert_eq!(noisy.rate_error_mps(12.34), 0.0);
+        assert_eq!(
+            VehicleHeightError::new(&FrameFaultModel::default(), 3).error_m(5.0),
+            0.0
+        );
+    }
 
     /// Episodes start at the stated rate and last their stated time: over an hour at 10 Hz,
     /// 2 a minute of 1.5 s each cover about 3 s a minute (less their overlaps).

@@ -137,7 +137,8 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
             let height_m = path
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
-                .height_m(tv, heave(tv));
+                .height_m(tv, heave(tv))
+                + faults.vehicle_height.error_m(tv);
             pipeline.observe_vehicle(&VehicleSample {
                 seq: vehicle_seq,
                 time_ns: timing.time_ns(tv),

@@ -12,7 +12,7 @@ pub mod fly;
 pub mod stats;
 pub mod world;
 
-pub use faults::{AttitudeStreamModel, Episodes, FrameFaultModel, FrameFaults};
+pub use faults::{AttitudeStreamModel, Episodes, FrameFaultModel, FrameFaults, VehicleHeightError};
 pub use fly::{fly_approach, naive_command, ApproachTiming, ClosedLoopPipeline, FrameStep, PipelineRule};
 pub use world::{Approach, ApproachWorld, TrialSea, WorldError};
 

@@ -105,6 +105,14 @@ pub struct TrialsArgs {
     /// ... each this long (s).
     #[arg(long, default_value_t = 1.0)]
     pub vehicle_outage_s: f64,
+    /// Faults: white noise on each sample of the autopilot's height estimate (m, standard
+    /// deviation)...
+    #[arg(long, default_value_t = 0.0)]
+    pub vehicle_height_noise_m: f64,
+    /// ... and its slow error, given as the standard deviation of its rate (m/s): an
+    /// estimator's vertical-speed error, which estimate's heave rate inherits.
+    #[arg(long, default_value_t = 0.0)]
+    pub vehicle_height_drift_mps: f64,
     /// Pipeline configuration whose `[decide]`, `[detect]`, `[estimate]` and `[image]` to use.
     #[arg(long)]
     pub config: Option<std::path::PathBuf>,
@@ -321,6 +329,8 @@ fn fault_model(a: &TrialsArgs) -> FrameFaultModel {
         frozen_s: a.frozen_s,
         vehicle_outages_per_min: a.vehicle_outages_per_min,
         vehicle_outage_s: a.vehicle_outage_s,
+        vehicle_height_noise_m: a.vehicle_height_noise_m,
+        vehicle_height_drift_mps: a.vehicle_height_drift_mps,
     }
 }
 
@@ -469,9 +479,9 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
     };
     if !a.json {
         println!(
-            "closed-loop trials: {} approaches per sea state, seed and heading ({} x {} x {:?} deg); {}x{} at {} Hz, waiting {}, touchdown {} s, sway x{}, ride-through {} ms; faults: drops {}, glints {}, frozen {}/min of {} s, vehicle stream outages {}/min of {} s",
+            "closed-loop trials: {} approaches per sea state, seed and heading ({} x {} x {:?} deg); {}x{} at {} Hz, waiting {}, touchdown {} s, sway x{}, ride-through {} ms; faults: drops {}, glints {}, frozen {}/min of {} s, vehicle stream outages {}/min of {} s, height error {} m + drift {} m/s",
             a.approaches, a.seeds.len(), a.headings_deg.len(), a.headings_deg, a.width, a.height, a.rate, if model.follow_deck { format!("{} m over the deck, lagging it by {} s", model.hover_m, model.follow_lag_s) } else { format!("{} m over the mean deck, {} m over its highest", model.hover_m, model.wait_clearance_m) },
-            model.touchdown_s, a.sway, capacity.ride_through_ms, a.drop_share, a.glints, a.frozen_per_min, a.frozen_s, a.vehicle_outages_per_min, a.vehicle_outage_s
+            model.touchdown_s, a.sway, capacity.ride_through_ms, a.drop_share, a.glints, a.frozen_per_min, a.frozen_s, a.vehicle_outages_per_min, a.vehicle_outage_s, a.vehicle_height_noise_m, a.vehicle_height_drift_mps
         );
         println!(
             "{:<4} {:<10} {:>10} {:>8} {:>10} {:>7} {:>7} {:>9} {:>9} {:>9}",

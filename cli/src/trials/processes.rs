@@ -20,7 +20,7 @@ use deckwatch_runtime::stages::capture::{complete_header, new_header};
 use deckwatch_sim::landing::{FlightPath, SharedFlightPath};
 use deckwatch_trials::{
     Approach, ApproachOutcome, ApproachWorld, DecisionFollower, FrameFaults, SimulatedAutopilot,
-    TouchdownVerdict,
+    TouchdownVerdict, VehicleHeightError,
 };
 use mavlink::dialects::common::{
     MavAutopilot, MavModeFlag, MavState, MavType, ATTITUDE_QUATERNION_DATA, HEARTBEAT_DATA,
@@ -190,7 +190,8 @@ fn fly_with(
             path.clone(),
             world.clone(),
         );
-        std::thread::spawn(move || stream(&conn, &stop, &out, &path, &world, start))
+        let height_error = VehicleHeightError::new(&fault_model(a), job.approach_seed());
+        std::thread::spawn(move || stream(&conn, &stop, &out, &path, &world, &height_error, start))
     };
     let width = source.camera().width as usize;
     let mut frame = vec![0; source.frame_bytes()];
@@ -291,6 +292,7 @@ fn stream(
     out: &AtomicBool,
     path: &SharedFlightPath,
     world: &ApproachWorld,
+    height_error: &VehicleHeightError,
     start: u64,
 ) {
     let mut sequence = 0u8;
@@ -340,8 +342,9 @@ fn stream(
                     path.lock().unwrap_or_else(|e| e.into_inner()).height_m(t, heave)
                 };
                 const DT_S: f64 = 0.005;
-                let height_m = height_at(t);
-                let up_mps = (height_at(t + DT_S) - height_at(t - DT_S)) / (2.0 * DT_S);
+                let height_m = height_at(t) + height_error.error_m(t);
+                let up_mps = (height_at(t + DT_S) - height_at(t - DT_S)) / (2.0 * DT_S)
+                    + height_error.rate_error_mps(t);
                 send(MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA {
                     time_boot_ms: boot_ms,
                     z: -height_m as f32,

@@ -96,6 +96,11 @@ impl Sinusoid {
     pub fn at(&self, t_s: f64) -> f64 {
         self.amplitude * (TAU * t_s / self.period_s + self.phase).sin()
     }
+
+    /// Its rate of change at `t_s` (per second).
+    pub fn rate(&self, t_s: f64) -> f64 {
+        self.amplitude * TAU / self.period_s * (TAU * t_s / self.period_s + self.phase).cos()
+    }
 }
 
 /// Sinusoids of a table of (amplitude, period s), amplitudes times `scale`, phases drawn in
@@ -475,10 +480,7 @@ impl DeckHeave {
 
     /// The vertical speed (m/s).
     pub fn rate(&self, t_s: f64) -> f64 {
-        self.heave_m
-            .iter()
-            .map(|c| c.amplitude * TAU / c.period_s * (TAU * t_s / c.period_s + c.phase).cos())
-            .sum()
+        self.heave_m.iter().map(|c| c.rate(t_s)).sum()
     }
 }
 

@@ -9,7 +9,7 @@
 use deckwatch_common::messages::FROZEN_IMAGE_REPEATS;
 use deckwatch_common::InvalidOption;
 use deckwatch_decide::{DeckObservation, FrameInput};
-use deckwatch_sim::motion::VehicleSway;
+use deckwatch_sim::motion::{Sinusoid, VehicleSway};
 use deckwatch_sim::rng::SplitMix64;
 
 /// Episodes that start at random (a Poisson process, drawn once per frame) and last a fixed
@@ -121,8 +121,8 @@ const HEIGHT_DRIFT_PERIODS_S: [f64; 4] = [23.0, 41.0, 67.0, 113.0];
 pub struct VehicleHeightError {
     seed: u64,
     noise_m: f64,
-    /// (amplitude m, angular frequency rad/s, phase rad) of each slow component.
-    drift: Vec<(f64, f64, f64)>,
+    /// The slow components (m).
+    drift: Vec<Sinusoid>,
 }
 
 impl VehicleHeightError {
@@ -134,8 +134,11 @@ impl VehicleHeightError {
             .map(|&period_s| {
                 let w = std::f64::consts::TAU / period_s;
                 // Each component's rate has RMS a w / sqrt(2); the n of them add to the stated one.
-                let a = model.vehicle_height_drift_mps * (2.0 / n).sqrt() / w;
-                (a, w, std::f64::consts::TAU * rng.next_f64())
+                Sinusoid {
+                    amplitude: model.vehicle_height_drift_mps * (2.0 / n).sqrt() / w,
+                    period_s,
+                    phase: std::f64::consts::TAU * rng.next_f64(),
+                }
             })
             .collect();
         Self {
@@ -147,7 +150,7 @@ impl VehicleHeightError {
 
     /// The error of the height estimate sampled at `t_s` (m).
     pub fn error_m(&self, t_s: f64) -> f64 {
-        let slow: f64 = self.drift.iter().map(|&(a, w, p)| a * (w * t_s + p).sin()).sum();
+        let slow: f64 = self.drift.iter().map(|c| c.at(t_s)).sum();
         if self.noise_m == 0.0 {
             return slow;
         }
@@ -159,10 +162,7 @@ impl VehicleHeightError {
 
     /// The error of the vertical speed estimate at `t_s` (m/s, up): the slow part's rate.
     pub fn rate_error_mps(&self, t_s: f64) -> f64 {
-        self.drift
-            .iter()
-            .map(|&(a, w, p)| a * w * (w * t_s + p).cos())
-            .sum()
+        self.drift.iter().map(|c| c.rate(t_s)).sum()
     }
 }
 

@@ -159,7 +159,8 @@ pub struct SimulatedAutopilot {
     path: SharedFlightPath,
     pub commits: u32,
     pub go_arounds: u32,
-    /// The deck's height as ranged, (t s, m), over the last [`RANGED_WINDOW_S`].
+    /// The deck's height as ranged, (t s, m), over the last [`RANGED_WINDOW_S`], holding a
+    /// height.
     ranged: std::collections::VecDeque<(f64, f64)>,
     /// The height in W it waits at (m), holding a height.
     waiting_m: f64,
@@ -218,11 +219,11 @@ impl SimulatedAutopilot {
         }
     }
 
-    /// The deck ranged at `heave_m` at `t_s`: the waiting height follows the highest deck of the
-    /// last [`RANGED_WINDOW_S`].
+    /// The deck ranged at `heave_m` at `t_s`: following the deck, its lagged tracker moves on;
+    /// holding a height, the waiting height follows the highest deck of the last
+    /// [`RANGED_WINDOW_S`] (kept only then).
     fn range(&mut self, t_s: f64, heave_m: f64) {
         if heave_m.is_finite() {
-            self.ranged.push_back((t_s, heave_m));
             self.followed = Some(match self.followed {
                 Some((t0, deck_m)) if t_s > t0 => {
                     let k = 1.0 - (-(t_s - t0) / self.model.follow_lag_s).exp();
@@ -232,6 +233,12 @@ impl SimulatedAutopilot {
                 // It arrives holding `hover_m` over the deck's mean level.
                 None => (t_s, 0.0),
             });
+        }
+        if self.model.follow_deck {
+            return;
+        }
+        if heave_m.is_finite() {
+            self.ranged.push_back((t_s, heave_m));
         }
         while self
             .ranged

@@ -348,15 +348,30 @@ impl LandingDecider {
     /// fitted.
     fn autoregressive_tracks(&self, t: &[f64], y: &[Vec<f64>], horizon_s: f64) -> Option<Vec<Track>> {
         let c = &self.config;
+        // The noise from every sample up to the fit's newest (the fit's own are thinned out).
+        let end = *t.last()?;
+        let raw = self.history.range(..self.history.partition_point(|h| h.0 <= end));
+        let raw_t: Vec<f64> = raw.clone().map(|h| h.0).collect();
+        // The 0.2 s grid until the 0.4 s one allows the full order (see
+        // `AR_SHORT_HISTORY_STEP_S`).
+        let full_order_s = (3 * c.ar_order + 2) as f64 * AR_STEP_S;
+        let step_s = if end - t[0] < full_order_s {
+            AR_SHORT_HISTORY_STEP_S
+        } else {
+            AR_STEP_S
+        };
         y.iter()
-            .map(|yk| {
+            .enumerate()
+            .map(|(k, yk)| {
+                let raw_y: Vec<f64> = raw.clone().map(|h| h.1[k]).collect();
                 ArModel::fit(
                     t,
                     &yk[..t.len()],
                     c.ar_order,
-                    FIT_SPACING_S,
+                    step_s,
                     horizon_s,
                     c.max_gap_ms / 1e3,
+                    measurement_variance(&raw_t, &raw_y),
                 )
                 .map(Track::Autoregressive)
             })
@@ -496,8 +511,12 @@ impl LandingDecider {
                 // whose normal band holds `BAND_EVIDENCE_QUANTILE` of them. Of real fits only:
                 // the warm-up's four backtests gave 24 misses of at most 0.031 m/s, and the
                 // first clearance on them touched down 0.083 m/s beyond its forecast.
-                let mut abs: Vec<f64> = judged().map(|m| m.abs[k]).filter(|a| a.is_finite()).collect();
-                if abs.len() >= MIN_BAND_EVIDENCE {
+                let measured = || judged().filter(move |m| m.abs[k].is_finite());
+                let mut abs: Vec<f64> = measured().map(|m| m.abs[k]).collect();
+                let (first, last) = measured().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), m| {
+                    (a.min(m.t_s), b.max(m.t_s))
+                });
+                if abs.len() >= MIN_BAND_EVIDENCE && last - first >= MIN_RATE_EVIDENCE_SPAN_S {
                     rate_miss_std[k - 3] = evidence_quantile(&mut abs) / evidence_z();
                 }
             }

@@ -90,12 +90,12 @@ fn main() {
         })
     });
     // One channel's whole fit (its noise, normal equations, eigen-decomposition, roots,
-    // forecast) on the decider's 0.4 s grid.
+    // forecast).
     let t: Vec<f64> = (0..1200).map(|k| k as f64 * 0.1).collect();
     let y: Vec<f64> = t.iter().map(|&t| deck_at(t).roll_deg).collect();
     let fit = |t: &[f64], y: &[f64]| {
         let noise = deckwatch_decide::predict::measurement_variance(t, y);
-        deckwatch_decide::predict::ArModel::fit(t, y, ORDER, 0.4, 25.0, 0.5, noise)
+        deckwatch_decide::predict::ArModel::fit(t, y, ORDER, 0.2, 25.0, 0.5, noise)
     };
     group.bench_function("whole_fit_one_channel", |b| {
         b.iter(|| fit(black_box(&t), black_box(&y)))

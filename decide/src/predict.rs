@@ -467,11 +467,11 @@ impl ArModel {
         // x_k = c + sum_i a_i x_{k-i}: the intercept keeps an offset deck exact.
         let (mut ata, mut atb) = normal_equations(&x, order);
         // Rows whose target or two newest lags lie inside a gap (the line across it) are no
-        // data: taken back out. Left in, a sea's forecast 1-2 s after a 2 s gap missed by up to
-        // 20 of its stated deviations (the rows the line spoils are twice as many on a 0.4 s
-        // grid as on a 0.2 s one). Out with every row that takes a point of the gap (a 2 s gap
-        // spoils 53 of some 250), `decide-eval` with frozen cameras and autopilot outages
-        // used 9 % of the development seas' calm windows instead of 23 %.
+        // data: taken back out. Left in, on a 0.4 s grid, a sea's forecast 1-2 s after a 2 s
+        // gap missed by up to 20 of its stated deviations. Out with every row that takes a
+        // point of the gap (on that grid a 2 s gap spoils 53 of some 250), `decide-eval` with
+        // frozen cameras and autopilot outages used 9 % of the development seas' calm windows
+        // instead of 23 %.
         let gapped_rows: Vec<usize> = (0..n - order)
             .filter(|&r| unmeasured[r + order - 2..=r + order].iter().any(|&u| u))
             .collect();
@@ -807,8 +807,8 @@ impl ArModel {
 
     /// `at(k)` between grid points: the cubic through the two either side of `t` (linear where
     /// one of the outer two is missing). Linear alone is off by a sinusoid's `(w dt)^2 / 8`
-    /// between points: on a 0.4 s grid 1.6 % of a 7 s wave; the cubic by about a fortieth of
-    /// that.
+    /// between points: on a 0.2 s grid 0.4 % of a 7 s wave (1.6 % on a 0.4 s one); the cubic
+    /// by about a hundredth of that.
     fn interpolated(&self, t: f64, at: impl Fn(isize) -> f64) -> f64 {
         let last = self.predicted.len() - 1;
         let s = ((t - self.t0) / self.dt).clamp(0.0, last as f64);
@@ -864,10 +864,11 @@ impl ArModel {
 }
 
 /// The rate at a grid point from the values either side (offset in steps, weight per step):
-/// the central difference, off by `(w dt)^2 / 6` of a sinusoid's rate (on a 0.4 s grid, 2 % for
-/// a 7 s wave). The five-point difference is off by `(w dt)^4 / 30`, but it weighs the noise of
-/// the values 1.35 times as much, and its wider band used 4 points fewer of the development
-/// seas' calm windows in `decide-eval` (BENCHMARKS.md, "A longer lag span").
+/// the central difference, off by `(w dt)^2 / 6` of a sinusoid's rate (0.5 % for a 7 s wave on a
+/// 0.2 s grid, 2 % on a 0.4 s one). The five-point difference is off by `(w dt)^4 / 30`, but it
+/// weighs the values' noise 1.35 times as much: on a 0.4 s grid its wider band used 4 points
+/// fewer of the development seas' calm windows in `decide-eval` (BENCHMARKS.md, "A longer lag
+/// span").
 const RATE_STENCIL: [(isize, f64); 2] = [(-1, -0.5), (1, 0.5)];
 
 /// Singular values of the autoregressive fit's design below this share of the largest are

@@ -54,8 +54,8 @@ pub struct DecisionConfig {
     /// (dominant sinusoids of the window with a held-out error bound: exact for a regular sea;
     /// use it with `window_s = 40`, `min_history_s = 20` and the margins 0.5 / 0.5 / 0.1).
     pub predictor: Predictor,
-    /// Order of the autoregressive predictor (on a 0.4 s grid: 48 spans 19.2 s, one and a
-    /// half roll periods); a shorter history fits a lower one.
+    /// Order of the autoregressive predictor (on a 5 Hz grid: 48 spans 9.6 s, most of a roll
+    /// period); a shorter history fits a lower one.
     pub ar_order: usize,
     /// With a predictor that states its uncertainty (`ar`): the accepted probability that the
     /// deck leaves the capacity during one touchdown, bounded from above: for each of the six

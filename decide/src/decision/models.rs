@@ -352,14 +352,6 @@ impl LandingDecider {
         let end = *t.last()?;
         let raw = self.history.range(..self.history.partition_point(|h| h.0 <= end));
         let raw_t: Vec<f64> = raw.clone().map(|h| h.0).collect();
-        // The 0.2 s grid until the 0.4 s one allows the full order (see
-        // `AR_SHORT_HISTORY_STEP_S`).
-        let full_order_s = (3 * c.ar_order + 2) as f64 * AR_STEP_S;
-        let step_s = if end - t[0] < full_order_s {
-            AR_SHORT_HISTORY_STEP_S
-        } else {
-            AR_STEP_S
-        };
         y.iter()
             .enumerate()
             .map(|(k, yk)| {
@@ -368,7 +360,7 @@ impl LandingDecider {
                     t,
                     &yk[..t.len()],
                     c.ar_order,
-                    step_s,
+                    AR_STEP_S,
                     horizon_s,
                     c.max_gap_ms / 1e3,
                     measurement_variance(&raw_t, &raw_y),

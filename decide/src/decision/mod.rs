@@ -1085,9 +1085,9 @@ mod tests {
 
     /// After a gap the autoregressive forecast carries its unmeasured lags: right after the
     /// gap its stated band 1 and 2 s ahead is wider than that of the same decider fed without
-    /// the gap, the
-    /// deck's motion stays inside it, and the sea clears again once `gap_recovery_s` has passed
-    /// and the band allows, well within the lag span the decision used to wait out.
+    /// the gap, the deck's motion stays inside it, and the sea clears again once
+    /// `gap_recovery_s` has passed and the band allows, well within the lag span the decision
+    /// used to wait out.
     #[test]
     fn a_gap_widens_the_band_and_no_longer_waits_out_the_lags() {
         let observe = |t: f64| Some(measured(sea(t, 0.3), t));

@@ -89,16 +89,13 @@ fn main() {
             (a.tr_mul(&a), a.tr_mul(&y))
         })
     });
-    // One channel's whole fit (its noise, normal equations, eigen-decomposition, roots,
-    // forecast).
+    // One channel's whole fit (normal equations, eigen-decomposition, roots, forecast).
     let t: Vec<f64> = (0..1200).map(|k| k as f64 * 0.1).collect();
     let y: Vec<f64> = t.iter().map(|&t| deck_at(t).roll_deg).collect();
-    let fit = |t: &[f64], y: &[f64]| {
-        let noise = deckwatch_decide::predict::measurement_variance(t, y);
-        deckwatch_decide::predict::ArModel::fit(t, y, ORDER, 0.2, 25.0, 0.5, noise)
-    };
     group.bench_function("whole_fit_one_channel", |b| {
-        b.iter(|| fit(black_box(&t), black_box(&y)))
+        b.iter(|| {
+            deckwatch_decide::predict::ArModel::fit(black_box(&t), black_box(&y), ORDER, 0.2, 25.0, 0.5)
+        })
     });
     // The same with a 2 s gap ending 1 s before the newest sample: the forecast starts from
     // the Kalman filter across the gap (`ArModel`'s notes).
@@ -109,7 +106,16 @@ fn main() {
         .map(|(&t, &y)| (t, y))
         .unzip();
     group.bench_function("whole_fit_one_channel_across_a_gap", |b| {
-        b.iter(|| fit(black_box(&t_gap), black_box(&y_gap)))
+        b.iter(|| {
+            deckwatch_decide::predict::ArModel::fit(
+                black_box(&t_gap),
+                black_box(&y_gap),
+                ORDER,
+                0.2,
+                25.0,
+                0.5,
+            )
+        })
     });
     group.finish();
     c.final_summary();

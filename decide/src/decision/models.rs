@@ -348,22 +348,15 @@ impl LandingDecider {
     /// fitted.
     fn autoregressive_tracks(&self, t: &[f64], y: &[Vec<f64>], horizon_s: f64) -> Option<Vec<Track>> {
         let c = &self.config;
-        // The noise from every sample up to the fit's newest (the fit's own are thinned out).
-        let end = *t.last()?;
-        let raw = self.history.range(..self.history.partition_point(|h| h.0 <= end));
-        let raw_t: Vec<f64> = raw.clone().map(|h| h.0).collect();
         y.iter()
-            .enumerate()
-            .map(|(k, yk)| {
-                let raw_y: Vec<f64> = raw.clone().map(|h| h.1[k]).collect();
+            .map(|yk| {
                 ArModel::fit(
                     t,
                     &yk[..t.len()],
                     c.ar_order,
-                    AR_STEP_S,
+                    FIT_SPACING_S,
                     horizon_s,
                     c.max_gap_ms / 1e3,
-                    measurement_variance(&raw_t, &raw_y),
                 )
                 .map(Track::Autoregressive)
             })

@@ -15,6 +15,26 @@ fn json_lines(stdout: Vec<u8>) -> Vec<serde_json::Value> {
         .collect()
 }
 
+/// One approach flown again alone (`trials --json --shard`): the run succeeds, its record is
+/// approach `index`, and it did not touch down unsafely (no violation, no unsafe touchdown).
+fn assert_flown_safely(out: std::process::Output, index: u64) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let lines = json_lines(out.stdout);
+    let approach = lines
+        .iter()
+        .find_map(|l| l.get("approach"))
+        .unwrap_or_else(|| panic!("no approach record: {lines:?}"));
+    assert_eq!(approach["index"], index, "{approach}");
+    if let Some(touchdown) = approach["outcome"]["touchdown"].as_object() {
+        assert_eq!(touchdown["violations"], serde_json::json!([]), "{approach}");
+    }
+    assert!(
+        lines.iter().all(|l| l.get("unsafe_touchdown").is_none()),
+        "{lines:?}"
+    );
+}
+
 #[test]
 fn closed_loop_landings_touch_down_safely_in_one_process_and_through_the_processes() {
     let dir = tempfile::tempdir().unwrap();
@@ -188,22 +208,7 @@ fn the_campaigns_unsafe_approach_waits_for_its_rate_bands_evidence() {
         ])
         .output()
         .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
-    let lines = json_lines(out.stdout);
-    let approach = lines
-        .iter()
-        .find_map(|l| l.get("approach"))
-        .unwrap_or_else(|| panic!("no approach record: {lines:?}"));
-    assert_eq!(approach["index"], 16, "{approach}");
-    let outcome = &approach["outcome"];
-    if let Some(touchdown) = outcome["touchdown"].as_object() {
-        assert_eq!(touchdown["violations"], serde_json::json!([]), "{approach}");
-    }
-    assert!(
-        lines.iter().all(|l| l.get("unsafe_touchdown").is_none()),
-        "{lines:?}"
-    );
+    assert_flown_safely(out, 16);
 }
 
 /// An unsafe touchdown in main on fresh held-out seas (BENCHMARKS "A rate's misses stand for
@@ -234,19 +239,5 @@ fn a_rates_misses_from_the_first_seconds_do_not_clear_a_crest() {
         ])
         .output()
         .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
-    let lines = json_lines(out.stdout);
-    let approach = lines
-        .iter()
-        .find_map(|l| l.get("approach"))
-        .unwrap_or_else(|| panic!("no approach record: {lines:?}"));
-    assert_eq!(approach["index"], 2, "{approach}");
-    if let Some(touchdown) = approach["outcome"]["touchdown"].as_object() {
-        assert_eq!(touchdown["violations"], serde_json::json!([]), "{approach}");
-    }
-    assert!(
-        lines.iter().all(|l| l.get("unsafe_touchdown").is_none()),
-        "{lines:?}"
-    );
+    assert_flown_safely(out, 2);
 }

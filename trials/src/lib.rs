@@ -219,11 +219,11 @@ impl SimulatedAutopilot {
         }
     }
 
-    /// The deck ranged at `heave_m` at `t_s`: following the deck, its lagged tracker moves on;
+    /// The deck ranged at `heave_m` at `t_s`: following the deck with a lag, its tracker moves on;
     /// holding a height, the waiting height follows the highest deck of the last
     /// [`RANGED_WINDOW_S`] (kept only then).
     fn range(&mut self, t_s: f64, heave_m: f64) {
-        if heave_m.is_finite() {
+        if self.model.follow_deck && self.model.follow_lag_s > 0.0 && heave_m.is_finite() {
             self.followed = Some(match self.followed {
                 Some((t0, deck_m)) if t_s > t0 => {
                     let k = 1.0 - (-(t_s - t0) / self.model.follow_lag_s).exp();

@@ -520,6 +520,9 @@ pub fn sea_state_waves(sea_state: u32) -> Option<(f64, f64)> {
 /// the wave slope across the ship, pitch the wave slope along it low-passed at 6 s, heave the
 /// elevation low-passed at 8 s. The heading relative to the waves wanders (+-25 deg over 10 min
 /// about 60 deg), so roll and pitch trade places slowly.
+///
+/// `bench/predict_bound.py` replicates this model in numpy (its spectrum, response and heading)
+/// to bound what a forecast could clear on: a change here belongs there too.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SpectrumShipMotion {
     /// The waves as the ship meets them.

@@ -194,8 +194,6 @@ def run(sea_state, seed, heading, args):
     t_meas = np.arange(n) / RATE_HZ
     z = {c: sea.truth(c, t_meas)[0] + noise[c] * rng.standard_normal(n) for c in CHANNELS}
     lags = int(round(args.lags_s * RATE_HZ))
-    if not 2 <= lags <= START_S * RATE_HZ:
-        raise SystemExit(f"--lags-s: {args.lags_s} is outside [{2 / RATE_HZ}, {START_S}] s")
     horizons = np.arange(0, TOUCHDOWN_S + 1e-9, HORIZON_STEP_S)
     decisions = t_meas[int(START_S * RATE_HZ) : n - int(TOUCHDOWN_S * RATE_HZ) - 1]
     mean, std = {}, {}
@@ -344,6 +342,10 @@ def main():
         help="instead: rate forecast errors of fitted autoregressions, per channel and joint",
     )
     args = p.parse_args()
+    if not 2 <= round(args.lags_s * RATE_HZ) <= START_S * RATE_HZ:
+        p.error(f"--lags-s: {args.lags_s} is outside [{2 / RATE_HZ}, {START_S}] s")
+    if not 0 <= args.coherence <= 1:
+        p.error(f"--coherence: {args.coherence} is outside [0, 1]")
     if args.fitted:
         print("| series | model | rate RMS 0.4 s | 1 s | 2 s (roll deg/s / pitch deg/s / heave m/s) |")
         print("| --- | --- | --- | --- | --- |")

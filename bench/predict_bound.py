@@ -5,8 +5,8 @@ The decision clears when its forecast of roll, pitch, heave and their rates over
 keeps the deck within the capacity at the accepted risk. How often that can happen is limited by
 how well the motion can be forecast at all. This script forecasts with the best linear predictor
 there is for the sea: the exact Gaussian conditional of the next touchdown given the last
-`--lags-s` of noisy samples, from the sea's true covariance (its spectrum, known here, fitted by
-deckwatch). Its bands are honest by construction. It clears by the decider's own rule
+`--lags-s` of noisy samples, from the sea's true covariance (its spectrum: known here, learnt
+from the samples by deckwatch). Its bands are honest by construction. It clears by the decider's own rule
 (`decide/src/decision/envelope.rs`): per limit, the largest two-sided normal tail over the
 touchdown; summed over the limits; at most `--risk`. It never waits for a warm-up, never loses a
 frame and may clear at every decision. The share it uses is therefore what no per-channel (or,
@@ -186,13 +186,20 @@ def tilt_outside(roll, pitch, limit):
     return best
 
 
-def run(sea_state, seed, heading, args):
+def measured(sea_state, seed, heading, args):
+    """The sea, the noise per channel, the sample times and each channel's noisy samples."""
     sea = Sea(sea_state, seed, heading, args.coherence)
     noise = {"roll": args.noise_deg, "pitch": args.noise_deg, "heave": args.heave_noise_m}
     rng = np.random.default_rng(seed + 1000)
     n = int(args.minutes * 60 * RATE_HZ)
     t_meas = np.arange(n) / RATE_HZ
     z = {c: sea.truth(c, t_meas)[0] + noise[c] * rng.standard_normal(n) for c in CHANNELS}
+    return sea, noise, t_meas, z
+
+
+def run(sea_state, seed, heading, args):
+    sea, noise, t_meas, z = measured(sea_state, seed, heading, args)
+    n = len(t_meas)
     lags = int(round(args.lags_s * RATE_HZ))
     horizons = np.arange(0, TOUCHDOWN_S + 1e-9, HORIZON_STEP_S)
     decisions = t_meas[int(START_S * RATE_HZ) : n - int(TOUCHDOWN_S * RATE_HZ) - 1]
@@ -203,11 +210,11 @@ def run(sea_state, seed, heading, args):
         std.update(s)
     # The band's honesty 2 s ahead: the share of true rates inside the stated 95 % band, and
     # the heave rate's RMS error.
-    held = []
+    held, rate_error = [], {}
     for c in CHANNELS:
-        error = sea.truth(c, decisions + horizons[-1])[1] - mean[c][:, 1, -1]
-        held.append(np.mean(np.abs(error) <= 1.96 * std[c][:, 1, -1]))
-    heave_rate_rms = math.sqrt(np.mean(error**2))
+        rate_error[c] = sea.truth(c, decisions + horizons[-1])[1] - mean[c][:, 1, -1]
+        held.append(np.mean(np.abs(rate_error[c]) <= 1.96 * std[c][:, 1, -1]))
+    heave_rate_rms = math.sqrt(np.mean(rate_error["heave"] ** 2))
     scale = args.band_scale
     clears = []
     for i, t in enumerate(decisions):
@@ -286,12 +293,9 @@ def fitted_rate_errors(sea_state, seed, heading, args):
     """RMS of the rate forecasts of fitted models, as the decider fits them (0.2 s grid, order
     48, 120 s window, refitted every second, rates by central differences): one autoregression
     per channel, and one of all three channels together."""
-    sea = Sea(sea_state, seed, heading, args.coherence)
-    noise = {"roll": args.noise_deg, "pitch": args.noise_deg, "heave": args.heave_noise_m}
-    rng = np.random.default_rng(seed + 1000)
-    n = int(args.minutes * 60 * RATE_HZ)
-    t = np.arange(n) / RATE_HZ
-    z = np.stack([sea.truth(c, t)[0] + noise[c] * rng.standard_normal(n) for c in CHANNELS], 1)
+    sea, _, t, samples = measured(sea_state, seed, heading, args)
+    n = len(t)
+    z = np.stack([samples[c] for c in CHANNELS], 1)
     dt, order, window, steps = 0.2, 48, 600, (0.4, 1.0, 2.0)
     stride = int(round(dt * RATE_HZ))
     errors = {m: {h: [] for h in steps} for m in ("per channel", "joint")}

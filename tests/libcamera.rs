@@ -104,7 +104,13 @@ fn virtual_camera_frames_give_the_rendered_attitudes() {
         .into_iter()
         .filter(|r| r.get("watchdog").is_none_or(|w| w == "0"))
         .collect();
-    let dropped = report["drops"]["capture"].as_u64().unwrap() + report["drops"]["detect"].as_u64().unwrap();
+    // Every frame is either decided or counted as dropped somewhere on its way, including by the
+    // launcher's own observer (which writes the decisions file): on a loaded machine it can miss
+    // a decision in the virtual camera's opening burst, and that is a count, not a fault.
+    let dropped: u64 = ["capture", "detect", "estimate", "decide", "observer"]
+        .iter()
+        .map(|k| report["drops"][*k].as_u64().unwrap_or_else(|| panic!("drops.{k} in {report}")))
+        .sum();
     assert!(
         decided.len() as u64 + dropped >= frames - 2 && decided.len() as u64 >= frames / 2,
         "{} decided, {dropped} dropped of {frames}: {report}",

@@ -109,7 +109,11 @@ fn virtual_camera_frames_give_the_rendered_attitudes() {
     // a decision in the virtual camera's opening burst, and that is a count, not a fault.
     let dropped: u64 = ["capture", "detect", "estimate", "decide", "observer"]
         .iter()
-        .map(|k| report["drops"][*k].as_u64().unwrap_or_else(|| panic!("drops.{k} in {report}")))
+        .map(|k| {
+            report["drops"][*k]
+                .as_u64()
+                .unwrap_or_else(|| panic!("drops.{k} in {report}"))
+        })
         .sum();
     assert!(
         decided.len() as u64 + dropped >= frames - 2 && decided.len() as u64 >= frames / 2,

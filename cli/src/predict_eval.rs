@@ -95,7 +95,11 @@ pub fn run(a: PredictEvalArgs) -> Result<(), String> {
     config
         .validate()
         .map_err(|e| ConfigError::in_section(&file, "decide", e).to_string())?;
-    let model = stream_model(&a.stream)?;
+    pipeline
+        .vehicle
+        .validate()
+        .map_err(|e| ConfigError::in_section(&file, "vehicle", e).to_string())?;
+    let model = stream_model(&a.stream, &pipeline.vehicle)?;
     let minutes = minutes(&a.stream)?;
     if a.horizons.is_empty()
         || !a
@@ -112,8 +116,9 @@ pub fn run(a: PredictEvalArgs) -> Result<(), String> {
         forecaster(p, &config)?;
     }
     println!(
-        "{} min at {} Hz per series, {} motion; noise {} deg, heave noise {} m, dropout {}, outliers {}; window {} s, touchdown {} s, risk per touchdown {}",
+        "{} min at {} Hz per series, {} motion; noise {} deg, camera height noise {} m, autopilot height noise {} m, drift {} m/s, fused over {} s, dropout {}, outliers {}; window {} s, touchdown {} s, risk per touchdown {}",
         minutes, a.stream.rate, a.stream.motion_csv.as_ref().map_or(a.stream.motion.name().to_string(), |p| p.display().to_string()), a.stream.noise_deg, a.stream.heave_noise_m,
+        a.stream.vehicle_height_noise_m, a.stream.vehicle_height_drift_mps, pipeline.vehicle.height_fusion_s,
         a.stream.dropout, a.stream.outliers, config.window_s, config.touchdown_s, config.risk_per_touchdown
     );
     let horizons: Vec<String> = a

@@ -43,7 +43,17 @@ pub struct VehicleConfig {
     /// Autopilot attitude only (north-referenced heading): the time constant (s) of the ship's
     /// mean heading, which becomes W's x (CONVENTIONS.md §6).
     pub heading_time_constant_s: f64,
+    /// Autopilot attitude only: the time constant (s) over which the vehicle's height follows
+    /// the autopilot's integrated vertical speed rather than its reported height (LOCAL_POSITION_NED
+    /// `vz` and `z`); 0 takes the reported heights as they are.
+    pub height_fusion_s: f64,
 }
+
+/// `[vehicle] height_fusion_s` by default (s): one second averages a 50 Hz height's white noise
+/// over about 100 samples (a tenth of its standard deviation is left) and is short beside the
+/// heave's periods (5-15 s) and an estimator's drift (tens of seconds), which pass through as
+/// the height reports them.
+pub const HEIGHT_FUSION_TIME_CONSTANT_S: f64 = 1.0;
 
 impl Default for VehicleConfig {
     fn default() -> Self {
@@ -52,6 +62,7 @@ impl Default for VehicleConfig {
             max_gap_ms: 30.0,
             mount_rpy_deg: [0.0; 3],
             heading_time_constant_s: 30.0,
+            height_fusion_s: HEIGHT_FUSION_TIME_CONSTANT_S,
         }
     }
 }
@@ -86,6 +97,15 @@ impl VehicleConfig {
             return Err(InvalidField::new(
                 "heading_time_constant_s",
                 format!("must be positive, got {}", self.heading_time_constant_s),
+            ));
+        }
+        if !(self.height_fusion_s >= 0.0 && self.height_fusion_s <= 60.0) {
+            return Err(InvalidField::new(
+                "height_fusion_s",
+                format!(
+                    "must be in [0, 60] (0: the autopilot's heights as they are), got {}",
+                    self.height_fusion_s
+                ),
             ));
         }
         Ok(())
@@ -137,6 +157,9 @@ pub struct VehicleStateSample {
     pub quaternion: Quaternion,
     /// m, z up, from a fixed origin (the autopilot's local frame).
     pub height_m: Option<f64>,
+    /// The height's rate (m/s, up) by the autopilot's estimator, when it gives one: the
+    /// estimate pipeline fuses it with the height (`HeightFusion`).
+    pub vertical_speed_mps: Option<f64>,
 }
 
 impl VehicleStateSample {
@@ -146,6 +169,7 @@ impl VehicleStateSample {
             time_ns,
             quaternion,
             height_m: None,
+            vertical_speed_mps: None,
         }
     }
 }

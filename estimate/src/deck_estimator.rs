@@ -141,7 +141,7 @@ impl DeckEstimator {
             deck_motion: DeckMotionHistory::new(),
             motion_unknown: 0,
             vehicle: vehicle.clone(),
-            track: VehicleTrack::new(512),
+            track: VehicleTrack::with_height_fusion(512, vehicle.height_fusion_s),
             heading: MeanHeading::default(),
             uncompensated: 0,
             repeated_markers: None,
@@ -263,6 +263,7 @@ impl DeckEstimator {
                 time_ns: sample.time_ns,
                 quaternion: sample.quaternion,
                 height_m: Some(sample.height_m).filter(|h| h.is_finite()),
+                vertical_speed_mps: Some(sample.vertical_speed_mps).filter(|v| v.is_finite()),
             });
         }
     }

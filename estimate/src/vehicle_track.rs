@@ -4,6 +4,7 @@
 //! shutter need); and the ship's mean heading. Used by the estimation pipeline
 //! (`DeckEstimator`) and by replay of a recording's `vehicle.csv`.
 
+use crate::vehicle_height::HeightFusion;
 use deckwatch_common::vehicle::{Compensation, VehicleStateSample};
 use deckwatch_common::Quaternion;
 use std::collections::VecDeque;
@@ -29,11 +30,13 @@ pub enum TrackMiss {
 }
 
 /// The newest vehicle attitude samples on one clock (ns), interpolated (slerp) to any instant
-/// between them.
+/// between them. Their heights are the autopilot's height fused with its vertical speed where
+/// the samples carry one ([`HeightFusion`]).
 #[derive(Debug, Clone)]
 pub struct VehicleTrack {
     samples: VecDeque<VehicleStateSample>,
     capacity: usize,
+    height_fusion: HeightFusion,
     /// Samples refused: not after the newest, or not a rotation.
     pub rejected: u64,
 }
@@ -45,7 +48,17 @@ impl VehicleTrack {
         Self {
             samples: VecDeque::with_capacity(capacity.max(2)),
             capacity: capacity.max(2),
+            height_fusion: HeightFusion::default(),
             rejected: 0,
+        }
+    }
+
+    /// The same, with the height fused over `time_constant_s` (0: the reported heights as they
+    /// are).
+    pub fn with_height_fusion(capacity: usize, time_constant_s: f64) -> Self {
+        Self {
+            height_fusion: HeightFusion::new(time_constant_s),
+            ..Self::new(capacity)
         }
     }
 
@@ -63,7 +76,8 @@ impl VehicleTrack {
     }
 
     /// Adds a sample; false (and counted) when it is not after the newest or not a rotation. A
-    /// height that is not finite is dropped (the attitude is kept).
+    /// height that is not finite is dropped (the attitude is kept); a height with a vertical
+    /// speed is kept fused with it.
     pub fn push(&mut self, sample: VehicleStateSample) -> bool {
         let q = sample.quaternion;
         let ok = self.newest_ns().is_none_or(|t| sample.time_ns > t) && (q.norm() - 1.0).abs() < 1e-3;
@@ -72,9 +86,12 @@ impl VehicleTrack {
                 if self.samples.len() == self.capacity {
                     self.samples.pop_front();
                 }
+                let height_m =
+                    self.height_fusion
+                        .update(sample.time_ns, sample.height_m, sample.vertical_speed_mps);
                 self.samples.push_back(VehicleStateSample {
                     quaternion,
-                    height_m: sample.height_m.filter(|h| h.is_finite()),
+                    height_m,
                     ..sample
                 });
                 true
@@ -297,6 +314,7 @@ mod tests {
                 time_ns: k * 10_000_000,
                 quaternion: q(k as f64, 0.0, 0.0),
                 height_m: Some(10.0 + k as f64),
+                vertical_speed_mps: None,
             }));
         }
         assert_eq!(t.len(), 4, "the oldest are dropped");

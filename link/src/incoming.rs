@@ -193,20 +193,21 @@ impl Incoming {
         out
     }
 
-    /// The vehicle's height in the local frame at `time_boot_ms`: the newest LOCAL_POSITION_NED
-    /// carried there by its vertical speed (the autopilot sends positions more slowly than
-    /// attitudes); NaN with none within `HEIGHT_MAX_AGE_MS`.
-    fn height_at(&self, time_boot_ms: u32) -> f64 {
+    /// The vehicle's height in the local frame at `time_boot_ms` and its vertical speed (m,
+    /// m/s, up): the newest LOCAL_POSITION_NED carried there by its vertical speed (the
+    /// autopilot sends positions more slowly than attitudes); NaN with none within
+    /// `HEIGHT_MAX_AGE_MS`.
+    fn height_at(&self, time_boot_ms: u32) -> (f64, f64) {
         match self.local_height {
             Some((t, h, v)) => {
                 let dt_ms = f64::from(time_boot_ms) - f64::from(t);
                 if dt_ms.abs() <= HEIGHT_MAX_AGE_MS {
-                    h + v * dt_ms / 1e3
+                    (h + v * dt_ms / 1e3, v)
                 } else {
-                    f64::NAN
+                    (f64::NAN, f64::NAN)
                 }
             }
-            None => f64::NAN,
+            None => (f64::NAN, f64::NAN),
         }
     }
 
@@ -227,6 +228,7 @@ impl Incoming {
         self.clock.arrival(remote_ns, now_ns as i64);
         let clock = self.clock.estimate()?;
         let local = clock.to_local_ns(remote_ns as f64);
+        let (height_m, vertical_speed_mps) = self.height_at(time_boot_ms);
         let sample = VehicleSample {
             seq: self.seq,
             // Never after its own arrival (an offset estimate can be off by the latency).
@@ -235,7 +237,8 @@ impl Incoming {
             received_ns: now_ns,
             quaternion: q,
             altitude_m: self.altitude_m,
-            height_m: self.height_at(time_boot_ms),
+            height_m,
+            vertical_speed_mps,
             clock_offset_ns: clock.offset_at(local) as i64,
             clock_method: clock.method.into(),
             clock_drift_ppm: clock.drift_ppm,
@@ -360,10 +363,11 @@ mod tests {
         i.handle(&ap, &position, 3_000_000);
         let s = i.handle(&ap, &attitude(1_050), 4_000_000).sample.unwrap();
         assert!((s.height_m - 12.02).abs() < 1e-6, "{}", s.height_m);
+        assert!((s.vertical_speed_mps - 0.5).abs() < 1e-6, "up");
         assert_eq!(i.counts.positions, 1);
         // Too far from the position: no height rather than a guess.
         let s = i.handle(&ap, &attitude(1_500), 5_000_000).sample.unwrap();
-        assert!(s.height_m.is_nan());
+        assert!(s.height_m.is_nan() && s.vertical_speed_mps.is_nan());
     }
 
     #[test]

@@ -111,6 +111,7 @@ impl AutopilotArgs {
                 time_ns: (stamp_s * 1e9).round() as u64,
                 quaternion: Quaternion::from_matrix(&measured),
                 height_m: Some(truth.vehicle_height_m()),
+                vertical_speed_mps: None,
             });
         }
         out

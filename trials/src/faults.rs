@@ -9,6 +9,7 @@
 use deckwatch_common::messages::FROZEN_IMAGE_REPEATS;
 use deckwatch_common::InvalidOption;
 use deckwatch_decide::{DeckObservation, FrameInput};
+use deckwatch_estimate::HeightFusion;
 use deckwatch_sim::motion::{Sinusoid, VehicleSway};
 use deckwatch_sim::rng::SplitMix64;
 
@@ -109,6 +110,10 @@ impl FrameFaultModel {
     }
 }
 
+/// The autopilot's height samples in [`AttitudeStreamModel`] (s): 100 Hz, as the trials'
+/// attitude stream.
+const VEHICLE_HEIGHT_PERIOD_S: f64 = 0.01;
+
 /// Periods of the slow part of [`VehicleHeightError`] (s): a barometer's and an estimator's
 /// drift over tens of seconds to minutes.
 const HEIGHT_DRIFT_PERIODS_S: [f64; 4] = [23.0, 41.0, 67.0, 113.0];
@@ -163,6 +168,18 @@ impl VehicleHeightError {
     /// The error of the vertical speed estimate at `t_s` (m/s, up): the slow part's rate.
     pub fn rate_error_mps(&self, t_s: f64) -> f64 {
         self.drift.iter().map(|c| c.rate(t_s)).sum()
+    }
+
+    /// The height and the vertical speed (m, m/s, up) the autopilot reports at `t_s` of a
+    /// vehicle whose true height `height_at` gives: each with its error. The true speed is the
+    /// height's central difference over 10 ms.
+    pub fn reported(&self, height_at: impl Fn(f64) -> f64, t_s: f64) -> (f64, f64) {
+        const DT_S: f64 = 0.005;
+        let speed_mps = (height_at(t_s + DT_S) - height_at(t_s - DT_S)) / (2.0 * DT_S);
+        (
+            height_at(t_s) + self.error_m(t_s),
+            speed_mps + self.rate_error_mps(t_s),
+        )
     }
 }
 
@@ -226,8 +243,16 @@ pub struct AttitudeStreamModel {
     pub rate_hz: f64,
     /// Noise of roll and pitch (deg, standard deviation each).
     pub noise_deg: f64,
-    /// Noise of the deck's height (m).
+    /// White noise of the camera's height over the deck from the full pose (m).
     pub heave_noise_m: f64,
+    /// The autopilot's height estimate, which the deck's height is measured from: white noise
+    /// on each sample (m) and a slow drift whose rate has this standard deviation (m/s), as
+    /// trials model it ([`VehicleHeightError`])...
+    pub vehicle_height_noise_m: f64,
+    pub vehicle_height_drift_mps: f64,
+    /// ... sampled at 100 Hz and fused with its vertical speed over this time constant (s), as
+    /// the estimate pipeline fuses them (`[vehicle] height_fusion_s`; 0: not fused).
+    pub height_fusion_s: f64,
     /// Share of frames without a valid attitude.
     pub dropout: f64,
     /// Share of frames with a gross error (5-15 deg on one angle).
@@ -272,6 +297,12 @@ impl AttitudeStreamModel {
             "--vehicle-*, --heave-noise-m",
             "noise and outages must not be negative, outages must last",
         )?;
+        self.vehicle_height().validate()?;
+        require(
+            (0.0..=60.0).contains(&self.height_fusion_s),
+            "[vehicle] height_fusion_s",
+            "in [0, 60] s",
+        )?;
         let shares = [self.nan_share, self.stale_share, self.dropout, self.outliers];
         require(
             shares.iter().all(|v| (0.0..=1.0).contains(v)),
@@ -283,6 +314,15 @@ impl AttitudeStreamModel {
             "--frozen-*, --jitter-ms",
             "not negative, and frozen spells must last",
         )
+    }
+
+    /// The autopilot's height error as the trials' fault model has it.
+    fn vehicle_height(&self) -> FrameFaultModel {
+        FrameFaultModel {
+            vehicle_height_noise_m: self.vehicle_height_noise_m,
+            vehicle_height_drift_mps: self.vehicle_height_drift_mps,
+            ..FrameFaultModel::default()
+        }
     }
 
     /// `frames` attitudes of the deck whose truth (roll, pitch in deg, height in m) `truth`
@@ -310,6 +350,32 @@ impl AttitudeStreamModel {
             };
             [0, 1].map(|i| timing[i] + bias[i] + self.vehicle_noise_deg * rng.next_gaussian())
         };
+        // The deck's height is the vehicle's less the camera's over the deck: the autopilot's
+        // height error, after the fusion with its vertical speed, enters it one for one.
+        let height_error = VehicleHeightError::new(&self.vehicle_height(), seed ^ ((sea_state as u64) << 32));
+        let mut fusion = HeightFusion::new(self.height_fusion_s);
+        let mut next_height_sample = 0u64;
+        // The newest sample: its time (s), fused error (m) and speed error (m/s).
+        let mut newest = (0.0, 0.0, 0.0);
+        let mut fused_error = |t: f64| {
+            // Samples of the autopilot's stream (100 Hz) up to the frame; the error at the
+            // frame is the newest sample's, carried by its speed error.
+            while next_height_sample as f64 * VEHICLE_HEIGHT_PERIOD_S <= t + 1e-9 {
+                let ts = next_height_sample as f64 * VEHICLE_HEIGHT_PERIOD_S;
+                let rate = height_error.rate_error_mps(ts);
+                let fused = fusion
+                    .update(
+                        (ts * 1e9).round() as u64,
+                        Some(height_error.error_m(ts)),
+                        Some(rate),
+                    )
+                    .unwrap_or(0.0);
+                newest = (ts, fused, rate);
+                next_height_sample += 1;
+            }
+            let (ts, fused, rate) = newest;
+            fused + rate * (t - ts)
+        };
         let mut outages = Episodes::new(self.vehicle_outages_per_min, self.vehicle_outage_s, self.rate_hz);
         let mut frozen = Episodes::new(self.frozen_per_min, self.frozen_s, self.rate_hz);
         let (mut frozen_deck, mut repeats) = (None, 0u32);
@@ -317,6 +383,7 @@ impl AttitudeStreamModel {
             .map(|k| {
                 let t = k as f64 / self.rate_hz;
                 let [r, p, h] = truth(t);
+                let h = h + fused_error(t);
                 let vehicle_missing = outages.at(t, &mut rng);
                 let [er, ep] = vehicle_error(t, &mut rng);
                 let (r, p) = (r + er, p + ep);
@@ -475,6 +542,9 @@ mod tests {
             rate_hz: 10.0,
             noise_deg: 0.1,
             heave_noise_m: 0.0,
+            vehicle_height_noise_m: 0.0,
+            vehicle_height_drift_mps: 0.0,
+            height_fusion_s: 1.0,
             dropout: 0.0,
             outliers: 0.0,
             nan_share: 0.0,
@@ -511,5 +581,70 @@ mod tests {
             ..model
         };
         assert!(bad.validate().unwrap_err().option.contains("--dropout"));
+    }
+
+    /// The deck's height carries the autopilot's height error as the estimate pipeline sees it:
+    /// 2 cm of white noise on each 100 Hz height, fused with the vertical speed over 1 s, leaves
+    /// about 1.4 mm (sigma sqrt(dt / 2 tau)); not fused, all of it. The heave rate between
+    /// frames is what the forecast differences.
+    #[test]
+    fn the_deck_height_carries_the_autopilots_fused_height_error() {
+        let model = AttitudeStreamModel {
+            rate_hz: 10.0,
+            noise_deg: 0.0,
+            heave_noise_m: 0.0,
+            vehicle_height_noise_m: 0.02,
+            vehicle_height_drift_mps: 0.0,
+            height_fusion_s: 1.0,
+            dropout: 0.0,
+            outliers: 0.0,
+            nan_share: 0.0,
+            stale_share: 0.0,
+            jitter_ms: 0.0,
+            latency_ms: 5.0,
+            frozen_per_min: 0.0,
+            frozen_s: 2.0,
+            vehicle_sways: false,
+            vehicle_bias_deg: [0.0, 0.0],
+            vehicle_noise_deg: 0.0,
+            vehicle_time_error_ms: 0.0,
+            vehicle_outages_per_min: 0.0,
+            vehicle_outage_s: 1.0,
+        };
+        let truth = |t: f64| [0.0, 0.0, (0.6 * t).sin()];
+        let errors = |m: &AttitudeStreamModel| -> (f64, f64) {
+            let e: Vec<f64> = m
+                .measure(&truth, 6000, 9, 5)
+                .iter()
+                .enumerate()
+                .skip(50)
+                .map(|(k, f)| f.deck.unwrap().height_m - truth(k as f64 / 10.0)[2])
+                .collect();
+            let rms = |v: &mut dyn Iterator<Item = f64>| {
+                let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
+                (s / n as f64).sqrt()
+            };
+            (
+                rms(&mut e.iter().copied()),
+                rms(&mut e.windows(2).map(|p| (p[1] - p[0]) * 10.0)),
+            )
+        };
+        let (fused, fused_rate) = errors(&model);
+        assert!((0.0008..0.0025).contains(&fused), "{fused} m");
+        assert!(fused_rate < 0.01, "{fused_rate} m/s");
+        let (raw, raw_rate) = errors(&AttitudeStreamModel {
+            height_fusion_s: 0.0,
+            ..model.clone()
+        });
+        assert!((0.018..0.022).contains(&raw), "{raw} m");
+        assert!(raw_rate > 0.25, "{raw_rate} m/s");
+        // A drift the height and the speed share passes through the fusion.
+        let drift = AttitudeStreamModel {
+            vehicle_height_noise_m: 0.0,
+            vehicle_height_drift_mps: 0.05,
+            ..model
+        };
+        let (_, drift_rate) = errors(&drift);
+        assert!((0.03..0.07).contains(&drift_rate), "{drift_rate} m/s");
     }
 }

@@ -134,18 +134,19 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
                 continue;
             }
             let r_v = world.vehicle_attitude(tv);
-            let height_m = path
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .height_m(tv, heave(tv))
-                + faults.vehicle_height.error_m(tv);
+            let height_at = |t: f64| {
+                path.lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .height_m(t, heave(t))
+            };
+            let (height_m, vertical_speed_mps) = faults.vehicle_height.reported(height_at, tv);
             pipeline.observe_vehicle(&VehicleSample {
                 seq: vehicle_seq,
                 time_ns: timing.time_ns(tv),
                 received_ns: timing.time_ns(tv),
                 quaternion: Quaternion::from_matrix(&r_v),
-                altitude_m: f64::NAN,
                 height_m,
+                vertical_speed_mps,
                 link_up: true.into(),
                 ..Default::default()
             });

@@ -341,10 +341,7 @@ fn stream(
                     let heave = world.heave_m(t);
                     path.lock().unwrap_or_else(|e| e.into_inner()).height_m(t, heave)
                 };
-                const DT_S: f64 = 0.005;
-                let height_m = height_at(t) + height_error.error_m(t);
-                let up_mps = (height_at(t + DT_S) - height_at(t - DT_S)) / (2.0 * DT_S)
-                    + height_error.rate_error_mps(t);
+                let (height_m, up_mps) = height_error.reported(height_at, t);
                 send(MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA {
                     time_boot_ms: boot_ms,
                     z: -height_m as f32,

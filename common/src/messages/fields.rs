@@ -166,6 +166,7 @@ macro_rules! message_fields {
             quaternion,
             altitude_m,
             height_m,
+            vertical_speed_mps,
             clock_offset_ns,
             clock_method,
             clock_drift_ppm,

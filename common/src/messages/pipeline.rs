@@ -270,13 +270,14 @@ pub enum ClockMethod {
 wire_enum!(ClockMethod, on_bad_code: None, [None, Timesync, Arrival]);
 
 /// One attitude sample of the vehicle, from the autopilot (the `link` process), on this
-/// machine's `CLOCK_MONOTONIC`.
+/// machine's `CLOCK_MONOTONIC`. By default every measured value is unknown (NaN), so that a
+/// sample built from the default never passes off a 0 as a height or a speed.
 #[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::AnyBitPattern)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::AnyBitPattern)]
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
-    type_name("deckwatch.VehicleSample.v2")
+    type_name("deckwatch.VehicleSample.v3")
 )]
 pub struct VehicleSample {
     /// The link's count of samples, from 0.
@@ -294,6 +295,9 @@ pub struct VehicleSample {
     /// The vehicle's height in the autopilot's local frame (m, z up; LOCAL_POSITION_NED's -z,
     /// interpolated to `time_ns`), NaN unknown.
     pub height_m: f64,
+    /// The height's rate by the autopilot's estimator (m/s, up; LOCAL_POSITION_NED's -vz), NaN
+    /// unknown.
+    pub vertical_speed_mps: f64,
     /// autopilot time - monotonic time (ns), and how it was estimated.
     pub clock_offset_ns: i64,
     pub clock_method: WireCode<ClockMethod>,
@@ -301,6 +305,25 @@ pub struct VehicleSample {
     pub clock_drift_ppm: f64,
     /// The link: a heartbeat and attitude came within the configured time.
     pub link_up: WireBool,
+}
+
+impl Default for VehicleSample {
+    fn default() -> Self {
+        Self {
+            seq: 0,
+            time_ns: 0,
+            autopilot_time_us: 0,
+            received_ns: 0,
+            quaternion: Quaternion::default(),
+            altitude_m: f64::NAN,
+            height_m: f64::NAN,
+            vertical_speed_mps: f64::NAN,
+            clock_offset_ns: 0,
+            clock_method: WireCode::default(),
+            clock_drift_ppm: 0.0,
+            link_up: WireBool::FALSE,
+        }
+    }
 }
 
 /// Decide's output for one frame.

@@ -401,6 +401,8 @@ pub fn read_vehicle_csv(path: &Path) -> Result<Vec<VehicleStateSample>, Recordin
             time_ns: t,
             quaternion: q.normalized().unwrap_or(q),
             height_m,
+            // vehicle.csv has no vertical speed: its heights are used as they are.
+            vertical_speed_mps: None,
         });
     }
     Ok(out)

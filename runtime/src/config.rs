@@ -299,6 +299,15 @@ mod tests {
         );
         assert_eq!(sinusoids(""), DecisionConfig::ar_defaults());
         assert_eq!(sinusoids("[decide]\nmin_history_s = 12.0\n").min_history_s, 12.0);
+        // The autoregressive band is its margin, except for the autopilot's vertical-speed
+        // error in the heave rate, which no band sees; an autopilot with a better one says so.
+        let ar = sinusoids("");
+        assert_eq!((ar.margin_deg, ar.rate_margin_dps), (0.0, 0.0));
+        assert_eq!(ar.heave_rate_margin_mps, 0.1);
+        assert_eq!(
+            sinusoids("[decide]\nheave_rate_margin_mps = 0.02\n").heave_rate_margin_mps,
+            0.02
+        );
     }
 
     #[test]

@@ -120,6 +120,10 @@ pub struct TrialsArgs {
     /// height, the decisions, the verdict).
     #[arg(long)]
     pub rrd: Option<std::path::PathBuf>,
+    /// With `--rrd`: the approach to log instead of the first, by its number in the job list
+    /// (`job` in `--json`), to look at one approach of a run (an unsafe touchdown).
+    #[arg(long, default_value_t = 0)]
+    pub rrd_job: usize,
     /// JSON lines: one record per approach and rule (`{"approach": ...}`: the job's number, sea
     /// state, seed, heading, index, rule and outcome: commits, go-arounds and their reasons,
     /// the touchdown's verdict and time, the decisions by reason), then one object per sea
@@ -378,15 +382,25 @@ struct Setup {
 }
 
 /// The first approach (the one logged).
-fn jobs_first(a: &TrialsArgs) -> Option<Approach> {
+/// Every approach of the run, in the order `job` numbers them.
+fn job_list(a: &TrialsArgs) -> Vec<Approach> {
+    let mut jobs = Vec::new();
     let (sea_states, headings) = seas(a);
-    Some(Approach {
-        sea_state: *sea_states.first()?,
-        seed: *a.seeds.first()?,
-        heading_deg: *headings.first()?,
-        index: 0,
-    })
-    .filter(|_| a.approaches > 0)
+    for &sea_state in &sea_states {
+        for &seed in &a.seeds {
+            for &heading_deg in &headings {
+                for index in 0..a.approaches {
+                    jobs.push(Approach {
+                        sea_state,
+                        seed,
+                        heading_deg,
+                        index,
+                    });
+                }
+            }
+        }
+    }
+    jobs
 }
 
 /// An approach flown by every rule.
@@ -451,7 +465,8 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
         )),
         None => None,
     };
-    if let Some(job) = jobs_first(&a) {
+    let jobs = job_list(&a);
+    if let Some(&job) = jobs.first() {
         // A motion file that cannot be used says so before any flight.
         world_of(job, &a, recorded.as_ref())?;
     }
@@ -466,8 +481,15 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
         ..ApproachModel::quadrotor(capacity.touchdown_s)
     };
     model.validate()?;
-    let log = match (&a.rrd, jobs_first(&a)) {
-        (Some(p), Some(job)) => Some(TrialLog::start(
+    if a.rrd.is_some() && a.rrd_job >= jobs.len().max(1) {
+        return Err(format!(
+            "--rrd-job {}: the run has {} approaches",
+            a.rrd_job,
+            jobs.len()
+        ));
+    }
+    let log = match (&a.rrd, jobs.get(a.rrd_job)) {
+        (Some(p), Some(&job)) => Some(TrialLog::start(
             p,
             &capacity,
             format!(
@@ -497,22 +519,6 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
             "median s"
         );
     }
-    let mut jobs = Vec::new();
-    let (sea_states, headings) = seas(&a);
-    for &sea_state in &sea_states {
-        for &seed in &a.seeds {
-            for &heading_deg in &headings {
-                for index in 0..a.approaches {
-                    jobs.push(Approach {
-                        sea_state,
-                        seed,
-                        heading_deg,
-                        index,
-                    });
-                }
-            }
-        }
-    }
     // This shard's jobs (all without `--shard`), by their place in the whole list.
     let (part, parts) = match &a.shard {
         Some(s) => parse_shard(s)?,
@@ -540,8 +546,8 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
             scope.spawn(|| loop {
                 let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 let Some(&(number, job)) = mine.get(i) else { break };
-                // The whole list's first approach is the one logged.
-                let r = if number == 0 {
+                // The approach `--rrd-job` names in the whole list is the one logged.
+                let r = if number == a.rrd_job {
                     let mut guard = log.lock().unwrap_or_else(|e| e.into_inner());
                     fly_job(job, &setup, &a, Some(&mut guard))
                 } else {

@@ -83,7 +83,9 @@ pub struct DecisionConfig {
     pub margin_deg: f64,
     /// The same for rates (deg/s).
     pub rate_margin_dps: f64,
-    /// The same for the heave rate (m/s).
+    /// The same for the heave rate (m/s). Not 0 for `ar` either: the autopilot's vertical-speed
+    /// error enters the measured heave rate one for one, and no band can see it
+    /// ([`AUTOPILOT_VERTICAL_SPEED_MARGIN_MPS`]).
     pub heave_rate_margin_mps: f64,
     /// The prediction is unreliable if it misses the newest seconds of history by more.
     pub max_holdout_error_deg: f64,
@@ -192,6 +194,15 @@ fn invalid(key: &'static str, problem: impl Into<String>) -> InvalidField {
     InvalidField::new(key, problem)
 }
 
+/// `heave_rate_margin_mps` of the autoregressive predictor by default (m/s). The deck's height
+/// is the vehicle's less the camera's over the deck, so the autopilot's vertical-speed error is
+/// a bias of the measured heave rate that the forecast's band does not contain. A GNSS-aided
+/// estimator's is a few cm/s, slow; with 0.05 m/s RMS of it `decide-eval` cleared unsafe
+/// touchdowns at a margin of 0 and none at this (BENCHMARKS.md, "The vehicle's height fused
+/// with the autopilot's vertical speed"). An autopilot with a better vertical speed (RTK) may
+/// set less.
+pub const AUTOPILOT_VERTICAL_SPEED_MARGIN_MPS: f64 = 0.1;
+
 impl DecisionConfig {
     /// The naive baseline the state machine is measured against: the deck's current roll and
     /// pitch are within the capacity. It looks at one instant only; it is not a clearance.
@@ -224,7 +235,7 @@ impl DecisionConfig {
     pub fn with_predictor_defaults(mut self, given: impl Fn(&str) -> bool) -> Self {
         let (window_s, min_history_s, margin_deg, rate_margin_dps, heave_rate_margin_mps) =
             match self.predictor {
-                Predictor::Ar => (120.0, 8.0, 0.0, 0.0, 0.0),
+                Predictor::Ar => (120.0, 8.0, 0.0, 0.0, AUTOPILOT_VERTICAL_SPEED_MARGIN_MPS),
                 Predictor::Sinusoids => (40.0, 20.0, 0.5, 0.5, 0.1),
             };
         for (key, field, value) in [

@@ -299,14 +299,17 @@ mod tests {
         );
         assert_eq!(sinusoids(""), DecisionConfig::ar_defaults());
         assert_eq!(sinusoids("[decide]\nmin_history_s = 12.0\n").min_history_s, 12.0);
-        // The autoregressive band is its margin, except for the autopilot's vertical-speed
-        // error in the heave rate, which no band sees; an autopilot with a better one says so.
+        // The autoregressive band is its margin; the autopilot's vertical-speed error, which no
+        // band sees, is stated on its own, and an autopilot with a better one says so.
         let ar = sinusoids("");
-        assert_eq!((ar.margin_deg, ar.rate_margin_dps), (0.0, 0.0));
-        assert_eq!(ar.heave_rate_margin_mps, 0.1);
         assert_eq!(
-            sinusoids("[decide]\nheave_rate_margin_mps = 0.02\n").heave_rate_margin_mps,
-            0.02
+            (ar.margin_deg, ar.rate_margin_dps, ar.heave_rate_margin_mps),
+            (0.0, 0.0, 0.0)
+        );
+        assert_eq!(ar.vertical_speed_error_mps, 0.05);
+        assert_eq!(
+            sinusoids("[decide]\nvertical_speed_error_mps = 0.01\n").vertical_speed_error_mps,
+            0.01
         );
     }
 

@@ -83,10 +83,15 @@ pub struct DecisionConfig {
     pub margin_deg: f64,
     /// The same for rates (deg/s).
     pub rate_margin_dps: f64,
-    /// The same for the heave rate (m/s). Not 0 for `ar` either: the autopilot's vertical-speed
-    /// error enters the measured heave rate one for one, and no band can see it
-    /// ([`AUTOPILOT_VERTICAL_SPEED_MARGIN_MPS`]).
+    /// The same for the heave rate (m/s).
     pub heave_rate_margin_mps: f64,
+    /// The autopilot's vertical-speed error (m/s, standard deviation; slow, so one value over a
+    /// touchdown). The deck's height is the vehicle's less the camera's over the deck, so this
+    /// error is a bias of the measured heave rate that the forecast's band, fitted to the
+    /// measurements, cannot contain. With `ar` it is added to the heave rate's band in
+    /// quadrature; 0 trusts the autopilot's vertical speed as exact
+    /// ([`AUTOPILOT_VERTICAL_SPEED_ERROR_MPS`]).
+    pub vertical_speed_error_mps: f64,
     /// The prediction is unreliable if it misses the newest seconds of history by more.
     pub max_holdout_error_deg: f64,
     /// ... or the heave by more (m).
@@ -148,6 +153,7 @@ impl Default for DecisionConfig {
             margin_deg: f64::NAN,
             rate_margin_dps: f64::NAN,
             heave_rate_margin_mps: f64::NAN,
+            vertical_speed_error_mps: AUTOPILOT_VERTICAL_SPEED_ERROR_MPS,
             max_holdout_error_deg: 2.0,
             max_holdout_error_m: 0.3,
             holdout_s: 2.0,
@@ -194,14 +200,11 @@ fn invalid(key: &'static str, problem: impl Into<String>) -> InvalidField {
     InvalidField::new(key, problem)
 }
 
-/// `heave_rate_margin_mps` of the autoregressive predictor by default (m/s). The deck's height
-/// is the vehicle's less the camera's over the deck, so the autopilot's vertical-speed error is
-/// a bias of the measured heave rate that the forecast's band does not contain. A GNSS-aided
-/// estimator's is a few cm/s, slow; with 0.05 m/s RMS of it `decide-eval` cleared unsafe
-/// touchdowns at a margin of 0 and none at this (BENCHMARKS.md, "The vehicle's height fused
-/// with the autopilot's vertical speed"). An autopilot with a better vertical speed (RTK) may
-/// set less.
-pub const AUTOPILOT_VERTICAL_SPEED_MARGIN_MPS: f64 = 0.1;
+/// `vertical_speed_error_mps` by default (m/s): a GNSS-aided estimator's vertical-speed error,
+/// a few cm/s and slow. With 0.05 m/s RMS of it and nothing to cover it, `decide-eval` cleared
+/// unsafe touchdowns (BENCHMARKS.md, "The vehicle's height fused with the autopilot's vertical
+/// speed"). An autopilot with a better vertical speed (RTK) may state less.
+pub const AUTOPILOT_VERTICAL_SPEED_ERROR_MPS: f64 = 0.05;
 
 impl DecisionConfig {
     /// The naive baseline the state machine is measured against: the deck's current roll and
@@ -235,7 +238,7 @@ impl DecisionConfig {
     pub fn with_predictor_defaults(mut self, given: impl Fn(&str) -> bool) -> Self {
         let (window_s, min_history_s, margin_deg, rate_margin_dps, heave_rate_margin_mps) =
             match self.predictor {
-                Predictor::Ar => (120.0, 8.0, 0.0, 0.0, AUTOPILOT_VERTICAL_SPEED_MARGIN_MPS),
+                Predictor::Ar => (120.0, 8.0, 0.0, 0.0, 0.0),
                 Predictor::Sinusoids => (40.0, 20.0, 0.5, 0.5, 0.1),
             };
         for (key, field, value) in [
@@ -292,6 +295,7 @@ impl DecisionConfig {
             ("margin_deg", self.margin_deg),
             ("rate_margin_dps", self.rate_margin_dps),
             ("heave_rate_margin_mps", self.heave_rate_margin_mps),
+            ("vertical_speed_error_mps", self.vertical_speed_error_mps),
             ("gap_recovery_s", self.gap_recovery_s),
             ("abort_hold_s", self.abort_hold_s),
             ("ride_through_ms", self.ride_through_ms),

@@ -1335,6 +1335,41 @@ mod tests {
         assert!(d.exceedance_risk(&m, times(), &limits) >= spread_alone);
     }
 
+    /// The autopilot's vertical-speed error is in every measured heave rate and in none of the
+    /// forecast's misses: stated (`vertical_speed_error_mps`), it widens the heave rate's
+    /// deviation in quadrature. A deck the forecast keeps 4 sigma inside the heave-rate limit is
+    /// cleared with the error stated as 0, and not with 0.1 m/s of it.
+    #[test]
+    fn the_autopilots_vertical_speed_error_widens_the_heave_rate_band() {
+        let (d, m, mut limits) = calm_sea_models();
+        let times = || (0..=40).map(|k| 60.0 + 0.05 * k as f64);
+        let stating = |e: f64| {
+            LandingDecider::new(DecisionConfig {
+                vertical_speed_error_mps: e,
+                ..d.config().clone()
+            })
+            .unwrap()
+        };
+        let heave = &m.tracks[HEAVE];
+        limits[5] = times()
+            .map(|t| heave.rate(t).abs() + 4.0 * m.rate_std(HEAVE, t))
+            .fold(0.0, f64::max);
+        let risk = d.config().risk_per_touchdown;
+        let exact = stating(0.0).exceedance_risk(&m, times(), &limits);
+        assert!(exact < risk, "exact vertical speed: {exact}");
+        let biased = stating(0.1).exceedance_risk(&m, times(), &limits);
+        assert!(
+            biased > risk && biased > 10.0 * exact,
+            "0.1 m/s of error: {biased}"
+        );
+        assert!(DecisionConfig {
+            vertical_speed_error_mps: -0.1,
+            ..DecisionConfig::default()
+        }
+        .validate()
+        .is_err());
+    }
+
     /// The misses' spread is their `BAND_EVIDENCE_QUANTILE` in the rate's own unit as a normal
     /// deviation, measured only with `MIN_BAND_EVIDENCE` of them spanning
     /// `MIN_RATE_EVIDENCE_SPAN_S`.

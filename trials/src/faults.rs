@@ -297,12 +297,8 @@ impl AttitudeStreamModel {
             "--vehicle-*, --heave-noise-m",
             "noise and outages must not be negative, outages must last",
         )?;
+        // `height_fusion_s` comes from `[vehicle]`, which `VehicleConfig::validate` checks.
         self.vehicle_height().validate()?;
-        require(
-            (0.0..=60.0).contains(&self.height_fusion_s),
-            "[vehicle] height_fusion_s",
-            "in [0, 60] s",
-        )?;
         let shares = [self.nan_share, self.stale_share, self.dropout, self.outliers];
         require(
             shares.iter().all(|v| (0.0..=1.0).contains(v)),

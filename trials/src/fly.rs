@@ -134,12 +134,10 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
                 continue;
             }
             let r_v = world.vehicle_attitude(tv);
-            let height_at = |t: f64| {
-                path.lock()
-                    .unwrap_or_else(|e| e.into_inner())
-                    .height_m(t, heave(t))
+            let (height_m, vertical_speed_mps) = {
+                let path = path.lock().unwrap_or_else(|e| e.into_inner());
+                faults.vehicle_height.reported(|t| path.height_m(t, heave(t)), tv)
             };
-            let (height_m, vertical_speed_mps) = faults.vehicle_height.reported(height_at, tv);
             pipeline.observe_vehicle(&VehicleSample {
                 seq: vehicle_seq,
                 time_ns: timing.time_ns(tv),

@@ -337,11 +337,10 @@ fn stream(
             if streaming {
                 // Height and vertical speed, as an autopilot's estimator gives them (the link
                 // carries the height to each attitude sample by the speed).
-                let height_at = |t: f64| {
-                    let heave = world.heave_m(t);
-                    path.lock().unwrap_or_else(|e| e.into_inner()).height_m(t, heave)
+                let (height_m, up_mps) = {
+                    let path = path.lock().unwrap_or_else(|e| e.into_inner());
+                    height_error.reported(|t| path.height_m(t, world.heave_m(t)), t)
                 };
-                let (height_m, up_mps) = height_error.reported(height_at, t);
                 send(MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA {
                     time_boot_ms: boot_ms,
                     z: -height_m as f32,

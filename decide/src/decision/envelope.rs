@@ -61,7 +61,7 @@ impl LandingDecider {
         // the forecast's misses or the history's spread: independent of them, it adds in
         // quadrature to the heave rate's deviation.
         let bias_var = self.config.vertical_speed_error_mps.powi(2);
-        let rate_std = |k: usize, std: f64| {
+        let with_vertical_speed_error = |k: usize, std: f64| {
             if k == HEAVE {
                 (std * std + bias_var).sqrt()
             } else {
@@ -73,7 +73,9 @@ impl LandingDecider {
             if unreliable && k < m.tracks.len() {
                 // No spread known (too few distinct sample times): nothing to clear on.
                 match m.rate_climate_std[k] {
-                    std if std.is_finite() => outside_probability(0.0, rate_std(k, std), limit),
+                    std if std.is_finite() => {
+                        outside_probability(0.0, with_vertical_speed_error(k, std), limit)
+                    }
                     _ => 1.0,
                 }
             } else {
@@ -96,7 +98,11 @@ impl LandingDecider {
                 outside_probability(roll.rate(t), m.rate_std(ROLL, t), limits[3]),
                 outside_probability(pitch.rate(t), m.rate_std(PITCH, t), limits[4]),
                 heave.map_or(0.0, |h| {
-                    outside_probability(h.rate(t), rate_std(HEAVE, m.rate_std(HEAVE, t)), limits[5])
+                    outside_probability(
+                        h.rate(t),
+                        with_vertical_speed_error(HEAVE, m.rate_std(HEAVE, t)),
+                        limits[5],
+                    )
                 }),
             ];
             for (w, p) in worst.iter_mut().zip(tails) {

@@ -117,8 +117,9 @@ pub struct DecisionConfig {
     /// A committed touchdown goes on through missing attitudes (no deck seen, no vehicle
     /// attitude to compensate with, no deck height, the gap they leave) for this long in a
     /// row (ms; 0: abort on the first), on the prediction the last good attitude confirmed,
-    /// while that prediction would clear the rest of the touchdown as a new clearance would,
-    /// at `risk_per_touchdown` (`ride-through`). The final metres of a descent are blind: the ring leaves a camera's
+    /// while that prediction keeps the deck within the capacity to the touchdown's end: at
+    /// `go_around_risk` while more of the touchdown is left than of this budget, at
+    /// `risk_per_touchdown` once the budget left reaches the touchdown's end (`ride-through`). The final metres of a descent are blind: the ring leaves a camera's
     /// view about 1 m over the deck (BENCHMARKS.md, "Closed-loop trials"). Never entered on
     /// such data, and never through a stale, frozen, jumping or unpredictable input.
     pub ride_through_ms: f64,

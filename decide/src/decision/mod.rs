@@ -611,8 +611,9 @@ impl LandingDecider {
     /// and for a single implausible sample (refused, not believed: a deck does not move 40 deg/s;
     /// a second in a row rides on, the third restarts the history and aborts), not for an input
     /// that is late, frozen or unpredictable; for at most `ride_through_ms` in a row, and only
-    /// while the model the last good input confirmed would still clear the rest of the
-    /// touchdown (`blind_margins`): blind, no later frame can call a go-around.
+    /// while the model the last good input confirmed keeps the deck within the capacity to the
+    /// touchdown's end: at a clearance's risk (`blind_margins`) when the blind budget left
+    /// reaches that end, else at a seeing touchdown's (`stay_margins`).
     fn rides_through(&mut self, reason: DecisionReason, now: f64) -> bool {
         let missing = matches!(
             reason,
@@ -631,10 +632,20 @@ impl LandingDecider {
         let short = advancing
             && self.config.ride_through_ms > 0.0
             && self.ridden_s <= self.config.ride_through_ms / 1e3;
-        let bounded = self
-            .models
-            .as_ref()
-            .is_some_and(|m| self.predicted_within(m, now, self.commit_end, self.blind_margins(m)));
+        // Contact may come before any other frame only if the blind budget left reaches it;
+        // otherwise a frame comes first (and can call a go-around) or the budget runs out (and
+        // the touchdown goes around). A dropped frame mid-touchdown judged as a clearance sent
+        // twice as many faulted trials around.
+        let budget_left_s = self.config.ride_through_ms / 1e3 - self.ridden_s;
+        let blind_to_contact = self.commit_end - now <= budget_left_s;
+        let bounded = self.models.as_ref().is_some_and(|m| {
+            let margins = if blind_to_contact {
+                self.blind_margins(m)
+            } else {
+                self.stay_margins(m)
+            };
+            self.predicted_within(m, now, self.commit_end, margins)
+        });
         missing && short && bounded
     }
 
@@ -1046,15 +1057,25 @@ mod tests {
         assert_eq!(too_long.validate().unwrap_err().field, "ride_through_ms");
     }
 
-    /// Blind, a committed touchdown goes on only as a clearance would: with the capacity set so
-    /// that the forecast's risk over the rest of the touchdown is 0.01 (above
-    /// `risk_per_touchdown`, below `go_around_risk`), a frame that sees the deck keeps the
-    /// touchdown going and a frame without one sends it around.
+    /// Blind to contact, a committed touchdown goes on only as a clearance would: with the
+    /// capacity set so that the forecast's risk over the rest of the touchdown is 0.01 (above
+    /// `risk_per_touchdown`, below `go_around_risk`), in its last second a frame that sees the
+    /// deck keeps the touchdown going and a frame without one sends it around. Earlier, with
+    /// more of the touchdown left than the blind budget, a missing frame is judged as a seeing
+    /// one: a frame or the budget's end comes before contact.
     #[test]
-    fn blind_a_touchdown_goes_on_only_at_a_clearances_risk() {
-        let at_risk = |target: f64| {
+    fn blind_to_contact_a_touchdown_goes_on_only_at_a_clearances_risk() {
+        // Committed, seen for `seen_s`, then the capacity scaled so that the risk from the next
+        // frame to the touchdown's end is `target`.
+        let at_risk = |target: f64, seen_s: f64| {
             let (mut d, t0) = committed(DecisionConfig::default());
-            let now = t0 + 0.1;
+            let mut t = t0;
+            while t < t0 + seen_s - 1e-9 {
+                t += 0.1;
+                let r = d.update_at_capture(t, Some(sea(t, 0.8)), 0.01);
+                assert_eq!(r.state, DecisionState::ClearToLand, "{r:?}");
+            }
+            let now = t + 0.1;
             let defaults = DecisionConfig::default();
             let set_scale = |c: &mut DecisionConfig, f: f64| {
                 c.max_abs_roll_deg = f * defaults.max_abs_roll_deg;
@@ -1080,7 +1101,7 @@ mod tests {
                 d.exceedance_risk(m, times, &limits)
             };
             // The risk falls as the capacity grows: bisect its scale.
-            let (mut low, mut high) = (0.05, 1.0);
+            let (mut low, mut high) = (0.05, 3.0);
             for _ in 0..60 {
                 let mid = 0.5 * (low + high);
                 set_scale(&mut d.config, mid);
@@ -1095,18 +1116,27 @@ mod tests {
             assert!(r > 0.5 * target && r <= target, "{r}");
             (d, now)
         };
-        let (mut seeing, now) = at_risk(0.01);
+        // The touchdown's last 0.7 s, within the blind budget left (0.9 s).
+        let seen_s = 1.2;
+        let (mut seeing, now) = at_risk(0.01, seen_s);
         let r = seeing.update_at_capture(now, Some(sea(now, 0.8)), 0.01);
         assert_eq!(r.state, DecisionState::ClearToLand, "{r:?}");
-        let (mut blind, now) = at_risk(0.01);
+        let (mut blind, now) = at_risk(0.01, seen_s);
         let r = blind.update_at_capture(now, None, 0.01);
         assert_eq!(
             (r.state, r.reason),
             (DecisionState::Abort, DecisionReason::InvalidAttitude)
         );
         // At the clearance's own risk it rides through.
-        let (mut blind, now) = at_risk(0.5 * DecisionConfig::default().risk_per_touchdown);
+        let (mut blind, now) = at_risk(0.5 * DecisionConfig::default().risk_per_touchdown, seen_s);
         let r = blind.update_at_capture(now, None, 0.01);
+        assert_eq!(
+            (r.state, r.reason),
+            (DecisionState::ClearToLand, DecisionReason::RideThrough)
+        );
+        // 1.9 s left: a missing frame is judged as a seeing one.
+        let (mut dropped, now) = at_risk(0.01, 0.0);
+        let r = dropped.update_at_capture(now, None, 0.01);
         assert_eq!(
             (r.state, r.reason),
             (DecisionState::ClearToLand, DecisionReason::RideThrough)

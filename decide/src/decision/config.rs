@@ -215,6 +215,20 @@ impl DecisionConfig {
         roll_deg.abs() <= self.max_abs_roll_deg && pitch_deg.abs() <= self.max_abs_pitch_deg
     }
 
+    /// The capacity's six limits in the order the envelope judges them
+    /// (`LandingDecider::exceedance_risk`): roll, pitch, tilt (deg), roll rate, pitch rate
+    /// (deg/s), heave rate (m/s).
+    pub(crate) fn capacity_limits(&self) -> [f64; 6] {
+        [
+            self.max_abs_roll_deg,
+            self.max_abs_pitch_deg,
+            self.max_tilt_deg,
+            self.max_abs_roll_rate_dps,
+            self.max_abs_pitch_rate_dps,
+            self.max_abs_heave_rate_mps,
+        ]
+    }
+
     /// The sinusoid predictor with the settings it was measured with: a 40 s window, 20 s of
     /// warm-up, fixed margins on top of its held-out error bound.
     pub fn sinusoid_defaults() -> Self {

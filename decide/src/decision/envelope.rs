@@ -12,13 +12,15 @@ impl LandingDecider {
         let steps = ((to - from) / STEP_S).ceil().max(0.0) as usize;
         let (roll, pitch) = (&m.tracks[ROLL], &m.tracks[PITCH]);
         let heave = m.tracks.get(HEAVE);
+        let [roll_deg, pitch_deg, max_tilt_deg, roll_rate_dps, pitch_rate_dps, heave_rate_mps] =
+            c.capacity_limits();
         let limits = [
-            c.max_abs_roll_deg - margins.angle_deg,
-            c.max_abs_pitch_deg - margins.angle_deg,
-            c.max_tilt_deg - margins.angle_deg,
-            c.max_abs_roll_rate_dps - margins.rate_dps,
-            c.max_abs_pitch_rate_dps - margins.rate_dps,
-            c.max_abs_heave_rate_mps - margins.heave_rate_mps,
+            roll_deg - margins.angle_deg,
+            pitch_deg - margins.angle_deg,
+            max_tilt_deg - margins.angle_deg,
+            roll_rate_dps - margins.rate_dps,
+            pitch_rate_dps - margins.rate_dps,
+            heave_rate_mps - margins.heave_rate_mps,
         ];
         let times = (0..=steps).map(|k| (from + k as f64 * STEP_S).min(to));
         if let Some(risk) = margins.risk {

@@ -1087,15 +1087,7 @@ mod tests {
             };
             let risk = |d: &LandingDecider| {
                 let m = d.models.as_ref().expect("committed on a model");
-                let c = &d.config;
-                let limits = [
-                    c.max_abs_roll_deg,
-                    c.max_abs_pitch_deg,
-                    c.max_tilt_deg,
-                    c.max_abs_roll_rate_dps,
-                    c.max_abs_pitch_rate_dps,
-                    c.max_abs_heave_rate_mps,
-                ];
+                let limits = d.config.capacity_limits();
                 let steps = ((d.commit_end - now) / STEP_S).ceil() as usize;
                 let times = (0..=steps).map(|k| (now + k as f64 * STEP_S).min(d.commit_end));
                 d.exceedance_risk(m, times, &limits)
@@ -1435,15 +1427,7 @@ mod tests {
         let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
         run(&mut d, 0.0, 60.0, |t| Some(sea(t, 0.3)));
         let mut m = d.models.clone().expect("fitted");
-        let c = d.config();
-        let limits = [
-            c.max_abs_roll_deg,
-            c.max_abs_pitch_deg,
-            c.max_tilt_deg,
-            c.max_abs_roll_rate_dps,
-            c.max_abs_pitch_rate_dps,
-            c.max_abs_heave_rate_mps,
-        ];
+        let limits = d.config().capacity_limits();
         m.band_scale = [1.0; 3];
         m.rate_band_scale = [1.0; 3];
         m.rate_climate_std = [0.1, 0.1, 0.5];

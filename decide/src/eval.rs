@@ -120,18 +120,20 @@ impl TrueDeckState {
             .all(|(_, value, limit)| value.abs() <= *limit)
     }
 
+    /// Each limit's name, this state's value and the limit, in `capacity_limits`' order.
     fn limits(&self, c: &DecisionConfig) -> [(&'static str, f64, f64); 6] {
+        let [roll, pitch, tilt, roll_rate, pitch_rate, heave_rate] = c.capacity_limits();
         [
-            ("roll", self.roll_deg, c.max_abs_roll_deg),
-            ("pitch", self.pitch_deg, c.max_abs_pitch_deg),
+            ("roll", self.roll_deg, roll),
+            ("pitch", self.pitch_deg, pitch),
             (
                 "tilt",
                 crate::decision::tilt_deg(self.roll_deg, self.pitch_deg),
-                c.max_tilt_deg,
+                tilt,
             ),
-            ("roll-rate", self.roll_rate_dps, c.max_abs_roll_rate_dps),
-            ("pitch-rate", self.pitch_rate_dps, c.max_abs_pitch_rate_dps),
-            ("heave-rate", self.heave_rate_mps, c.max_abs_heave_rate_mps),
+            ("roll-rate", self.roll_rate_dps, roll_rate),
+            ("pitch-rate", self.pitch_rate_dps, pitch_rate),
+            ("heave-rate", self.heave_rate_mps, heave_rate),
         ]
     }
 }

@@ -121,8 +121,8 @@ pub struct DecisionConfig {
     /// `go_around_risk` while more of the touchdown is left than of this budget, at
     /// `risk_per_touchdown` once the budget left reaches the touchdown's end (`ride-through`).
     /// The final metres of a descent are blind: the ring leaves a camera's view about 1 m over
-    /// the deck (BENCHMARKS.md, "Closed-loop trials"). Never entered on
-    /// such data, and never through a stale, frozen, jumping or unpredictable input.
+    /// the deck (BENCHMARKS.md, "Closed-loop trials"). Never entered on such data, and never
+    /// through a stale, frozen, jumping or unpredictable input.
     pub ride_through_ms: f64,
 }
 

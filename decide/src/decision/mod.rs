@@ -114,7 +114,7 @@ const MIN_BAND_EVIDENCE: usize = 20;
 /// heave rate's error at 0.086 m/s on a held-out sea state 5, and a clearance 13.8 s after the
 /// deck came into view met -0.689 m/s where the forecast said 0.03 (BENCHMARKS.md, "A rate's
 /// misses stand for its error once they span 8 s"). Until then the rate is also judged as the
-/// history knows it (`Models::rate_climate_std`).
+/// history knows it (`Models::rate_history`).
 const MIN_RATE_EVIDENCE_SPAN_S: f64 = 8.0;
 /// Fits made as if earlier, to check the band before any real fit is `holdout_s` old
 /// (`LandingDecider::backtest_band`): this many, this far apart (s), each on at least this much
@@ -577,6 +577,23 @@ impl LandingDecider {
                 *track = next;
             }
         }
+        // The history's forecast of each rate starts from the newest rate too, measured as its
+        // regression's were: across two fit spacings (a gap leaves the fit's).
+        let newest_sample = self.history.back().copied();
+        let span_s = 2.0 * FIT_SPACING_S;
+        let before = self
+            .history
+            .iter()
+            .rev()
+            .find(|h| newest - h.0 >= span_s - 1e-6)
+            .copied();
+        if let (Some(new), Some(old)) = (newest_sample, before) {
+            if new.0 - old.0 <= 2.0 * span_s {
+                for (k, h) in m.rate_history.iter_mut().enumerate() {
+                    h.measured(old.0, old.1[k], new.0, new.1[k]);
+                }
+            }
+        }
     }
 
     /// Forgets the history and the models: what follows is learnt afresh (warm-up).
@@ -755,7 +772,7 @@ impl LandingDecider {
 #[cfg(test)]
 mod tests {
     use super::envelope::{outside_probability, tilt_outside_probability};
-    use super::models::BandScale;
+    use super::models::{BandScale, RateHistory};
     use super::*;
     use std::f64::consts::TAU;
 
@@ -1379,7 +1396,7 @@ mod tests {
             vec![1.0; t.len()],
             t.iter().map(|&t| 2.0 * (0.25 * t).sin()).collect::<Vec<_>>(),
         ];
-        let spread = super::models::rate_climate_std(&t, &y);
+        let spread = super::models::rate_histories(&t, &y, [0.0; 3]).map(|h| h.spread);
         assert!((spread[0] - 0.5 / 2f64.sqrt()).abs() < 0.01, "{spread:?}");
         assert_eq!(spread[1], 0.0);
         assert!((spread[2] - 0.5 / 2f64.sqrt()).abs() < 0.01, "{spread:?}");
@@ -1401,12 +1418,99 @@ mod tests {
         assert!(unreliable >= spread_alone, "{unreliable} < {spread_alone}");
         assert!(unreliable > c.risk_per_touchdown);
         // Without a known spread, an unreliable channel clears nothing.
-        m.rate_climate_std[2] = f64::NAN;
+        m.rate_history[2] = RateHistory::spread_only(f64::NAN);
         assert!(d.exceedance_risk(&m, times(), &limits) >= 1.0);
-        m.rate_climate_std[2] = 0.5;
+        m.rate_history[2] = RateHistory::spread_only(0.5);
         // A scale of 3 or less is still a band to believe.
         m.band_scale[2] = MAX_BAND_SCALE;
         assert!(d.exceedance_risk(&m, times(), &limits) < c.risk_per_touchdown);
+    }
+
+    /// The history's own forecast of a rate (`RateHistory`): on a sine of angular frequency w
+    /// sampled as the fit samples it (0.2 and 0.3 s apart), the rate a lag L later regressed on
+    /// the rate now has coefficient cos(w L) and leaves |sin(w L)| of the rate's RMS; the
+    /// forecast starts from the newest rate, and beyond the lags regressed it is the spread
+    /// with a mean of zero. The decider keeps the newest rate as measured, frame by frame.
+    #[test]
+    fn the_history_forecasts_a_rate_from_its_newest_value() {
+        let w = TAU / 9.0;
+        let mut t = vec![0.0];
+        while *t.last().unwrap() < 60.0 {
+            let step = if t.len() % 3 == 0 { 0.3 } else { 0.2 };
+            t.push(t.last().unwrap() + step);
+        }
+        let y = vec![t.iter().map(|&t| 2.0 * (w * t).sin()).collect::<Vec<_>>()];
+        let [h, _, _] = super::models::rate_histories(&t, &y, [3.0; 3]);
+        // Central differences over 0.4-0.5 s shrink a 9 s sine's rate by about 1 %; 60 s is not
+        // a whole number of its periods.
+        let rms = 2.0 * w / 2f64.sqrt();
+        assert!((h.spread / rms - 1.0).abs() < 0.02, "{} against {rms}", h.spread);
+        assert_eq!(h.lags.len(), 15);
+        for (k, &(coefficient, left)) in h.lags.iter().enumerate() {
+            let lag_s = (k + 1) as f64 * FIT_SPACING_S;
+            assert!(
+                (coefficient - (w * lag_s).cos()).abs() < 0.03,
+                "lag {lag_s}: {coefficient}"
+            );
+            let expected = (w * lag_s).sin().abs() * rms;
+            assert!(
+                (left - expected).abs() < 0.05 * expected + 0.01,
+                "lag {lag_s}: {left} against {expected}"
+            );
+        }
+        let (mean, std) = h.forecast(h.newest_t + 1.0);
+        let (c5, s5) = h.lags[4];
+        assert!((mean - c5 * h.newest).abs() < 1e-12 && (std - s5).abs() < 1e-12);
+        // Within a spacing of the newest rate: the first lag's; beyond the regression: the spread.
+        assert_eq!(
+            h.forecast(h.newest_t + 0.05),
+            (h.lags[0].0 * h.newest, h.lags[0].1)
+        );
+        assert_eq!(h.forecast(h.newest_t + 3.5), (0.0, h.spread));
+        // Too short a history for a lag's pairs: only the spread.
+        let short = super::models::rate_histories(&t[..12], &[y[0][..12].to_vec()], [3.0; 3]);
+        assert!(short[0].lags.is_empty() && short[0].spread > 0.0);
+        assert_eq!(short[0].forecast(t[11]), (0.0, short[0].spread));
+        assert_eq!(short[0].forecast(short[0].newest_t), (0.0, short[0].spread));
+
+        // The decider measures the newest rate on every frame, between refits.
+        let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
+        run(&mut d, 0.0, 60.05, |t| Some(sea(t, 0.3)));
+        let m = d.models.as_ref().expect("fitted");
+        let newest = &m.rate_history[HEAVE];
+        assert!((newest.newest_t - 59.8).abs() < 1e-9, "{}", newest.newest_t);
+        assert!(
+            (newest.newest - heave_rate(59.8, 0.3)).abs() < 0.005,
+            "{}",
+            newest.newest
+        );
+    }
+
+    /// An unreliable rate without misses of its own is judged from its newest value: a deck whose
+    /// heave rate was just measured small is cleared where the history's spread alone (0.5 m/s,
+    /// with a mean of zero) would not be; one measured near the limit is not.
+    #[test]
+    fn an_unreliable_rate_is_judged_from_its_newest_value() {
+        let (d, mut m, limits) = calm_sea_models();
+        let c = d.config().clone();
+        let times = || (0..=40).map(|k| 60.0 + 0.05 * k as f64);
+        m.rate_miss_std = [f64::NAN; 3];
+        m.band_scale[HEAVE] = 4.0;
+        assert!(d.exceedance_risk(&m, times(), &limits) > c.risk_per_touchdown);
+        let regressed = |newest: f64| RateHistory {
+            spread: 0.5,
+            newest,
+            newest_t: 59.9,
+            lags: vec![(0.95, 0.05); 15],
+        };
+        m.rate_history[HEAVE] = regressed(0.05);
+        assert!(d.exceedance_risk(&m, times(), &limits) < c.risk_per_touchdown);
+        m.rate_history[HEAVE] = regressed(0.55);
+        assert!(d.exceedance_risk(&m, times(), &limits) > 0.01);
+        // Past the lags regressed (3 s after the newest rate), only the spread is known.
+        m.rate_history[HEAVE] = regressed(0.05);
+        let later = || (0..=40).map(|k| 63.0 + 0.05 * k as f64);
+        assert!(d.exceedance_risk(&m, later(), &limits) > c.risk_per_touchdown);
     }
 
     /// The decider's band scales: values, rates, and whether every value and rate has its
@@ -1430,7 +1534,7 @@ mod tests {
         let limits = d.config().capacity_limits();
         m.band_scale = [1.0; 3];
         m.rate_band_scale = [1.0; 3];
-        m.rate_climate_std = [0.1, 0.1, 0.5];
+        m.rate_history = [0.1, 0.1, 0.5].map(RateHistory::spread_only);
         (d, m, limits)
     }
 

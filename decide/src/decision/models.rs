@@ -110,8 +110,8 @@ pub(super) fn evidence_z() -> f64 {
 /// What a channel's history alone says of its rate to come, with no model: its rate by
 /// central differences on the fitted samples, regressed on the newest of them at each lag of
 /// the fit spacing (a least-squares coefficient and the spread of what it leaves), up to a
-/// touchdown and its lead; beyond, or without pairs enough, the rate's spread with a mean of
-/// zero. The newest rate says most of the next second (a swell's rate changes little in
+/// refit interval and a touchdown for a channel judged by it; beyond, or without pairs
+/// enough, the rate's spread with a mean of zero. The newest rate says most of the next second (a swell's rate changes little in
 /// it), nothing of one a quarter period away; the regression measures which, on this sea.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub(super) struct RateHistory {

@@ -111,9 +111,10 @@ pub(super) fn evidence_z() -> f64 {
 /// central differences on the fitted samples, regressed on the newest of them at each lag of
 /// the fit spacing (a least-squares coefficient and the spread of what it leaves), up to a
 /// refit interval and a touchdown for a channel judged by it; beyond, or without pairs
-/// enough, the rate's spread with a mean of zero. The newest rate says most of the next second (a swell's rate changes little in
-/// it), nothing of one a quarter period away; the regression measures which, on this sea.
-#[derive(Debug, Clone, PartialEq, Default)]
+/// enough, the rate's spread with a mean of zero. The newest rate says most of the next
+/// second (a swell's rate changes little in it), nothing of one a quarter period away; the
+/// regression measures which, on this sea.
+#[derive(Debug, Clone, PartialEq)]
 pub(super) struct RateHistory {
     /// The RMS of the rate over the history; NaN with fewer than three samples.
     pub(super) spread: f64,
@@ -126,14 +127,22 @@ pub(super) struct RateHistory {
 }
 
 impl RateHistory {
+    /// Nothing known (fewer than three samples): no spread, so nothing to clear on.
+    pub(super) fn unknown() -> Self {
+        Self {
+            spread: f64::NAN,
+            newest: f64::NAN,
+            newest_t: f64::NAN,
+            lags: Vec::new(),
+        }
+    }
+
     /// Only a spread (`spread`), no regression: what is known with too short a history.
     #[cfg(test)]
     pub(super) fn spread_only(spread: f64) -> Self {
         Self {
             spread,
-            newest: f64::NAN,
-            newest_t: f64::NAN,
-            lags: Vec::new(),
+            ..Self::unknown()
         }
     }
 
@@ -169,13 +178,7 @@ const MIN_RATE_LAG_PAIRS: usize = 20;
 /// samples about `FIT_SPACING_S` apart), regressed up to `max_lag_s` (per channel; 0: only
 /// its spread and newest rate).
 pub(super) fn rate_histories(t: &[f64], y: &[Vec<f64>], max_lag_s: [f64; 3]) -> [RateHistory; 3] {
-    let empty = || RateHistory {
-        spread: f64::NAN,
-        newest: f64::NAN,
-        newest_t: f64::NAN,
-        lags: Vec::new(),
-    };
-    let mut out = [empty(), empty(), empty()];
+    let mut out = std::array::from_fn(|_| RateHistory::unknown());
     // (time, rate) by central differences, on the first channel's clock.
     let times: Vec<(usize, f64)> = (1..t.len().saturating_sub(1))
         .filter(|&i| t[i + 1] > t[i - 1])
@@ -452,7 +455,7 @@ impl LandingDecider {
             rate_band_scale,
             rate_miss_std,
             band_checked,
-            rate_history: Default::default(),
+            rate_history: std::array::from_fn(|_| RateHistory::unknown()),
         };
         // Regressed only where it is used, as far ahead as a model is used for: its age at most
         // (a refit interval) and a touchdown. Every channel's regressed cost the slowest

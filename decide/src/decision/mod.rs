@@ -801,6 +801,14 @@ mod tests {
         scale * 0.5 * TAU / 9.5 * (TAU * t / 9.5 + 0.3).cos()
     }
 
+    /// The time of the first clearance among `run`'s decisions.
+    fn first_clearance(decisions: &[(f64, Decision)]) -> Option<f64> {
+        decisions
+            .iter()
+            .find(|(_, r)| r.state == DecisionState::ClearToLand)
+            .map(|(t, _)| *t)
+    }
+
     fn run(
         decider: &mut LandingDecider,
         from: f64,
@@ -1170,11 +1178,7 @@ mod tests {
             // 3 s without a valid attitude (a frozen camera refused upstream).
             run(&mut d, 82.1, 85.05, |_| None);
             let after = run(&mut d, 85.1, 95.0, observe);
-            let first = after
-                .iter()
-                .find(|(_, r)| r.state == DecisionState::ClearToLand)
-                .map(|(t, _)| *t)
-                .expect("a calm sea clears again");
+            let first = first_clearance(&after).expect("a calm sea clears again");
             (first, after)
         };
         let c = DecisionConfig::default();
@@ -1280,11 +1284,7 @@ mod tests {
             }
         }
         let after = run(&mut gapped, 83.2, 140.0, observe);
-        let first_clear = after
-            .iter()
-            .find(|(_, r)| r.state == DecisionState::ClearToLand)
-            .map(|(t, _)| *t)
-            .expect("the sea clears again");
+        let first_clear = first_clearance(&after).expect("the sea clears again");
         let lag_span_s = (gapped.config().ar_order as f64 + 3.0) * FIT_SPACING_S;
         assert!(
             first_clear >= 82.0 + gapped.config().gap_recovery_s - 1e-9 && first_clear < 82.0 + lag_span_s,

@@ -1452,7 +1452,10 @@ mod tests {
                 (coefficient - (w * lag_s).cos()).abs() < 0.03,
                 "lag {lag_s}: {coefficient}"
             );
-            let expected = (w * lag_s).sin().abs() * rms;
+            // What is left, raised to its bound over the seconds the pairs span (the first
+            // pair's later rate at about 0.2 s + the lag, the last at the newest rate).
+            let bound = super::models::upper_bound_factor(h.newest_t - 0.2 - lag_s);
+            let expected = bound * (w * lag_s).sin().abs() * rms;
             assert!(
                 (left - expected).abs() < 0.05 * expected + 0.01,
                 "lag {lag_s}: {left} against {expected}"
@@ -1467,6 +1470,19 @@ mod tests {
             (h.lags[0].0 * h.newest, h.lags[0].1)
         );
         assert_eq!(h.forecast(h.newest_t + 3.5), (0.0, h.spread));
+        // A shorter history states more of what is left: its pairs are fewer pieces of
+        // evidence (a second each).
+        let bound = super::models::upper_bound_factor;
+        assert!(bound(1.0) > bound(4.0) && bound(4.0) > bound(12.0) && bound(12.0) > bound(60.0));
+        assert!(bound(60.0) > 1.0 && bound(60.0) < 1.1 && bound(4.0) > 1.3);
+        let n = t.partition_point(|&ti| ti < 12.0);
+        let [twelve, _, _] = super::models::rate_histories(&t[..n], &[y[0][..n].to_vec()], [3.0; 3]);
+        let (lag, (_, left_60)) = (4, h.lags[4]);
+        let left_12 = twelve.lags[lag].1;
+        assert!(
+            left_12 > 1.05 * left_60,
+            "12 s of history state {left_12}, 60 s {left_60}"
+        );
         // Too short a history for a lag's pairs: only the spread.
         let short = super::models::rate_histories(&t[..12], &[y[0][..12].to_vec()], [3.0; 3]);
         assert!(short[0].lags.is_empty() && short[0].spread > 0.0);

@@ -119,8 +119,8 @@ pub fn normal_quantile(p: f64) -> f64 {
 /// The chi-square quantile: `x` with `P(chi2(dof) <= x) = p`, for `p` in (0, 1) and `dof` > 0
 /// (the Wilson-Hilferty cube-root normal approximation; exact for 2 degrees of freedom, within
 /// 7 % of the table from 3 up, smaller than the truth at 1 so that a bound on it is wider);
-/// NaN outside. The decision's upper bound of a band's scale from a few independent misses
-/// uses it.
+/// NaN outside. The decision bounds the deviation its history's rate regression leaves with
+/// it, over the few seconds of sea that regression has seen.
 pub fn chi_square_quantile(p: f64, dof: f64) -> f64 {
     if !(p > 0.0 && p < 1.0 && dof > 0.0) {
         return f64::NAN;

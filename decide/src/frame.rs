@@ -70,15 +70,13 @@ impl LandingDecider {
     /// the decider's own checks (stale, clock, frozen input, jumps, gaps, warm-up, the
     /// prediction).
     pub fn decide_frame(&mut self, frame: &FrameInput) -> Decision {
-        let d = if frame.deck.is_some() && frame.vehicle_missing {
+        if frame.deck.is_some() && frame.vehicle_missing {
             self.refuse(frame.t_s, DecisionReason::NoVehicleAttitude)
         } else if frame.frozen_image {
             self.refuse(frame.t_s, DecisionReason::FrozenInput)
         } else {
             self.update_at_capture(frame.t_s, frame.deck, frame.age_s)
-        };
-        self.note_frame_time(frame.t_s);
-        d
+        }
     }
 
     /// Once a frame's decision is out: the motion model's refit (a millisecond or more every

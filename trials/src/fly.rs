@@ -156,7 +156,11 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
             out.count_decision(d.state.get(), d.reason.get());
             let c = follow.command(d.state.get());
             if c == Command::GoAround && autopilot.contact_s().is_some() {
-                out.count_go_around(d.reason.get());
+                if autopilot.can_go_around(t_decided) {
+                    out.count_go_around(d.reason.get());
+                } else {
+                    out.count_too_late(d.reason.get());
+                }
             }
             c
         };
@@ -283,16 +287,25 @@ mod tests {
     }
 
     fn fly(rule: PipelineRule, sea_state: u32, index: u32, faults: FrameFaultModel) -> ApproachOutcome {
-        let capacity = DecisionConfig::default();
-        let model = ApproachModel {
-            max_approach_s: 90.0,
-            ..ApproachModel::quadrotor(capacity.touchdown_s)
-        };
         let approach = Approach {
             sea_state,
             seed: 101,
             heading_deg: 40.0,
             index,
+        };
+        fly_with(rule, DecisionConfig::default(), approach, faults)
+    }
+
+    /// One approach of perfect perception (seeing to contact) under `capacity`.
+    fn fly_with(
+        rule: PipelineRule,
+        capacity: DecisionConfig,
+        approach: Approach,
+        faults: FrameFaultModel,
+    ) -> ApproachOutcome {
+        let model = ApproachModel {
+            max_approach_s: 90.0,
+            ..ApproachModel::quadrotor(capacity.touchdown_s)
         };
         let world = ApproachWorld::new(approach, None, 0.3, model.max_approach_s).unwrap();
         let timing = ApproachTiming {
@@ -349,6 +362,55 @@ mod tests {
             })
             .count();
         assert!(unsafe_touchdowns >= 1);
+    }
+
+    /// Perfect perception sees the deck to contact, so no frame is blind and, without a point
+    /// of no return (`no_return_ms = 0`), every touchdown is judged at `go_around_risk` to its
+    /// end: its go-arounds come when they can no longer be flown. With the default, the last
+    /// decision that can act judges the rest as a clearance. Sea states 5 and 6, seeds 201 and
+    /// 202, waves at 20 and 140 deg, 20 approaches each (160); figures in BENCHMARKS.md ("A
+    /// touchdown's point of no return"). `cargo test --release -p deckwatch-trials --
+    /// --ignored --nocapture`.
+    #[test]
+    #[ignore = "an evaluation: about a minute in release"]
+    fn seeing_to_contact_a_go_around_comes_while_it_can_be_flown() {
+        let run = |no_return_ms: f64| {
+            let capacity = DecisionConfig {
+                no_return_ms,
+                ..DecisionConfig::default()
+            };
+            let mut sum = crate::RuleSummary::default();
+            for sea_state in [5, 6] {
+                for seed in [201, 202] {
+                    for heading_deg in [20.0, 140.0] {
+                        for index in 0..20 {
+                            let approach = Approach {
+                                sea_state,
+                                seed,
+                                heading_deg,
+                                index,
+                            };
+                            let out = fly_with(
+                                PipelineRule::Deckwatch,
+                                capacity.clone(),
+                                approach,
+                                FrameFaultModel::default(),
+                            );
+                            sum.add(&out);
+                        }
+                    }
+                }
+            }
+            let too_late: u64 = sum.too_late_reasons.values().sum();
+            println!(
+                "no_return_ms {no_return_ms}: {} approaches, {} commits, {} go-arounds flown, {too_late} ordered too late, {} touchdowns, {} unsafe {:?}",
+                sum.approaches, sum.commits, sum.aborts, sum.touchdowns, sum.unsafe_touchdowns, sum.violations
+            );
+            (too_late, sum.unsafe_touchdowns)
+        };
+        assert_eq!(run(DecisionConfig::default().no_return_ms), (0, 0));
+        let (too_late, _) = run(0.0);
+        assert!(too_late > 0, "seeing to contact, some go-around comes too late");
     }
 
     /// Every frame lost: nothing to decide on, the watchdog's stale decisions only, no commit.

@@ -50,6 +50,13 @@ pub struct ApproachModel {
     pub touchdown_s: f64,
     /// Climb rate of a go-around back to the hover height (m/s).
     pub climb_mps: f64,
+    /// A go-around ordered during a descent takes this long to begin (s: the autopilot's
+    /// reaction, its jerk-limited ramp) ...
+    pub go_around_reaction_s: f64,
+    /// ... and arrests the descent at this acceleration (m/s^2). Ordered with less of the
+    /// descent left than [`ApproachModel::no_return_s`], it cannot keep the vehicle off the deck:
+    /// contact comes as planned.
+    pub go_around_accel_mps2: f64,
     /// The largest tilt of the vehicle against the deck its gear takes at contact (deg).
     pub max_relative_tilt_deg: f64,
     /// An approach that has not touched down after this long ends (s).
@@ -57,6 +64,14 @@ pub struct ApproachModel {
 }
 
 impl ApproachModel {
+    /// How much of a descent at `descent_mps` over the deck is left (s) when a go-around can
+    /// no longer keep the vehicle off the deck: the reaction's distance and the braking
+    /// distance `v^2 / (2 a)`, flown at `v`. The decision's `[decide] no_return_ms` must be at
+    /// least this for the vehicle it flies.
+    pub fn no_return_s(&self, descent_mps: f64) -> f64 {
+        self.go_around_reaction_s + descent_mps / (2.0 * self.go_around_accel_mps2)
+    }
+
     /// A small quadrotor that waits with its camera 3 m over the deck, following it, and touches
     /// down with its camera 0.25 m over it, `touchdown_s` after the commit.
     pub fn quadrotor(touchdown_s: f64) -> Self {
@@ -68,6 +83,9 @@ impl ApproachModel {
             contact_m: 0.25,
             touchdown_s,
             climb_mps: 1.5,
+            // PX4's `MPC_ACC_UP_MAX` (4 m/s^2) after a tenth of a second.
+            go_around_reaction_s: 0.1,
+            go_around_accel_mps2: 4.0,
             max_relative_tilt_deg: 8.0,
             max_approach_s: 240.0,
         }
@@ -80,6 +98,8 @@ impl ApproachModel {
             && self.contact_m > 0.0
             && self.touchdown_s > 0.0
             && self.climb_mps > 0.0
+            && self.go_around_reaction_s >= 0.0
+            && self.go_around_accel_mps2 > 0.0
             && self.max_relative_tilt_deg > 0.0
             && self.max_approach_s > self.touchdown_s;
         if ok {
@@ -87,7 +107,7 @@ impl ApproachModel {
         } else {
             Err(deckwatch_common::InvalidOption::new(
                 "approach",
-                format!("hover height and wait clearance over contact height over 0, positive touchdown time, climb rate and tilt limit, an approach longer than a touchdown; got {self:?}"),
+                format!("hover height and wait clearance over contact height over 0, positive touchdown time, climb rate, go-around acceleration and tilt limit, a go-around reaction of 0 or more, an approach longer than a touchdown; got {self:?}"),
             ))
         }
     }
@@ -194,6 +214,13 @@ impl SimulatedAutopilot {
         }
     }
 
+    /// Whether a go-around ordered at `t_s` can still be flown: not descending (nothing to go
+    /// around), or more of the descent left than its point of no return.
+    pub fn can_go_around(&self, t_s: f64) -> bool {
+        self.contact_s()
+            .is_none_or(|contact_s| contact_s - t_s > self.model.no_return_s(self.descent_mps))
+    }
+
     /// When it will touch the deck, while it descends.
     pub fn contact_s(&self) -> Option<f64> {
         match self.phase {
@@ -277,6 +304,8 @@ impl SimulatedAutopilot {
                 self.commits += 1;
                 true
             }
+            // Too late to keep off the deck: the descent goes on to contact.
+            Command::GoAround if !self.can_go_around(t_s) => false,
             Command::GoAround if matches!(self.phase, Phase::Descent { .. }) => {
                 let (to_m, over_deck) = self.waiting_target();
                 path.move_to(t_s, heave_m, to_m, self.model.climb_mps, over_deck);
@@ -367,6 +396,10 @@ pub struct ApproachOutcome {
     pub go_arounds: u32,
     /// Why each go-around was ordered (the decision's reason), by name.
     pub abort_reasons: BTreeMap<String, u32>,
+    /// Go-arounds ordered past the descent's point of no return (not flown: contact came as
+    /// planned), by the decision's reason.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub too_late_reasons: BTreeMap<String, u32>,
     pub touchdown: Option<TouchdownVerdict>,
     /// Frames rendered, and decisions the autopilot received.
     pub frames: u64,
@@ -390,6 +423,11 @@ impl ApproachOutcome {
     pub fn count_go_around(&mut self, reason: deckwatch_common::messages::DecisionReason) {
         *self.abort_reasons.entry(reason.name().into()).or_default() += 1;
     }
+
+    /// A go-around ordered too late to be flown, counted by its reason.
+    pub fn count_too_late(&mut self, reason: deckwatch_common::messages::DecisionReason) {
+        *self.too_late_reasons.entry(reason.name().into()).or_default() += 1;
+    }
 }
 
 /// A rule's approaches added up.
@@ -403,6 +441,8 @@ pub struct RuleSummary {
     pub violations: BTreeMap<String, u64>,
     pub aborts: u64,
     pub abort_reasons: BTreeMap<String, u64>,
+    /// Go-arounds ordered past a descent's point of no return, by reason (not flown).
+    pub too_late_reasons: BTreeMap<String, u64>,
     /// Approaches that ended without a touchdown.
     pub timeouts: u64,
     /// Arrival to touchdown of each touchdown (s).
@@ -421,6 +461,9 @@ impl RuleSummary {
         self.frames += o.frames;
         for (k, v) in &o.abort_reasons {
             *self.abort_reasons.entry(k.clone()).or_default() += *v as u64;
+        }
+        for (k, v) in &o.too_late_reasons {
+            *self.too_late_reasons.entry(k.clone()).or_default() += *v as u64;
         }
         for (k, v) in &o.decisions_by_reason {
             *self.decisions_by_reason.entry(k.clone()).or_default() += v;
@@ -457,6 +500,9 @@ impl RuleSummary {
         }
         for (k, v) in &other.abort_reasons {
             *self.abort_reasons.entry(k.clone()).or_default() += v;
+        }
+        for (k, v) in &other.too_late_reasons {
+            *self.too_late_reasons.entry(k.clone()).or_default() += v;
         }
         for (k, v) in &other.decisions_by_reason {
             *self.decisions_by_reason.entry(k.clone()).or_default() += v;
@@ -587,6 +633,36 @@ mod tests {
         assert!(ap.ready(ready_s));
         assert!(ap.act(ready_s + 0.1, 0.0, Command::Land));
         assert_eq!((ap.commits, ap.go_arounds), (2, 1));
+    }
+
+    /// A go-around ordered with less of the descent left than its point of no return (the
+    /// reaction, then braking from 1.375 m/s at 4 m/s^2: 0.27 s) is not flown: contact comes as
+    /// planned. Ordered earlier, it is.
+    #[test]
+    fn a_go_around_ordered_past_the_point_of_no_return_is_not_flown() {
+        let model = ApproachModel::quadrotor(2.0);
+        let no_return_s = model.no_return_s(1.375);
+        assert!((no_return_s - (0.1 + 1.375 / 8.0)).abs() < 1e-12, "{no_return_s}");
+        // Every decision default covers this vehicle's fastest descents (1.66 m/s in trials).
+        assert!(model.no_return_s(1.7) <= DecisionConfig::default().no_return_ms / 1e3);
+        let path = Arc::new(Mutex::new(FlightPath::hover(model.hover_m)));
+        let mut ap = SimulatedAutopilot::new(model, path.clone());
+        assert!(ap.act(10.0, 0.0, Command::Land));
+        assert!(ap.can_go_around(12.0 - no_return_s - 0.01));
+        assert!(!ap.can_go_around(12.0 - no_return_s + 0.01));
+        assert!(!ap.act(11.8, 0.0, Command::GoAround));
+        assert_eq!(ap.contact_s(), Some(12.0));
+        assert_eq!((ap.commits, ap.go_arounds), (1, 0));
+        // Hovering, there is nothing to go around from.
+        let mut hovering = SimulatedAutopilot::new(model, path.clone());
+        assert!(hovering.can_go_around(0.0));
+        assert!(!hovering.act(0.0, 0.0, Command::GoAround));
+        // Earlier in the descent it is flown.
+        let mut early =
+            SimulatedAutopilot::new(model, Arc::new(Mutex::new(FlightPath::hover(model.hover_m))));
+        assert!(early.act(10.0, 0.0, Command::Land));
+        assert!(early.act(11.5, 0.0, Command::GoAround));
+        assert_eq!((early.contact_s(), early.go_arounds), (None, 1));
     }
 
     #[test]

@@ -501,9 +501,9 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
     };
     if !a.json {
         println!(
-            "closed-loop trials: {} approaches per sea state, seed and heading ({} x {} x {:?} deg); {}x{} at {} Hz, waiting {}, touchdown {} s, sway x{}, ride-through {} ms; faults: drops {}, glints {}, frozen {}/min of {} s, vehicle stream outages {}/min of {} s, height error {} m + drift {} m/s",
+            "closed-loop trials: {} approaches per sea state, seed and heading ({} x {} x {:?} deg); {}x{} at {} Hz, waiting {}, touchdown {} s, sway x{}, ride-through {} ms, no return {} ms (the vehicle's: {} s + descent speed / (2 x {} m/s^2)); faults: drops {}, glints {}, frozen {}/min of {} s, vehicle stream outages {}/min of {} s, height error {} m + drift {} m/s",
             a.approaches, a.seeds.len(), a.headings_deg.len(), a.headings_deg, a.width, a.height, a.rate, if model.follow_deck { format!("{} m over the deck, lagging it by {} s", model.hover_m, model.follow_lag_s) } else { format!("{} m over the mean deck, {} m over its highest", model.hover_m, model.wait_clearance_m) },
-            model.touchdown_s, a.sway, capacity.ride_through_ms, a.drop_share, a.glints, a.frozen_per_min, a.frozen_s, a.vehicle_outages_per_min, a.vehicle_outage_s, a.vehicle_height_noise_m, a.vehicle_height_drift_mps
+            model.touchdown_s, a.sway, capacity.ride_through_ms, capacity.no_return_ms, model.go_around_reaction_s, model.go_around_accel_mps2, a.drop_share, a.glints, a.frozen_per_min, a.frozen_s, a.vehicle_outages_per_min, a.vehicle_outage_s, a.vehicle_height_noise_m, a.vehicle_height_drift_mps
         );
         println!(
             "{:<4} {:<10} {:>10} {:>8} {:>10} {:>7} {:>7} {:>9} {:>9} {:>9}",
@@ -679,6 +679,13 @@ fn report(records: &[ApproachRecord], json: bool) -> Result<BTreeMap<Rule, RuleS
                 rule.name(),
                 s.abort_reasons,
                 s.violations
+            );
+        }
+        if !s.too_late_reasons.is_empty() {
+            println!(
+                "     {:<10} go-arounds ordered past the point of no return (not flown) by reason: {:?}",
+                rule.name(),
+                s.too_late_reasons
             );
         }
         if !s.decisions_by_reason.is_empty() {

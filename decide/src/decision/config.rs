@@ -124,6 +124,15 @@ pub struct DecisionConfig {
     /// the deck (BENCHMARKS.md, "Closed-loop trials"). Never entered on such data, and never
     /// through a stale, frozen, jumping or unpredictable input.
     pub ride_through_ms: f64,
+    /// How long before contact a go-around can no longer keep the vehicle off the deck (ms):
+    /// the autopilot's reaction and the time to arrest the descent, the vehicle's own figure
+    /// (descending at `v` m/s and climbing away at `a` m/s^2 after `r` s: about `r + v / (2 a)`
+    /// of its descent is left to contact). The last decision that can act before that point
+    /// (the next frame is expected after it, or a blind spell could reach it) judges the rest
+    /// of the touchdown as a new clearance would (`risk_per_touchdown`), not at
+    /// `go_around_risk`: no later frame can send it around. 350: a quadrotor descending at 1.6
+    /// m/s that arrests at 4 m/s^2 (PX4's `MPC_ACC_UP_MAX`) after 0.1 s needs 0.3 s.
+    pub no_return_ms: f64,
 }
 
 impl Default for DecisionConfig {
@@ -167,6 +176,7 @@ impl Default for DecisionConfig {
             horizon_s: 20.0,
             abort_hold_s: 2.0,
             ride_through_ms: 1000.0,
+            no_return_ms: 350.0,
         }
         .with_predictor_defaults(|_| false)
     }
@@ -315,6 +325,7 @@ impl DecisionConfig {
             ("gap_recovery_s", self.gap_recovery_s),
             ("abort_hold_s", self.abort_hold_s),
             ("ride_through_ms", self.ride_through_ms),
+            ("no_return_ms", self.no_return_ms),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(invalid(k, format!("must be >= 0, got {v}")));
@@ -401,6 +412,16 @@ impl DecisionConfig {
                     "must not exceed the touchdown ({} ms), got {}",
                     1e3 * self.touchdown_s,
                     self.ride_through_ms
+                ),
+            ));
+        }
+        if self.no_return_ms >= 1e3 * self.touchdown_s {
+            return Err(invalid(
+                "no_return_ms",
+                format!(
+                    "must be shorter than the touchdown ({} ms): a descent that cannot be given up is not a commitment a decision can hold, got {}",
+                    1e3 * self.touchdown_s,
+                    self.no_return_ms
                 ),
             ));
         }

@@ -177,6 +177,9 @@ pub struct LandingDecider {
     /// Blind time the committed touchdown has ridden through so far (s): one budget per
     /// commitment, however many spells it comes in.
     ridden_s: f64,
+    /// The committed touchdown has been judged on its last chance before its point of no
+    /// return (`LandingDecider::last_chance`).
+    last_chance_taken: bool,
     /// The newest frame's time during the commitment (any verdict): each blind frame adds the
     /// interval since.
     commit_last_frame: f64,
@@ -219,6 +222,7 @@ impl LandingDecider {
             repeated: None,
             backwards_run: 0,
             ridden_s: 0.0,
+            last_chance_taken: false,
             commit_last_frame: f64::NEG_INFINITY,
             last_frame_t: None,
             frame_interval_s: None,
@@ -250,6 +254,7 @@ impl LandingDecider {
     /// Refuses a frame's input for `reason` (say, its attitude could not be compensated for the
     /// vehicle's), deciding at `now`: never clear on it, abort a committed landing.
     pub fn refuse(&mut self, now: f64, reason: DecisionReason) -> Decision {
+        self.note_frame_time(now);
         let now = if now.is_finite() {
             self.last_input = Some(now);
             now
@@ -260,6 +265,7 @@ impl LandingDecider {
     }
 
     fn decide(&mut self, t: f64, deck: Option<DeckObservation>, age_s: f64, now: f64) -> Decision {
+        self.note_frame_time(t);
         // A time that is not a number cannot move the clock: a committed landing must still
         // see itself committed (and abort), not forget it.
         let now = if now.is_finite() {
@@ -334,10 +340,14 @@ impl LandingDecider {
         Some(f)
     }
 
-    /// Remembers a frame's time (whatever was decided on it): the interval to the next frame
-    /// is the lead of [`Self::refit_between_frames`]. Intervals of 1 s or more are not a frame
-    /// rate.
-    pub(crate) fn note_frame_time(&mut self, t: f64) {
+    /// Remembers a frame's time (whatever is decided on it), before its decision: the interval
+    /// to the next frame is the lead of [`Self::refit_between_frames`] and tells whether a
+    /// committed touchdown's next decision comes before its point of no return. Intervals of 1
+    /// s or more are not a frame rate; a time that is not a number is not a frame's.
+    fn note_frame_time(&mut self, t: f64) {
+        if !t.is_finite() {
+            return;
+        }
         if let Some(previous) = self.last_frame_t {
             self.frame_interval_s = Some(t - previous).filter(|dt| *dt > 0.0 && *dt < 1.0);
         }
@@ -629,8 +639,9 @@ impl LandingDecider {
     /// a second in a row rides on, the third restarts the history and aborts), not for an input
     /// that is late, frozen or unpredictable; for at most `ride_through_ms` in a row, and only
     /// while the model the last good input confirmed keeps the deck within the capacity to the
-    /// touchdown's end: at a clearance's risk (`blind_margins`) when the blind budget left
-    /// reaches that end, else at a seeing touchdown's (`stay_margins`).
+    /// touchdown's end: at a clearance's risk (`last_chance_margins`) when the blind budget left
+    /// reaches the point of no return (`no_return_ms` before contact) or this is the last
+    /// decision before it, else at a seeing touchdown's (`stay_margins`).
     fn rides_through(&mut self, reason: DecisionReason, now: f64) -> bool {
         let missing = matches!(
             reason,
@@ -649,21 +660,49 @@ impl LandingDecider {
         let short = advancing
             && self.config.ride_through_ms > 0.0
             && self.ridden_s <= self.config.ride_through_ms / 1e3;
-        // Contact may come before any other frame only if the blind budget left reaches it;
-        // otherwise a frame comes first (and can call a go-around) or the budget runs out (and
-        // the touchdown goes around). With every dropped frame judged as blind to contact,
-        // `decide-eval` with faults sent 21-23 touchdowns around for it, against 6.
+        // The point of no return may pass before any other frame only if the blind budget left
+        // reaches it; otherwise a frame comes first (and can call a go-around) or the budget
+        // runs out (and the touchdown goes around). With every dropped frame judged as blind to
+        // contact, `decide-eval` with faults sent 21-23 touchdowns around for it, against 6.
         let budget_left_s = self.config.ride_through_ms / 1e3 - self.ridden_s;
-        let blind_to_contact = self.commit_end - now <= budget_left_s;
+        let last_chance = self.last_chance(now, Some(budget_left_s));
+        self.last_chance_taken |= last_chance;
         let bounded = self.models.as_ref().is_some_and(|m| {
-            let margins = if blind_to_contact {
-                self.blind_margins(m)
+            let margins = if last_chance {
+                self.last_chance_margins(m)
             } else {
                 self.stay_margins(m)
             };
             self.predicted_within(m, now, self.commit_end, margins)
         });
         missing && short && bounded
+    }
+
+    /// When the committed touchdown passes its point of no return (s): `no_return_ms` before
+    /// contact, a go-around can no longer keep the vehicle off the deck.
+    fn no_return_at(&self) -> f64 {
+        self.commit_end - self.config.no_return_ms / 1e3
+    }
+
+    /// Whether a decision at `now`, before the committed touchdown's point of no return, may be
+    /// the last that can send it around: the next frame is expected (half a frame to spare, for
+    /// jitter) at or after that point, or, blind with `blind_budget_left_s` to ride through,
+    /// no seeing frame need come before it. Such a decision judges the rest of the touchdown as
+    /// a clearance (`last_chance_margins`): seeing to contact, a touchdown judged at
+    /// `go_around_risk` to its end would go on at up to that risk, on the word of frames whose
+    /// go-around could not be flown. Past the point, a go-around is no longer the decision's to
+    /// order: the touchdown is judged as a seeing one again (an abort there says what the
+    /// newest forecast says; the trials' vehicle cannot fly it).
+    fn last_chance(&self, now: f64, blind_budget_left_s: Option<f64>) -> bool {
+        let to_no_return_s = self.no_return_at() - now;
+        if to_no_return_s <= 0.0 {
+            // Past it with no last chance taken (the frames before it lost): this is the
+            // nearest to one there is.
+            return !self.last_chance_taken;
+        }
+        let next_frame_s = 1.5 * self.frame_interval_s.unwrap_or(0.0);
+        to_no_return_s <= next_frame_s
+            || blind_budget_left_s.is_some_and(|budget_s| to_no_return_s <= budget_s)
     }
 
     fn transition(&mut self, verdict: Result<(), DecisionReason>, now: f64) -> Decision {
@@ -707,8 +746,16 @@ impl LandingDecider {
                 let enter = self.entry_margins(&m);
                 decision.calm_window = self.cached_calm_window(&m, now, enter);
                 if committed {
-                    // Staying needs only the prediction's own error bound.
-                    if self.predicted_within(&m, now, self.commit_end, self.stay_margins(&m)) {
+                    // Staying needs only the prediction's own error bound, until the last
+                    // decision that can send the touchdown around: that one is its clearance.
+                    let last_chance = self.last_chance(now, None);
+                    self.last_chance_taken |= last_chance;
+                    let margins = if last_chance {
+                        self.last_chance_margins(&m)
+                    } else {
+                        self.stay_margins(&m)
+                    };
+                    if self.predicted_within(&m, now, self.commit_end, margins) {
                         decision.state = DecisionState::ClearToLand;
                     } else {
                         decision.state = DecisionState::Abort;
@@ -740,6 +787,7 @@ impl LandingDecider {
                     decision.state = DecisionState::ClearToLand;
                     decision.new_commit = true;
                     self.commit_end = now + self.config.touchdown_s;
+                    self.last_chance_taken = false;
                     self.ridden_s = 0.0;
                     self.commit_last_frame = now;
                 } else {
@@ -951,6 +999,39 @@ mod tests {
         }
     }
 
+    /// Scales a committed decider's capacity so that the risk from `now` to the touchdown's end
+    /// is just at or below `target` (the risk falls as the capacity grows: its scale bisected).
+    fn scale_capacity_to_risk(d: &mut LandingDecider, now: f64, target: f64) {
+        let defaults = DecisionConfig::default();
+        let set_scale = |c: &mut DecisionConfig, f: f64| {
+            c.max_abs_roll_deg = f * defaults.max_abs_roll_deg;
+            c.max_abs_pitch_deg = f * defaults.max_abs_pitch_deg;
+            c.max_tilt_deg = f * defaults.max_tilt_deg;
+            c.max_abs_roll_rate_dps = f * defaults.max_abs_roll_rate_dps;
+            c.max_abs_pitch_rate_dps = f * defaults.max_abs_pitch_rate_dps;
+            c.max_abs_heave_rate_mps = f * defaults.max_abs_heave_rate_mps;
+        };
+        let risk = |d: &LandingDecider| {
+            let m = d.models.as_ref().expect("committed on a model");
+            let steps = ((d.commit_end - now) / STEP_S).ceil() as usize;
+            let times = (0..=steps).map(|k| (now + k as f64 * STEP_S).min(d.commit_end));
+            d.exceedance_risk(m, times, &d.config.capacity_limits())
+        };
+        let (mut low, mut high) = (0.05, 3.0);
+        for _ in 0..60 {
+            let mid = 0.5 * (low + high);
+            set_scale(&mut d.config, mid);
+            if risk(d) > target {
+                low = mid;
+            } else {
+                high = mid;
+            }
+        }
+        set_scale(&mut d.config, high);
+        let r = risk(d);
+        assert!(r > 0.5 * target && r <= target, "{r}");
+    }
+
     #[test]
     fn a_line_through_samples_gives_each_channel_its_slope_at_their_mean_time() {
         let samples: Vec<(f64, [f64; 3])> = (0..6)
@@ -1101,36 +1182,7 @@ mod tests {
                 assert_eq!(r.state, DecisionState::ClearToLand, "{r:?}");
             }
             let now = t + 0.1;
-            let defaults = DecisionConfig::default();
-            let set_scale = |c: &mut DecisionConfig, f: f64| {
-                c.max_abs_roll_deg = f * defaults.max_abs_roll_deg;
-                c.max_abs_pitch_deg = f * defaults.max_abs_pitch_deg;
-                c.max_tilt_deg = f * defaults.max_tilt_deg;
-                c.max_abs_roll_rate_dps = f * defaults.max_abs_roll_rate_dps;
-                c.max_abs_pitch_rate_dps = f * defaults.max_abs_pitch_rate_dps;
-                c.max_abs_heave_rate_mps = f * defaults.max_abs_heave_rate_mps;
-            };
-            let risk = |d: &LandingDecider| {
-                let m = d.models.as_ref().expect("committed on a model");
-                let limits = d.config.capacity_limits();
-                let steps = ((d.commit_end - now) / STEP_S).ceil() as usize;
-                let times = (0..=steps).map(|k| (now + k as f64 * STEP_S).min(d.commit_end));
-                d.exceedance_risk(m, times, &limits)
-            };
-            // The risk falls as the capacity grows: bisect its scale.
-            let (mut low, mut high) = (0.05, 3.0);
-            for _ in 0..60 {
-                let mid = 0.5 * (low + high);
-                set_scale(&mut d.config, mid);
-                if risk(&d) > target {
-                    low = mid;
-                } else {
-                    high = mid;
-                }
-            }
-            set_scale(&mut d.config, high);
-            let r = risk(&d);
-            assert!(r > 0.5 * target && r <= target, "{r}");
+            scale_capacity_to_risk(&mut d, now, target);
             (d, now)
         };
         // The touchdown's last 0.7 s, within the blind budget left (0.9 s).
@@ -1158,6 +1210,83 @@ mod tests {
             (r.state, r.reason),
             (DecisionState::ClearToLand, DecisionReason::RideThrough)
         );
+    }
+
+    /// Seeing to contact, the last decision before the point of no return (`no_return_ms`
+    /// before contact; the next frame 0.1 s later would be past it) judges the rest of the
+    /// touchdown as a clearance: at a seeing touchdown's risk the go-around would be ordered
+    /// when it can no longer be flown. Before it, and past it once it was taken, a seeing
+    /// touchdown's risk holds.
+    #[test]
+    fn the_last_decision_that_can_act_is_judged_as_a_clearance() {
+        let config = DecisionConfig::default();
+        let no_return_s = config.no_return_ms / 1e3;
+        // Seen every 0.1 s while more than `last_seen_s` of the touchdown is left, then a frame
+        // with `left_s` left, the capacity scaled so that the rest is at risk `target`.
+        let at_risk_after = |config: DecisionConfig, target: f64, left_s: f64, last_seen_s: f64| {
+            let (mut d, t0) = committed(config);
+            let mut t = t0;
+            while d.commit_end - (t + 0.1) > last_seen_s.max(left_s) + 1e-9 {
+                t += 0.1;
+                let r = d.update_at_capture(t, Some(sea(t, 0.8)), 0.01);
+                assert_eq!(r.state, DecisionState::ClearToLand, "{r:?}");
+            }
+            let now = if last_seen_s > left_s {
+                d.commit_end - left_s
+            } else {
+                t + 0.1
+            };
+            scale_capacity_to_risk(&mut d, now, target);
+            let decision = d.update_at_capture(now, Some(sea(now, 0.8)), 0.01);
+            (decision.state, decision.reason)
+        };
+        let at_risk =
+            |config: DecisionConfig, target: f64, left_s: f64| at_risk_after(config, target, left_s, left_s);
+        let last_s = no_return_s + 0.1;
+        // The last frame before the point of no return, at ten times a clearance's risk: around.
+        assert_eq!(
+            at_risk(config.clone(), 0.01, last_s),
+            (DecisionState::Abort, DecisionReason::PredictedOutside)
+        );
+        // At a clearance's risk it goes on.
+        let clearance = 0.5 * config.risk_per_touchdown;
+        assert_eq!(
+            at_risk(config.clone(), clearance, last_s),
+            (DecisionState::ClearToLand, DecisionReason::WithinCapacity)
+        );
+        // Two frames earlier a later frame can still call the go-around: a seeing touchdown's
+        // risk holds.
+        assert_eq!(
+            at_risk(config.clone(), 0.01, last_s + 0.2),
+            (DecisionState::ClearToLand, DecisionReason::WithinCapacity)
+        );
+        // Past the point of no return, its last chance taken, the go-around is no longer the
+        // decision's to order: a seeing touchdown's risk holds again.
+        assert_eq!(
+            at_risk(config.clone(), 0.01, no_return_s - 0.1),
+            (DecisionState::ClearToLand, DecisionReason::WithinCapacity)
+        );
+        // The frames before the point lost (0.3 s apart, not a gap): the first one past it is
+        // the nearest to a last chance there is.
+        assert_eq!(
+            at_risk_after(config.clone(), 0.01, no_return_s - 0.1, no_return_s + 0.2),
+            (DecisionState::Abort, DecisionReason::PredictedOutside)
+        );
+        // A vehicle that could go around up to contact (`no_return_ms = 0`) goes on there.
+        let no_return_0 = DecisionConfig {
+            no_return_ms: 0.0,
+            ..config.clone()
+        };
+        assert_eq!(
+            at_risk(no_return_0, 0.01, last_s),
+            (DecisionState::ClearToLand, DecisionReason::WithinCapacity)
+        );
+        // A point of no return as long as the touchdown is refused: nothing could be given up.
+        let too_long = DecisionConfig {
+            no_return_ms: 1e3 * config.touchdown_s,
+            ..config
+        };
+        assert_eq!(too_long.validate().unwrap_err().field, "no_return_ms");
     }
 
     /// The hold after a measurement the model missed (`holdout_s`) counts measured time: a gap

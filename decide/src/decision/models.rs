@@ -725,14 +725,15 @@ impl LandingDecider {
         }
     }
 
-    /// The margins to go on blind to contact (`rides_through`): a clearance's. Seeing, a
-    /// committed touchdown goes on up to `go_around_risk` because the frames still to come can
-    /// call a go-around; blind to contact, none can, so the rest of the touchdown is judged as
-    /// a new clearance would be. On a seeing touchdown's margins, three held-out approaches at
-    /// sea state 6 rode through their last 0.5 s on forecasts at a risk of 0.1 or less and met
-    /// the deck falling at 0.606, 0.635 and 0.90 m/s against 0.6 (BENCHMARKS.md, "Blind to
-    /// contact, a touchdown goes on only as a clearance would").
-    pub(super) fn blind_margins(&self, m: &Models) -> Margins {
+    /// The margins of a committed touchdown's last chance before its point of no return
+    /// (`LandingDecider::last_chance`, seeing or blind): a clearance's. A committed touchdown goes on up
+    /// to `go_around_risk` because the frames still to come can call a go-around; past the
+    /// point of no return none can, so the last decision before it judges the rest of the
+    /// touchdown as a new clearance would be. On a seeing touchdown's margins, three held-out
+    /// approaches at sea state 6 rode through their last 0.5 s on forecasts at a risk of 0.1
+    /// or less and met the deck falling at 0.606, 0.635 and 0.90 m/s against 0.6
+    /// (BENCHMARKS.md, "Blind to contact, a touchdown goes on only as a clearance would").
+    pub(super) fn last_chance_margins(&self, m: &Models) -> Margins {
         self.entry_margins(m)
     }
 }

@@ -24,7 +24,7 @@ impl LandingDecider {
         ];
         let times = (0..=steps).map(|k| (from + k as f64 * STEP_S).min(to));
         if let Some(risk) = margins.risk {
-            return self.exceedance_risk(m, times, &limits) <= risk;
+            return self.exceedance_risk_judging(m, times, &limits, margins.unreliable_band_scale) <= risk;
         }
         times.into_iter().all(|t| {
             let (r, p) = (roll.value(t).abs(), pitch.value(t).abs());
@@ -37,17 +37,32 @@ impl LandingDecider {
         })
     }
 
-    /// An upper bound of the probability that the deck leaves the capacity (`limits`: roll,
-    /// pitch, tilt, roll rate, pitch rate, heave rate) at one of `times`, as the model states it
-    /// (mean and standard deviation, scaled by how honest it has been): for each limit the
-    /// largest probability over the times that it is exceeded, summed over the limits. A
-    /// limit far from the forecast costs nothing, so the one that binds gets nearly all the
-    /// risk (a fixed share each would give it a sixth).
+    /// [`Self::exceedance_risk_judging`] with a band taken as unreliable as every judgement
+    /// but a new commitment's takes it (beyond `MAX_BAND_SCALE`).
+    #[cfg(test)]
     pub(super) fn exceedance_risk(
         &self,
         m: &Models,
         times: impl Iterator<Item = f64>,
         limits: &[f64; 6],
+    ) -> f64 {
+        self.exceedance_risk_judging(m, times, limits, MAX_BAND_SCALE)
+    }
+
+    /// An upper bound of the probability that the deck leaves the capacity (`limits`: roll,
+    /// pitch, tilt, roll rate, pitch rate, heave rate) at one of `times`, as the model states it
+    /// (mean and standard deviation, scaled by how honest it has been): for each limit the
+    /// largest probability over the times that it is exceeded, summed over the limits. A
+    /// limit far from the forecast costs nothing, so the one that binds gets nearly all the
+    /// risk (a fixed share each would give it a sixth). A band measured more than
+    /// `unreliable_scale` times too narrow has its rate judged by its history too
+    /// (`MAX_BAND_SCALE`; a new commitment's `SUSPECT_BAND_SCALE`: `commit_margins`).
+    pub(super) fn exceedance_risk_judging(
+        &self,
+        m: &Models,
+        times: impl Iterator<Item = f64>,
+        limits: &[f64; 6],
+        unreliable_scale: f64,
     ) -> f64 {
         let (roll, pitch) = (&m.tracks[ROLL], &m.tracks[PITCH]);
         let heave = m.tracks.get(HEAVE);
@@ -105,7 +120,7 @@ impl LandingDecider {
                 *w = w.max(p);
             }
             for (k, w) in worst[3..].iter_mut().enumerate() {
-                if m.judged_by_history(k) {
+                if m.judged_by_history_above(k, unreliable_scale) {
                     *w = w.max(history_tail(k, t, limits[3 + k]));
                 }
             }

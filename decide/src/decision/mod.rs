@@ -127,6 +127,13 @@ const WARMUP_BACKTEST_MIN_HISTORY_S: f64 = 4.0;
 /// its rate is given at least the spread of its own misses, and until that is measured also
 /// judged by the history's spread (`Models::rate_std`, `LandingDecider::exceedance_risk`).
 const MAX_BAND_SCALE: f64 = 3.0;
+/// A band scale beyond which, short of `MAX_BAND_SCALE`, a channel whose rate has no misses of
+/// its own is suspect (`Models::band_suspect`): a new clearance must also hold with it judged
+/// as an unreliable one (`LandingDecider::commit_margins`). The touchdown's own frames add
+/// misses, and at its last chance the band is then often judged unreliable: 4 of 10 blind
+/// go-arounds on the development trials were that (BENCHMARKS.md, "A suspect band judged
+/// as an unreliable one by a new commitment").
+const SUSPECT_BAND_SCALE: f64 = 2.0;
 /// The band's scale before there is evidence (forecasts shown, never a clearance): the
 /// autoregressive predictor's raw 95 % band held about 87 % of the truths 2 s ahead on the
 /// development seas (BENCHMARKS "Deck-motion prediction"); 1.5 widens it to about what the
@@ -783,7 +790,12 @@ impl LandingDecider {
                     // model says (a noise-free heave whose model was off by 0.06 m/s cleared
                     // at a measured 0.61 m/s against 0.6).
                     decision.reason = DecisionReason::OutsideCapacity;
-                } else if self.predicted_within(&m, now, now + self.config.touchdown_s, enter) {
+                } else if self.predicted_within(
+                    &m,
+                    now,
+                    now + self.config.touchdown_s,
+                    self.commit_margins(&m),
+                ) {
                     decision.state = DecisionState::ClearToLand;
                     decision.new_commit = true;
                     self.commit_end = now + self.config.touchdown_s;
@@ -1681,6 +1693,35 @@ mod tests {
         m.rate_band_scale = [1.0; 3];
         m.rate_history = [0.1, 0.1, 0.5].map(RateHistory::spread_only);
         (d, m, limits)
+    }
+
+    /// A band measured between `SUSPECT_BAND_SCALE` and `MAX_BAND_SCALE` times too narrow, value
+    /// or rate, is suspect while its rate has no misses of its own; beyond, it is unreliable
+    /// (judged by its history), not suspect.
+    #[test]
+    fn a_band_within_reach_of_unreliable_is_suspect() {
+        let (d, mut m, limits) = calm_sea_models();
+        m.rate_miss_std = [f64::NAN; 3];
+        assert!(!(0..3).any(|k| m.band_suspect(k)), "honest bands");
+        m.band_scale[HEAVE] = 0.5 * (SUSPECT_BAND_SCALE + MAX_BAND_SCALE);
+        assert!(m.band_suspect(HEAVE) && !m.band_suspect(ROLL));
+        // A seeing touchdown believes the band; a new commitment judges the heave rate by the
+        // history's spread (0.5 m/s) too, and does not clear on it.
+        let times = || (0..=40).map(|k| 60.0 + 0.05 * k as f64);
+        let risk = d.config().risk_per_touchdown;
+        assert!(d.exceedance_risk_judging(&m, times(), &limits, MAX_BAND_SCALE) < risk);
+        assert!(d.exceedance_risk_judging(&m, times(), &limits, SUSPECT_BAND_SCALE) > risk);
+        let commit = d.commit_margins(&m);
+        assert!(!d.predicted_within(&m, 60.0, 62.0, commit));
+        assert!(d.predicted_within(&m, 60.0, 62.0, d.entry_margins(&m)));
+        m.band_scale[HEAVE] = MAX_BAND_SCALE + 0.1;
+        assert!(!m.band_suspect(HEAVE) && m.judged_by_history(HEAVE));
+        m.band_scale[HEAVE] = 1.0;
+        m.rate_band_scale[HEAVE] = MAX_BAND_SCALE;
+        assert!(m.band_suspect(HEAVE));
+        // Its rate's own misses stand for its error: nothing to suspect.
+        m.rate_miss_std[HEAVE] = 0.05;
+        assert!(!m.band_suspect(HEAVE));
     }
 
     /// A channel whose band is unreliable (measured more than `MAX_BAND_SCALE` times too

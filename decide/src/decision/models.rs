@@ -37,10 +37,25 @@ impl Models {
         self.band_scale[k] > MAX_BAND_SCALE || self.rate_band_scale[k] > MAX_BAND_SCALE
     }
 
+    /// Whether channel `k`'s band is suspect: measured more than `SUSPECT_BAND_SCALE` times too
+    /// narrow (value or rate) but not yet unreliable, and its rate without misses of its own to
+    /// stand for its error. A few more misses make it unreliable, and its rate is then judged by
+    /// its history as well: a new clearance must hold so judged too.
+    pub(super) fn band_suspect(&self, k: usize) -> bool {
+        self.judged_by_history_above(k, SUSPECT_BAND_SCALE) && !self.judged_by_history(k)
+    }
+
     /// Whether channel `k`'s rate is also judged as its history alone forecasts it
     /// ([`RateHistory`]): its band is unreliable and its rate's own misses are not yet measured.
     pub(super) fn judged_by_history(&self, k: usize) -> bool {
-        k < self.tracks.len() && self.band_unreliable(k) && !self.rate_miss_std[k].is_finite()
+        self.judged_by_history_above(k, MAX_BAND_SCALE)
+    }
+
+    /// The same with the band taken as unreliable beyond `unreliable_scale` (a clearance's
+    /// judgement of a suspect band, `Margins::unreliable_band_scale`).
+    pub(super) fn judged_by_history_above(&self, k: usize, unreliable_scale: f64) -> bool {
+        let scale = self.band_scale[k].max(self.rate_band_scale[k]);
+        k < self.tracks.len() && scale > unreliable_scale && !self.rate_miss_std[k].is_finite()
     }
 
     /// The standard deviation the decision gives channel `k`'s rate at `t`: the stated one
@@ -323,6 +338,9 @@ pub(super) struct Margins {
     /// With a stated uncertainty: the accepted probability of leaving the capacity (see
     /// `LandingDecider::exceedance_risk`); None: the forecast's mean is judged as it is.
     pub(super) risk: Option<f64>,
+    /// A channel's band measured more than this many times too narrow, its rate without misses
+    /// of its own, has its rate judged by its history too (`Models::judged_by_history_above`).
+    pub(super) unreliable_band_scale: f64,
 }
 
 impl Margins {
@@ -331,6 +349,7 @@ impl Margins {
         rate_dps: 0.0,
         heave_rate_mps: 0.0,
         risk: None,
+        unreliable_band_scale: MAX_BAND_SCALE,
     };
 }
 
@@ -486,7 +505,7 @@ impl LandingDecider {
         // (a refit interval) and a touchdown. Every channel's regressed cost the slowest
         // decision of a second 5-11 % more.
         let regressed_s = std::array::from_fn(|k| {
-            if models.judged_by_history(k) {
+            if models.judged_by_history(k) || models.band_suspect(k) {
                 c.refit_interval_s + c.touchdown_s
             } else {
                 0.0
@@ -705,6 +724,17 @@ impl LandingDecider {
             rate_dps: c.rate_margin_dps,
             heave_rate_mps: c.heave_rate_margin_mps,
             risk: banded.then_some(c.risk_per_touchdown),
+            unreliable_band_scale: MAX_BAND_SCALE,
+        }
+    }
+
+    /// The margins of a new commitment: an entry's, with a suspect band (`Models::band_suspect`)
+    /// judged as an unreliable one. The touchdown's last chance judges the band as it is
+    /// measured then, and a suspect one's next misses often make it unreliable.
+    pub(super) fn commit_margins(&self, m: &Models) -> Margins {
+        Margins {
+            unreliable_band_scale: SUSPECT_BAND_SCALE,
+            ..self.entry_margins(m)
         }
     }
 

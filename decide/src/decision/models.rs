@@ -34,7 +34,13 @@ impl Models {
     /// Whether channel `k`'s band, value or rate, has been measured more than `MAX_BAND_SCALE`
     /// times too narrow: its stated deviations are not the forecast's error.
     pub(super) fn band_unreliable(&self, k: usize) -> bool {
-        self.band_scale[k] > MAX_BAND_SCALE || self.rate_band_scale[k] > MAX_BAND_SCALE
+        self.widest_band_scale(k) > MAX_BAND_SCALE
+    }
+
+    /// How many times too narrow channel `k`'s band has been measured, its value's or its
+    /// rate's, whichever is more.
+    fn widest_band_scale(&self, k: usize) -> f64 {
+        self.band_scale[k].max(self.rate_band_scale[k])
     }
 
     /// Whether channel `k`'s band is suspect: measured more than `SUSPECT_BAND_SCALE` times too
@@ -54,8 +60,9 @@ impl Models {
     /// The same with the band taken as unreliable beyond `unreliable_scale` (a clearance's
     /// judgement of a suspect band, `Margins::unreliable_band_scale`).
     pub(super) fn judged_by_history_above(&self, k: usize, unreliable_scale: f64) -> bool {
-        let scale = self.band_scale[k].max(self.rate_band_scale[k]);
-        k < self.tracks.len() && scale > unreliable_scale && !self.rate_miss_std[k].is_finite()
+        k < self.tracks.len()
+            && self.widest_band_scale(k) > unreliable_scale
+            && !self.rate_miss_std[k].is_finite()
     }
 
     /// The standard deviation the decision gives channel `k`'s rate at `t`: the stated one
@@ -756,10 +763,10 @@ impl LandingDecider {
     }
 
     /// The margins of a committed touchdown's last chance before its point of no return
-    /// (`LandingDecider::last_chance`, seeing or blind): a clearance's. A committed touchdown goes on up
-    /// to `go_around_risk` because the frames still to come can call a go-around; past the
-    /// point of no return none can, so the last decision before it judges the rest of the
-    /// touchdown as a new clearance would be. On a seeing touchdown's margins, three held-out
+    /// (`LandingDecider::last_chance`, seeing or blind): a clearance's. A committed touchdown
+    /// goes on up to `go_around_risk` because the frames still to come can call a go-around;
+    /// past the point of no return none can, so the last decision before it judges the rest of
+    /// the touchdown as a new clearance would be. On a seeing touchdown's margins, three held-out
     /// approaches at sea state 6 rode through their last 0.5 s on forecasts at a risk of 0.1
     /// or less and met the deck falling at 0.606, 0.635 and 0.90 m/s against 0.6
     /// (BENCHMARKS.md, "Blind to contact, a touchdown goes on only as a clearance would").

@@ -201,6 +201,10 @@ pub struct LandingDecider {
 /// A capture stamped further in the future than this (s) is a clock jump.
 const MAX_FUTURE_S: f64 = 0.05;
 
+/// How often decide's watchdog looks for a silence, at most (s): 50 times a second costs
+/// nothing, and a touchdown's last chance comes that much earlier to leave room for it.
+const WATCHDOG_PERIOD_S: f64 = 0.02;
+
 const STEP_S: f64 = 0.05;
 
 impl LandingDecider {
@@ -366,15 +370,45 @@ impl LandingDecider {
         self.frame_interval_s
     }
 
-    /// Called when no input arrived: once the newest attitude is older than `max_age_ms`, the
-    /// decision becomes stale (`Abort` if committed, else `NoDeck`).
+    /// Called when no input arrived, at least every [`Self::watchdog_period_s`]: once the
+    /// newest attitude is older than `max_age_ms`, the decision becomes stale (`Abort` if
+    /// committed, else `NoDeck`). Sooner for a committed touchdown whose last chance has not
+    /// come: once the frame it waits for is overdue (half a frame late) and its point of no
+    /// return would pass before the next call, it goes around (`StaleData`) while that can
+    /// still be flown. A pipeline that falls silent then does not carry a touchdown past the
+    /// point on decisions judged at `go_around_risk` only, with an abort that comes too late.
     pub fn timeout(&mut self, now: f64) -> Option<Decision> {
         let last = self.last_input?;
-        if now - last <= self.config.max_age_ms / 1e3 {
-            return None;
+        if now - last > self.config.max_age_ms / 1e3 {
+            self.last_input = None;
+            return Some(self.transition(Err(DecisionReason::StaleData), now));
         }
-        self.last_input = None;
-        Some(self.transition(Err(DecisionReason::StaleData), now))
+        self.silent_before_no_return(now)
+            .then(|| self.transition(Err(DecisionReason::StaleData), now))
+    }
+
+    /// How often [`Self::timeout`] is to be called at least (s). A committed touchdown's last
+    /// chance comes early enough to leave this much time for a silence after it to be noticed
+    /// before the point of no return.
+    pub fn watchdog_period_s(&self) -> f64 {
+        WATCHDOG_PERIOD_S.min(self.config.max_age_ms / 2e3)
+    }
+
+    /// Whether a committed touchdown, its last chance not yet judged, waits at `now` on an
+    /// overdue frame that would have to come after the next watchdog call, at or past its
+    /// point of no return.
+    fn silent_before_no_return(&self, now: f64) -> bool {
+        let committed = self.state == DecisionState::ClearToLand && now < self.commit_end;
+        let Some(last_frame_t) = self.last_frame_t else {
+            return false;
+        };
+        let overdue_after_s = self
+            .frame_interval_s
+            .map_or(self.config.max_age_ms / 2e3, |interval_s| 1.5 * interval_s);
+        committed
+            && !self.last_chance_taken
+            && now - last_frame_t > overdue_after_s
+            && now + self.watchdog_period_s() >= self.no_return_at()
     }
 
     fn check(&mut self, t: f64, deck: Option<DeckObservation>, age_s: f64) -> Result<(), DecisionReason> {
@@ -693,7 +727,8 @@ impl LandingDecider {
 
     /// Whether a decision at `now`, before the committed touchdown's point of no return, may be
     /// the last that can send it around: the next frame is expected (half a frame to spare, for
-    /// jitter) at or after that point, or, blind with `blind_budget_left_s` to ride through,
+    /// jitter, and the watchdog's period for noticing that it did not come) at or after that
+    /// point, or, blind with `blind_budget_left_s` to ride through,
     /// no seeing frame need come before it. Such a decision judges the rest of the touchdown as
     /// a clearance (`last_chance_margins`): seeing to contact, a touchdown judged at
     /// `go_around_risk` to its end would go on at up to that risk, on the word of frames whose
@@ -707,7 +742,9 @@ impl LandingDecider {
             // nearest to one there is.
             return !self.last_chance_taken;
         }
-        let next_frame_s = 1.5 * self.frame_interval_s.unwrap_or(0.0);
+        // The next frame, with half a frame to spare for jitter; if it does not come, the
+        // watchdog's next look ([`Self::timeout`]) must still come before the point.
+        let next_frame_s = 1.5 * self.frame_interval_s.unwrap_or(0.0) + self.watchdog_period_s();
         to_no_return_s <= next_frame_s
             || blind_budget_left_s.is_some_and(|budget_s| to_no_return_s <= budget_s)
     }
@@ -1299,6 +1336,74 @@ mod tests {
             ..config
         };
         assert_eq!(too_long.validate().unwrap_err().field, "no_return_ms");
+    }
+
+    /// A pipeline that falls silent during a committed touchdown, before its last chance: the
+    /// watchdog, called every `watchdog_period_s`, sends it around before its point of no
+    /// return, once the frame it waits for is overdue. Frames on time, or a silence after the
+    /// last chance, leave it to the freshness limit.
+    #[test]
+    fn a_silence_before_the_last_chance_goes_around_while_it_can_be_flown() {
+        let config = DecisionConfig::default();
+        let (no_return_s, max_age_s) = (config.no_return_ms / 1e3, config.max_age_ms / 1e3);
+        // Seen every 0.1 s until `last_left_s` of the touchdown is left, then silent: the first
+        // watchdog decision (its time, its decision) and the point of no return.
+        let silent_after = |last_left_s: f64| {
+            let (mut d, t0) = committed(config.clone());
+            let period_s = d.watchdog_period_s();
+            assert!(period_s > 0.0 && period_s <= 0.02, "{period_s}");
+            let mut t = t0;
+            while d.commit_end - (t + 0.1) >= last_left_s - 1e-9 {
+                t += 0.1;
+                assert_eq!(
+                    d.update_at_capture(t, Some(sea(t, 0.8)), 0.01).state,
+                    DecisionState::ClearToLand
+                );
+                // Between frames on time the watchdog says nothing.
+                assert!(d.timeout(t + 0.09).is_none());
+            }
+            let no_return_at = d.commit_end - no_return_s;
+            let mut now = t;
+            let first = loop {
+                now += period_s;
+                if let Some(r) = d.timeout(now) {
+                    break (now, r);
+                }
+                assert!(now < t + 2.0 * max_age_s, "the freshness limit speaks");
+            };
+            (t, first, no_return_at)
+        };
+        // The last frame just before the last chance would have come: the next one is overdue
+        // 0.15 s later, still before the point, and the watchdog sends it around as late as
+        // it still can, well before the freshness limit (0.3 s).
+        let (t, (now, r), no_return_at) = silent_after(no_return_s + 0.25);
+        assert_eq!(
+            (r.state, r.reason),
+            (DecisionState::Abort, DecisionReason::StaleData)
+        );
+        assert!(now > t + 0.15 && now < no_return_at, "{t} {now} {no_return_at}");
+        assert!(
+            now + 0.02 >= no_return_at && now < t + max_age_s,
+            "{t} {now} {no_return_at}"
+        );
+        // Silent from further out: the freshness limit speaks first, before the point.
+        let (t, (now, r), no_return_at) = silent_after(no_return_s + 0.6);
+        assert_eq!(
+            (r.state, r.reason),
+            (DecisionState::Abort, DecisionReason::StaleData)
+        );
+        assert!(
+            now > t + max_age_s && now < no_return_at,
+            "{t} {now} {no_return_at}"
+        );
+        // After its last chance (judged as a clearance) the touchdown goes on until the
+        // freshness limit: the frames that would follow could not send it around.
+        let (t, (now, r), no_return_at) = silent_after(no_return_s + 0.1);
+        assert_eq!(r.reason, DecisionReason::StaleData);
+        assert!(
+            now > t + max_age_s && now > no_return_at,
+            "{t} {now} {no_return_at}"
+        );
     }
 
     /// The hold after a measurement the model missed (`holdout_s`) counts measured time: a gap

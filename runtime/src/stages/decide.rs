@@ -117,9 +117,10 @@ impl Stage for DecideStage {
         }
     }
 
-    /// Half the freshness limit: a silence is noticed within 1.5 times the limit.
+    /// The decider's: often enough that a silence during a committed touchdown is noticed
+    /// before its point of no return, and a stale one within 1.5 times the freshness limit.
     fn tick_period(&self) -> Option<Duration> {
-        Some(Duration::from_secs_f64(self.decider.config().max_age_ms / 2e3))
+        Some(Duration::from_secs_f64(self.decider.watchdog_period_s()))
     }
 
     fn tick(&mut self, now_ns: u64) -> Option<LandingDecision> {
@@ -145,6 +146,16 @@ mod tests {
     use deckwatch_common::messages::{DecisionReason, DecisionState};
     use deckwatch_common::vehicle::Compensation;
     use deckwatch_common::Rpy;
+
+    /// The watchdog looks as often as the decider asks, often enough for a touchdown's point of
+    /// no return (its unit test: `a_silence_before_the_last_chance_goes_around_while_it_can_be_flown`).
+    #[test]
+    fn the_watchdog_looks_as_often_as_the_decider_asks() {
+        let s = DecideStage::new(DecisionConfig::default(), false).unwrap();
+        let period = s.tick_period().unwrap();
+        assert_eq!(period.as_secs_f64(), s.decider.watchdog_period_s());
+        assert!(period <= Duration::from_millis(20), "{period:?}");
+    }
 
     #[test]
     fn invalid_stale_and_silence_never_clear() {

@@ -160,6 +160,13 @@ impl StageChain {
         })))
     }
 
+    /// How often decide's watchdog looks while no attitude comes (s), as the process's tick.
+    pub fn watchdog_period_s(&self) -> f64 {
+        self.decide
+            .tick_period()
+            .map_or(f64::INFINITY, |p| p.as_secs_f64())
+    }
+
     /// What decide says when no attitude came for a while (its watchdog), at `now_ns` on the
     /// chain's clock.
     pub fn watchdog(&mut self, now_ns: u64) -> Option<LandingDecision> {

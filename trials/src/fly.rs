@@ -70,6 +70,9 @@ pub trait ClosedLoopPipeline {
     fn next_frame(&mut self, t_s: f64, inject: &mut dyn FnMut(&mut [u8]) -> bool) -> FrameStep;
     /// The decision when no frame came for too long (decide's watchdog), at `now_ns`.
     fn watchdog(&mut self, now_ns: u64) -> Option<LandingDecision>;
+    /// How often decide's watchdog looks while nothing arrives (s): the runner calls
+    /// [`Self::watchdog`] that often between the frames that were lost.
+    fn watchdog_period_s(&self) -> f64;
     /// An event worth a line in a log: a commit, a go-around, the touchdown.
     fn note(&mut self, _time_ns: u64, _text: &str) {}
 }
@@ -83,6 +86,35 @@ pub fn naive_command(a: &AttitudeMessage, c: &DecisionConfig) -> Command {
     } else {
         Command::Wait
     }
+}
+
+/// The autopilot acts on `command` at `(t_s, heave_m)`; a commit or a go-around gets a line in
+/// the pipeline's log.
+fn act_and_note<P: ClosedLoopPipeline>(
+    autopilot: &mut SimulatedAutopilot,
+    pipeline: &mut P,
+    model: &ApproachModel,
+    timing: ApproachTiming,
+    (t_s, heave_m): (f64, f64),
+    command: Command,
+) {
+    if !autopilot.act(t_s, heave_m, command) {
+        return;
+    }
+    let what = if command == Command::Land {
+        format!(
+            "COMMIT at {t_s:.2} s: descending, contact at {:.2} s",
+            t_s + model.touchdown_s
+        )
+    } else {
+        let to = if model.follow_deck {
+            format!("{} m over the deck", model.hover_m)
+        } else {
+            format!("{:.2} m", autopilot.waiting_m())
+        };
+        format!("GO-AROUND at {t_s:.2} s: climbing back to {to}")
+    };
+    pipeline.note(timing.time_ns(t_s), &what);
 }
 
 /// The autopilot's attitude stream: 100 Hz.
@@ -107,6 +139,8 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
     let mut out = ApproachOutcome::default();
     let mut next_vehicle_s = -0.05;
     let mut vehicle_seq = 0;
+    // When decide last spoke or its watchdog last looked (s, the approach's time).
+    let mut last_looked_s = f64::NEG_INFINITY;
     let heave = |t: f64| world.heave_m(t);
     let judge = |t: f64| {
         let (r_d, r_v) = world.attitudes(t);
@@ -152,11 +186,15 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
         }
         let step = pipeline.next_frame(t, &mut |pixels| faults.inject(t, pixels));
         out.frames += 1;
-        let mut follow_decision = |out: &mut ApproachOutcome, d: &LandingDecision| {
+        let follow_decision = |out: &mut ApproachOutcome,
+                               follow: &mut DecisionFollower,
+                               autopilot: &SimulatedAutopilot,
+                               d: &LandingDecision,
+                               at_s: f64| {
             out.count_decision(d.state.get(), d.reason.get());
             let c = follow.command(d.state.get());
             if c == Command::GoAround && autopilot.contact_s().is_some() {
-                if autopilot.can_go_around(t_decided) {
+                if autopilot.can_go_around(at_s) {
                     out.count_go_around(d.reason.get());
                 } else {
                     out.count_too_late(d.reason.get());
@@ -167,38 +205,60 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
         let command = match step {
             FrameStep::SourceEnded => break,
             FrameStep::Failed => Command::Wait,
-            // Lost on the way: decide's watchdog speaks if the silence is long enough.
-            FrameStep::Lost => match pipeline.watchdog(timing.time_ns(t_decided)) {
-                Some(d) if rule == PipelineRule::Deckwatch => {
-                    out.decisions += 1;
-                    follow_decision(&mut out, &d)
+            // Lost on the way: decide's watchdog looks every period since it last looked or
+            // decided, as the process's tick does, up to when this frame's decision was due.
+            FrameStep::Lost => {
+                let period_s = pipeline.watchdog_period_s();
+                let mut look_s = if period_s.is_finite() {
+                    (last_looked_s + period_s).max(t_decided - 1.0)
+                } else {
+                    t_decided
+                };
+                let mut command = Command::Wait;
+                while look_s <= t_decided + 1e-9 {
+                    if let Some(d) = pipeline.watchdog(timing.time_ns(look_s)) {
+                        if rule == PipelineRule::Deckwatch {
+                            out.decisions += 1;
+                            let c = follow_decision(&mut out, &mut follow, &autopilot, &d, look_s);
+                            if c != Command::Wait && look_s < t_decided {
+                                // Acted on when it was said, not at the frame's time.
+                                act_and_note(
+                                    &mut autopilot,
+                                    &mut pipeline,
+                                    model,
+                                    timing,
+                                    (look_s, heave(look_s)),
+                                    c,
+                                );
+                            } else if c != Command::Wait {
+                                command = c;
+                            }
+                        }
+                    }
+                    last_looked_s = look_s;
+                    look_s += period_s;
                 }
-                _ => Command::Wait,
-            },
+                command
+            }
             FrameStep::Decided(decision) => {
                 out.decisions += 1;
+                last_looked_s = t_decided;
                 match rule {
-                    PipelineRule::Deckwatch => follow_decision(&mut out, &decision),
+                    PipelineRule::Deckwatch => {
+                        follow_decision(&mut out, &mut follow, &autopilot, &decision, t_decided)
+                    }
                     PipelineRule::Naive => naive_command(&decision.attitude, capacity),
                 }
             }
         };
-        if autopilot.act(t_decided, heave(t_decided), command) {
-            let what = if command == Command::Land {
-                format!(
-                    "COMMIT at {t_decided:.2} s: descending, contact at {:.2} s",
-                    t_decided + model.touchdown_s
-                )
-            } else {
-                let to = if model.follow_deck {
-                    format!("{} m over the deck", model.hover_m)
-                } else {
-                    format!("{:.2} m", autopilot.waiting_m())
-                };
-                format!("GO-AROUND at {t_decided:.2} s: climbing back to {to}")
-            };
-            pipeline.note(timing.time_ns(t_decided), &what);
-        }
+        act_and_note(
+            &mut autopilot,
+            &mut pipeline,
+            model,
+            timing,
+            (t_decided, heave(t_decided)),
+            command,
+        );
     }
     out.commits = autopilot.commits;
     out.go_arounds = autopilot.go_arounds;
@@ -233,6 +293,10 @@ mod tests {
         timing: ApproachTiming,
         seq: u64,
         noted: &'a mut Vec<String>,
+        /// Every frame lost once this many followed the first clearance (a pipeline that
+        /// falls silent during the touchdown), and how many have.
+        silent_after_clear: Option<u32>,
+        since_clear: Option<u32>,
     }
 
     impl ClosedLoopPipeline for TruthPipeline<'_> {
@@ -241,7 +305,8 @@ mod tests {
 
         fn next_frame(&mut self, t_s: f64, inject: &mut dyn FnMut(&mut [u8]) -> bool) -> FrameStep {
             let mut pixels = [(self.seq % 256) as u8; 8];
-            if !inject(&mut pixels) {
+            let silent = matches!((self.silent_after_clear, self.since_clear), (Some(n), Some(k)) if k >= n);
+            if !inject(&mut pixels) || silent {
                 return FrameStep::Lost;
             }
             let deck = self.scene.deck(t_s);
@@ -262,6 +327,10 @@ mod tests {
                 .decider
                 .decide_frame(&FrameInput::from_attitude(&attitude, received_ns));
             self.decider.refit_between_frames();
+            self.since_clear = match self.since_clear {
+                Some(k) => Some(k + 1),
+                None => (d.state == deckwatch_common::messages::DecisionState::ClearToLand).then_some(0),
+            };
             let decision = LandingDecision {
                 attitude,
                 state: d.state.into(),
@@ -269,6 +338,10 @@ mod tests {
                 ..Default::default()
             };
             FrameStep::Decided(Box::new(decision))
+        }
+
+        fn watchdog_period_s(&self) -> f64 {
+            self.decider.watchdog_period_s()
         }
 
         fn watchdog(&mut self, now_ns: u64) -> Option<LandingDecision> {
@@ -303,6 +376,18 @@ mod tests {
         approach: Approach,
         faults: FrameFaultModel,
     ) -> ApproachOutcome {
+        fly_through(rule, capacity, approach, faults, None)
+    }
+
+    /// The same, the pipeline silent once `silent_after_clear` frames followed the first
+    /// clearance.
+    fn fly_through(
+        rule: PipelineRule,
+        capacity: DecisionConfig,
+        approach: Approach,
+        faults: FrameFaultModel,
+        silent_after_clear: Option<u32>,
+    ) -> ApproachOutcome {
         let model = ApproachModel {
             max_approach_s: 90.0,
             ..ApproachModel::quadrotor(capacity.touchdown_s)
@@ -321,6 +406,8 @@ mod tests {
                 timing,
                 seq: 0,
                 noted: &mut noted,
+                silent_after_clear,
+                since_clear: None,
             })
         })
         .unwrap();
@@ -411,6 +498,43 @@ mod tests {
         assert_eq!(run(DecisionConfig::default().no_return_ms), (0, 0));
         let (too_late, _) = run(0.0);
         assert!(too_late > 0, "seeing to contact, some go-around comes too late");
+    }
+
+    /// The pipeline falls silent during a committed touchdown just before its last chance (the
+    /// frame 0.15 s before the point of no return lost, and all after it). The watchdog, looking
+    /// every 20 ms between the lost frames, judges that last chance before the point: the
+    /// touchdown rides through at a clearance's risk or goes around (`gap`) in time to fly it.
+    /// Only the freshness limit's stale decision, past the point, may come too late to be flown.
+    #[test]
+    fn a_silence_before_the_last_chance_is_judged_in_time() {
+        let config = DecisionConfig::default();
+        // Frames 0.1 s apart from the commit; the point of no return 1.65 s after it: frame 14
+        // is 0.25 s before it, frame 15 (0.15 s before it) would be the last chance.
+        assert_eq!((config.touchdown_s, config.no_return_ms), (2.0, 350.0));
+        for index in 0..3 {
+            let approach = Approach {
+                sea_state: 3,
+                seed: 101,
+                heading_deg: 40.0,
+                index,
+            };
+            let out = fly_through(
+                PipelineRule::Deckwatch,
+                config.clone(),
+                approach,
+                FrameFaultModel::default(),
+                Some(14),
+            );
+            let rode = out.decisions_by_reason.contains_key("CLEAR ride-through");
+            let around = out.abort_reasons.contains_key("gap");
+            assert!(rode != around, "{out:?}");
+            assert!(out.too_late_reasons.keys().all(|k| k == "stale-data"), "{out:?}");
+            // Gone around on the judgement, or ridden through it; then the freshness limit's
+            // abort, which this vehicle (its own point of no return about 0.25 s before contact,
+            // the decider's 0.35 s) can sometimes still fly.
+            assert!(out.touchdown.is_none() || rode, "{out:?}");
+            assert!(out.touchdown.as_ref().is_none_or(|v| v.safe()), "{out:?}");
+        }
     }
 
     /// Every frame lost: nothing to decide on, the watchdog's stale decisions only, no commit.

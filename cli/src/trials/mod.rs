@@ -270,6 +270,10 @@ impl ClosedLoopPipeline for ChainPipeline<'_> {
         self.chain.watchdog(now_ns)
     }
 
+    fn watchdog_period_s(&self) -> f64 {
+        self.chain.watchdog_period_s()
+    }
+
     fn note(&mut self, time_ns: u64, text: &str) {
         if let Some(log) = self.log.as_deref() {
             log.text(time_ns, text.to_string());

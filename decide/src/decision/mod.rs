@@ -374,9 +374,12 @@ impl LandingDecider {
     /// newest attitude is older than `max_age_ms`, the decision becomes stale (`Abort` if
     /// committed, else `NoDeck`). Sooner for a committed touchdown whose last chance has not
     /// come: once the frame it waits for is overdue (half a frame late) and its point of no
-    /// return would pass before the next call, it goes around (`StaleData`) while that can
-    /// still be flown. A pipeline that falls silent then does not carry a touchdown past the
-    /// point on decisions judged at `go_around_risk` only, with an abort that comes too late.
+    /// return would pass before the next call, the silence is judged now as a blind frame at
+    /// its last chance (reason `gap`): the touchdown rides through if the model the last frame
+    /// confirmed keeps the deck within the capacity at a clearance's risk, and goes around
+    /// while that can still be flown if not. A pipeline that falls silent then does not carry
+    /// a touchdown past the point on decisions judged at `go_around_risk` only, with an abort
+    /// that comes too late to fly.
     pub fn timeout(&mut self, now: f64) -> Option<Decision> {
         let last = self.last_input?;
         if now - last > self.config.max_age_ms / 1e3 {
@@ -384,7 +387,7 @@ impl LandingDecider {
             return Some(self.transition(Err(DecisionReason::StaleData), now));
         }
         self.silent_before_no_return(now)
-            .then(|| self.transition(Err(DecisionReason::StaleData), now))
+            .then(|| self.transition(Err(DecisionReason::Gap), now))
     }
 
     /// How often [`Self::timeout`] is to be called at least (s). A committed touchdown's last
@@ -1339,29 +1342,30 @@ mod tests {
     }
 
     /// A pipeline that falls silent during a committed touchdown, before its last chance: the
-    /// watchdog, called every `watchdog_period_s`, sends it around before its point of no
-    /// return, once the frame it waits for is overdue. Frames on time, or a silence after the
-    /// last chance, leave it to the freshness limit.
+    /// watchdog, called every `watchdog_period_s`, judges the silence as a blind frame at the
+    /// last chance before the point of no return, once the frame it waits for is overdue: on
+    /// at a clearance's risk, around (`gap`) at more, while that can still be flown. Frames on
+    /// time, or a silence after the last chance, leave it to the freshness limit.
     #[test]
-    fn a_silence_before_the_last_chance_goes_around_while_it_can_be_flown() {
+    fn a_silence_before_the_last_chance_is_judged_while_a_go_around_can_be_flown() {
         let config = DecisionConfig::default();
         let (no_return_s, max_age_s) = (config.no_return_ms / 1e3, config.max_age_ms / 1e3);
-        // Seen every 0.1 s until `last_left_s` of the touchdown is left, then silent: the first
-        // watchdog decision (its time, its decision) and the point of no return.
-        let silent_after = |last_left_s: f64| {
+        // Seen every 0.1 s until `last_left_s` of the touchdown is left, the capacity then
+        // scaled so that the rest is at risk `target`, then silent: the first watchdog decision
+        // (its time, its decision), the last frame's time and the point of no return.
+        let silent_after = |last_left_s: f64, target: f64| {
             let (mut d, t0) = committed(config.clone());
             let period_s = d.watchdog_period_s();
             assert!(period_s > 0.0 && period_s <= 0.02, "{period_s}");
             let mut t = t0;
             while d.commit_end - (t + 0.1) >= last_left_s - 1e-9 {
                 t += 0.1;
-                assert_eq!(
-                    d.update_at_capture(t, Some(sea(t, 0.8)), 0.01).state,
-                    DecisionState::ClearToLand
-                );
+                let r = d.update_at_capture(t, Some(sea(t, 0.8)), 0.01);
+                assert_eq!(r.state, DecisionState::ClearToLand);
                 // Between frames on time the watchdog says nothing.
                 assert!(d.timeout(t + 0.09).is_none());
             }
+            scale_capacity_to_risk(&mut d, t, target);
             let no_return_at = d.commit_end - no_return_s;
             let mut now = t;
             let first = loop {
@@ -1373,21 +1377,27 @@ mod tests {
             };
             (t, first, no_return_at)
         };
+        let clearance = 0.5 * config.risk_per_touchdown;
         // The last frame just before the last chance would have come: the next one is overdue
-        // 0.15 s later, still before the point, and the watchdog sends it around as late as
-        // it still can, well before the freshness limit (0.3 s).
-        let (t, (now, r), no_return_at) = silent_after(no_return_s + 0.25);
-        assert_eq!(
-            (r.state, r.reason),
-            (DecisionState::Abort, DecisionReason::StaleData)
-        );
+        // 0.15 s later, and the silence is judged as late as a go-around can still be flown,
+        // before the freshness limit (0.3 s): at ten times a clearance's risk, around.
+        let (t, (now, r), no_return_at) = silent_after(no_return_s + 0.25, 0.01);
+        assert_eq!((r.state, r.reason), (DecisionState::Abort, DecisionReason::Gap));
         assert!(now > t + 0.15 && now < no_return_at, "{t} {now} {no_return_at}");
         assert!(
             now + 0.02 >= no_return_at && now < t + max_age_s,
             "{t} {now} {no_return_at}"
         );
+        // At a clearance's risk it rides through, and past the point the freshness limit
+        // speaks (an abort there cannot be flown; it says what is true).
+        let (_, (now, r), no_return_at) = silent_after(no_return_s + 0.25, clearance);
+        assert_eq!(
+            (r.state, r.reason),
+            (DecisionState::ClearToLand, DecisionReason::RideThrough)
+        );
+        assert!(now < no_return_at, "{now} {no_return_at}");
         // Silent from further out: the freshness limit speaks first, before the point.
-        let (t, (now, r), no_return_at) = silent_after(no_return_s + 0.6);
+        let (t, (now, r), no_return_at) = silent_after(no_return_s + 0.6, clearance);
         assert_eq!(
             (r.state, r.reason),
             (DecisionState::Abort, DecisionReason::StaleData)
@@ -1396,9 +1406,9 @@ mod tests {
             now > t + max_age_s && now < no_return_at,
             "{t} {now} {no_return_at}"
         );
-        // After its last chance (judged as a clearance) the touchdown goes on until the
-        // freshness limit: the frames that would follow could not send it around.
-        let (t, (now, r), no_return_at) = silent_after(no_return_s + 0.1);
+        // After its last chance (judged on a frame, as a clearance) the touchdown goes on until
+        // the freshness limit: the frames that would follow could not send it around.
+        let (t, (now, r), no_return_at) = silent_after(no_return_s + 0.1, clearance);
         assert_eq!(r.reason, DecisionReason::StaleData);
         assert!(
             now > t + max_age_s && now > no_return_at,

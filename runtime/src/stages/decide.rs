@@ -259,6 +259,74 @@ mod tests {
         );
     }
 
+    /// Attitudes that stop during a committed touchdown, before its last chance: the ticks
+    /// (every `tick_period`, on the monotonic clock) judge that last chance before the point of
+    /// no return on the frames' timeline, long before the freshness limit would speak.
+    #[test]
+    fn a_silence_before_the_last_chance_is_judged_before_the_point_of_no_return() {
+        let mut s = DecideStage::new(DecisionConfig::default(), false).unwrap();
+        let (touchdown_s, no_return_s) = {
+            let c = s.decider.config();
+            (c.touchdown_s, c.no_return_ms / 1e3)
+        };
+        let latency_ns = 25_000_000;
+        let attitude = |k: u64| {
+            let t = k as f64 * 0.1;
+            let mut a = AttitudeMessage {
+                valid: true.into(),
+                rpy: Rpy::from_degrees(0.8 * (0.7 * t).sin(), 0.6 * (0.5 * t + 1.0).sin(), 0.0),
+                deck_height_m: 0.3 * (0.6 * t).sin(),
+                ..Default::default()
+            };
+            a.stamp.seq = k;
+            a.context.source_timestamp_ns = k * 100_000_000;
+            a.stamp.times.captured_ns = 3_000_000_000 + k * 100_000_000;
+            a
+        };
+        let k = (0..600u64)
+            .find(|&k| {
+                let a = attitude(k);
+                let d = s.process(&a, a.stamp.times.captured_ns + latency_ns);
+                d.state == DecisionState::ClearToLand
+            })
+            .expect("a calm sea clears");
+        let no_return_at = k as f64 * 0.1 + touchdown_s - no_return_s;
+        // Frames on time while the point of no return is more than 2.5 frames away: the last
+        // one is not the last chance (that would be the next, 1.5 frames and a tick from it).
+        let mut last = k;
+        while no_return_at - (last + 1) as f64 * 0.1 > 0.25 - 1e-9 {
+            last += 1;
+            let a = attitude(last);
+            assert_eq!(
+                s.process(&a, a.stamp.times.captured_ns + latency_ns).state,
+                DecisionState::ClearToLand
+            );
+        }
+        let received_ns = attitude(last).stamp.times.captured_ns + latency_ns;
+        let period_ns = s.tick_period().unwrap().as_nanos() as u64;
+        let (after_ns, w) = (1..100u64)
+            .find_map(|m| {
+                s.watchdog(received_ns + m * period_ns)
+                    .map(|w| (m * period_ns, w))
+            })
+            .expect("the watchdog speaks");
+        let judged_at = last as f64 * 0.1 + after_ns as f64 / 1e9;
+        assert!(w.watchdog.get(), "{w:?}");
+        assert!(
+            matches!(
+                (w.state.get(), w.reason.get()),
+                (DecisionState::ClearToLand, DecisionReason::RideThrough)
+                    | (DecisionState::Abort, DecisionReason::Gap)
+            ),
+            "{w:?}"
+        );
+        assert!(judged_at < no_return_at, "{judged_at} {no_return_at}");
+        assert!(
+            (after_ns as f64) < s.decider.config().max_age_ms * 1e6,
+            "{after_ns}"
+        );
+    }
+
     /// The decision depends on the frames' timeline, not on when they arrived.
     #[test]
     fn same_frames_same_decisions_whatever_the_delay() {

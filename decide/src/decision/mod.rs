@@ -95,6 +95,12 @@ const F_MIN_HZ: f64 = 0.03;
 const RETRY_S: f64 = 0.3;
 /// Window of the measured rate (s).
 const RATE_WINDOW_S: f64 = 0.6;
+/// The measured rate is checked against the model's at most this often (s): the line through
+/// `RATE_WINDOW_S` hardly changes from one frame to the next, while the model's rate there,
+/// re-forecast from the newest noisy lags on every frame, is a fresh draw of its noise. Checked
+/// on every frame at 30 Hz, a pitch rate the deck did not have was "unexplained" five times as
+/// often per second as at 10 Hz (BENCHMARKS.md, "The rate check at the camera's rate").
+const RATE_CHECK_INTERVAL_S: f64 = 0.1;
 const F_MAX_HZ: f64 = 0.5;
 /// No ship deck rises or falls faster (m/s): a faster change of the deck height is a jump.
 const PLAUSIBLE_HEAVE_RATE_MPS: f64 = 5.0;
@@ -196,6 +202,8 @@ pub struct LandingDecider {
     frame_interval_s: Option<f64>,
     /// When a measurement the model did not explain came (s).
     unexplained_at: f64,
+    /// When the measured rate was last checked against the model's (`RATE_CHECK_INTERVAL_S`).
+    rate_checked_at: f64,
 }
 
 /// A capture stamped further in the future than this (s) is a clock jump.
@@ -212,6 +220,7 @@ impl LandingDecider {
         config.validate()?;
         Ok(Self {
             unexplained_at: f64::NEG_INFINITY,
+            rate_checked_at: f64::NEG_INFINITY,
             channels: if config.heave == HeaveUse::Required { 3 } else { 2 },
             config,
             history: VecDeque::new(),
@@ -536,7 +545,9 @@ impl LandingDecider {
         }
         // The model's rate must match the measured one (a local line through the newest
         // samples): a fit that turns the motion around where the deck does not is caught here.
-        if let Some((rates, mean_t)) = self.measured_rate(t, RATE_WINDOW_S) {
+        let rate_check_due = t - self.rate_checked_at >= RATE_CHECK_INTERVAL_S - 1e-6;
+        if let Some((rates, mean_t)) = self.measured_rate(t, RATE_WINDOW_S).filter(|_| rate_check_due) {
+            self.rate_checked_at = t;
             // The line's slope is the rate at the samples' mean time, about 0.3 s back: the
             // model's rate carried back there by its own acceleration (compared at `t`, a
             // rolling deck's acceleration alone made one frame in ten at sea states 5 and 6
@@ -660,6 +671,7 @@ impl LandingDecider {
         self.backtest_misses.clear();
         self.backwards_run = 0;
         self.unexplained_at = f64::NEG_INFINITY;
+        self.rate_checked_at = f64::NEG_INFINITY;
         // A gap on the old timeline (say, to a time in the future) means nothing on the new one.
         self.gap_until = f64::NEG_INFINITY;
     }
@@ -922,6 +934,36 @@ mod tests {
             t += 0.1;
         }
         out
+    }
+
+    /// The measured rate is checked against the model's at most every `RATE_CHECK_INTERVAL_S`
+    /// whatever the frame rate (every third frame at 30 Hz), and on every frame at 10 Hz, the
+    /// rate it was developed at.
+    #[test]
+    fn the_rate_is_checked_at_most_ten_times_a_second() {
+        let checks = |rate_hz: f64| {
+            let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
+            let mut checked = Vec::new();
+            for k in 0..(40.0 * rate_hz) as usize {
+                let t = k as f64 / rate_hz;
+                d.update(t, Some(measured(sea(t, 0.8), t)), t + 0.005);
+                if d.rate_checked_at == t {
+                    checked.push(t);
+                }
+            }
+            checked
+        };
+        let at_30 = checks(30.0);
+        assert!(at_30.len() > 250, "{}", at_30.len());
+        assert!(at_30
+            .windows(2)
+            .all(|w| w[1] - w[0] >= 0.1 - 1e-6 && w[1] - w[0] < 0.14));
+        let at_10 = checks(10.0);
+        assert!(
+            at_10.windows(2).all(|w| (w[1] - w[0] - 0.1).abs() < 1e-6),
+            "every frame"
+        );
+        assert!(at_10.len() > 250);
     }
 
     #[test]

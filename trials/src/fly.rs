@@ -194,11 +194,7 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
             out.count_decision(d.state.get(), d.reason.get());
             let c = follow.command(d.state.get());
             if c == Command::GoAround && autopilot.contact_s().is_some() {
-                if autopilot.can_go_around(at_s) {
-                    out.count_go_around(d.reason.get());
-                } else {
-                    out.count_too_late(d.reason.get());
-                }
+                out.count_go_around_order(d.reason.get(), autopilot.can_go_around(at_s));
             }
             c
         };

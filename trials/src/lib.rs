@@ -419,14 +419,20 @@ impl ApproachOutcome {
         *self.decisions_by_reason.entry(key).or_default() += 1;
     }
 
-    /// A go-around's reason, counted.
-    pub fn count_go_around(&mut self, reason: deckwatch_common::messages::DecisionReason) {
-        *self.abort_reasons.entry(reason.name().into()).or_default() += 1;
-    }
-
-    /// A go-around ordered too late to be flown, counted by its reason.
-    pub fn count_too_late(&mut self, reason: deckwatch_common::messages::DecisionReason) {
-        *self.too_late_reasons.entry(reason.name().into()).or_default() += 1;
+    /// A go-around ordered during a descent, counted by its reason: as flown when ordered
+    /// `in_time` ([`SimulatedAutopilot::can_go_around`]), else as ordered past the point of no
+    /// return.
+    pub fn count_go_around_order(
+        &mut self,
+        reason: deckwatch_common::messages::DecisionReason,
+        in_time: bool,
+    ) {
+        let counts = if in_time {
+            &mut self.abort_reasons
+        } else {
+            &mut self.too_late_reasons
+        };
+        *counts.entry(reason.name().into()).or_default() += 1;
     }
 }
 

@@ -227,15 +227,10 @@ fn fly_with(
             out.count_decision(state, reason);
             let command = follow.command(state);
             let descending = autopilot.contact_s().is_some();
-            let in_time = autopilot.can_go_around(t_heard.max(0.0));
-            let acted = autopilot.act(t_heard.max(0.0), heave(t_heard), command);
             if descending && command == deckwatch_trials::Command::GoAround {
-                if acted {
-                    out.count_go_around(reason);
-                } else if !in_time {
-                    out.count_too_late(reason);
-                }
+                out.count_go_around_order(reason, autopilot.can_go_around(t_heard.max(0.0)));
             }
+            autopilot.act(t_heard.max(0.0), heave(t_heard), command);
         }
         // The camera: frame k when it is due.
         let due = start + k * frame_period_ns;

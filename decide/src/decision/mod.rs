@@ -403,7 +403,9 @@ impl LandingDecider {
     /// chance comes early enough to leave this much time for a silence after it to be noticed
     /// before the point of no return.
     pub fn watchdog_period_s(&self) -> f64 {
-        WATCHDOG_PERIOD_S.min(self.config.max_age_ms / 2e3)
+        // At least a millisecond: a freshness limit of microseconds must not make the process
+        // (or the trials' runner) look without end.
+        WATCHDOG_PERIOD_S.min(self.config.max_age_ms / 2e3).max(1e-3)
     }
 
     /// Whether a committed touchdown, its last chance not yet judged, waits at `now` on an

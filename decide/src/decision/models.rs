@@ -700,7 +700,7 @@ impl LandingDecider {
         let Some(&(t, _)) = self.history.back() else {
             return false;
         };
-        self.measured_rate(t, RATE_WINDOW_S).is_some_and(|(rates, _)| {
+        self.measured_rate(t, RATE_WINDOW_S).is_some_and(|rates| {
             rates[ROLL].abs() > c.max_abs_roll_rate_dps
                 || rates[PITCH].abs() > c.max_abs_pitch_rate_dps
                 || (self.channels > HEAVE && rates[HEAVE].abs() > c.max_abs_heave_rate_mps)
@@ -775,11 +775,10 @@ impl LandingDecider {
     }
 }
 
-/// A least-squares line through samples (time s, roll, pitch, height) per channel.
+/// A least-squares line through samples (time s, roll, pitch, height) per channel. Its slopes
+/// are the rates at the samples' mean time.
 pub(super) struct LineFit {
     pub(super) slopes: [f64; 3],
-    /// The samples' mean time: where a line's slope is the rate.
-    pub(super) mean_t: f64,
     pub(super) count: usize,
     pub(super) first_t: f64,
     pub(super) last_t: f64,
@@ -812,10 +811,57 @@ pub(super) fn fit_line<'a>(samples: impl Iterator<Item = &'a (f64, [f64; 3])> + 
     }
     (stt > 0.0).then(|| LineFit {
         slopes: stv.map(|s| s / stt),
-        mean_t,
         count,
         first_t,
         last_t,
+    })
+}
+
+/// Each channel's rate at one instant from a least-squares parabola through samples (time s,
+/// roll, pitch, height), and how many samples over how long a span it rests on.
+pub(super) struct ParabolaRate {
+    pub(super) rates: [f64; 3],
+    pub(super) count: usize,
+    pub(super) span_s: f64,
+}
+
+/// The parabola through `samples` (in any order), per channel, and its slope at `at`: the rate
+/// at the newest sample without a line's lag to the samples' mean time. None without three
+/// distinct times. One pass and no allocation (the decision fits one every 0.1 s).
+pub(super) fn parabola_rate_at<'a>(
+    samples: impl Iterator<Item = &'a (f64, [f64; 3])>,
+    at: f64,
+) -> Option<ParabolaRate> {
+    // Normal equations in time relative to `at` (a second or so: well conditioned).
+    let mut powers = [0.0; 5];
+    let mut moments = [[0.0; 3]; 3];
+    let (mut count, mut first_t, mut last_t) = (0usize, f64::INFINITY, f64::NEG_INFINITY);
+    for &(t, v) in samples {
+        let x = t - at;
+        let xs = [1.0, x, x * x, x * x * x, x * x * x * x];
+        for (p, xp) in powers.iter_mut().zip(xs) {
+            *p += xp;
+        }
+        for (k, &vk) in v.iter().enumerate() {
+            for (i, row) in moments.iter_mut().enumerate() {
+                row[k] += vk * xs[i];
+            }
+        }
+        count += 1;
+        first_t = first_t.min(t);
+        last_t = last_t.max(t);
+    }
+    let normal = nalgebra::Matrix3::from_fn(|i, j| powers[i + j]);
+    let cholesky = normal.cholesky()?;
+    let mut rates = [f64::NAN; 3];
+    for (k, rate) in rates.iter_mut().enumerate() {
+        let rhs = nalgebra::Vector3::new(moments[0][k], moments[1][k], moments[2][k]);
+        *rate = cholesky.solve(&rhs)[1];
+    }
+    (count >= 3).then_some(ParabolaRate {
+        rates,
+        count,
+        span_s: last_t - first_t,
     })
 }
 

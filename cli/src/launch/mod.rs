@@ -45,8 +45,14 @@ static LAUNCHER_LOG: std::sync::OnceLock<std::sync::Mutex<std::sync::mpsc::Sende
 pub struct LogForwarder {
     publisher: deckwatch_runtime::bus::MessagePublisher<StageLog>,
     lines: std::sync::mpsc::Receiver<StageLog>,
+    /// Lines read before the recorder subscribed (it is started first, but connects only once it
+    /// is up: the launcher's "started" lines went missing from a recording in CI), oldest first.
+    pending: std::cell::RefCell<std::collections::VecDeque<StageLog>>,
     _bus: Bus,
 }
+
+/// Lines kept for a recorder that has not subscribed yet; beyond this the oldest go.
+const MAX_PENDING_LOG_LINES: usize = 1024;
 
 impl LogForwarder {
     fn start(config: &PipelineConfig, stages: &mut [Supervised]) -> Result<Self, String> {
@@ -60,16 +66,26 @@ impl LogForwarder {
         Ok(Self {
             publisher,
             lines,
+            pending: Default::default(),
             _bus: bus,
         })
     }
 
-    /// Publishes the lines read so far.
+    /// Publishes the lines read so far; while nobody subscribes, keeps them for the recorder.
     pub fn forward(&self) {
-        for line in self.lines.try_iter() {
-            // A lost line is no reason to stop the pipeline.
-            let _ = self.publisher.send(&line);
+        let mut pending = self.pending.borrow_mut();
+        pending.extend(self.lines.try_iter());
+        while let Some(line) = pending.front() {
+            match self.publisher.send(line) {
+                Ok(0) => break,
+                // Sent, or lost: a lost line is no reason to stop the pipeline.
+                _ => {
+                    pending.pop_front();
+                }
+            }
         }
+        let excess = pending.len().saturating_sub(MAX_PENDING_LOG_LINES);
+        pending.drain(..excess);
     }
 }
 

@@ -225,6 +225,14 @@ fn ship_motion_from_a_file() {
                 .any(|l| l.starts_with("all") && l.contains(predictor) && l.contains("roll_deg")),
             "{text}"
         );
+        // The tail the risk per touchdown lies in: a share per horizon.
+        assert!(
+            text.lines().any(|l| l.starts_with("tail")
+                && l.contains(predictor)
+                && l.contains("heave_rate_mps")
+                && l.matches('%').count() == 2),
+            "{text}"
+        );
     }
     std::fs::write(
         &file,

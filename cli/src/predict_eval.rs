@@ -7,7 +7,9 @@
 
 use crate::decide_eval::{measure, minutes, series, series_name, stream_model, DecideEvalArgs, Sea};
 use deckwatch_decide::decision::{DecisionConfig, Predictor};
-use deckwatch_decide::forecast_eval::{judge_forecasts, ForecastReport, Forecaster, Persistence, QUANTITIES};
+use deckwatch_decide::forecast_eval::{
+    judge_forecasts, ForecastReport, Forecaster, Persistence, QUANTITIES, TAIL_SHARE, TAIL_Z,
+};
 use deckwatch_decide::LandingDecider;
 use deckwatch_runtime::config::ConfigError;
 
@@ -172,6 +174,29 @@ pub fn run(a: PredictEvalArgs) -> Result<(), String> {
     }
     for (k, name) in a.predictors.iter().enumerate() {
         print_report("all", name, &overall[k], config.touchdown_s);
+    }
+    // The tail the decision's risk lies in: the 95 % band holding 95 % says nothing of it.
+    println!(
+        "share of truths beyond {TAIL_Z:.2} stated deviations, the tails the risk per touchdown is judged in (an honest normal band's: {:.2} %), at {} s",
+        100.0 * TAIL_SHARE,
+        a.horizons.iter().map(|h| h.to_string()).collect::<Vec<_>>().join(", ")
+    );
+    for (k, name) in a.predictors.iter().enumerate() {
+        for (q, quantity) in QUANTITIES.iter().enumerate() {
+            let cells: Vec<String> = overall[k].errors[q]
+                .iter()
+                .map(|e| {
+                    if e.abs_errors.is_empty() {
+                        format!("{:>7}", "-")
+                    } else {
+                        format!("{:>6.2}%", 100.0 * e.tail_share())
+                    }
+                })
+                .collect();
+            if overall[k].errors[q].iter().any(|e| !e.abs_errors.is_empty()) {
+                println!("{:<10} {name:<12} {quantity:<15} {}", "tail", cells.join(" "));
+            }
+        }
     }
     Ok(())
 }

@@ -7,7 +7,7 @@
 //! as the decide stage feeds it) and persistence (the last measurement, with a band from how much
 //! the history moved over the same horizon) as the baseline that knows nothing of the sea.
 
-use crate::decision::{DecisionConfig, DeckForecast, LandingDecider};
+use crate::decision::{DecisionConfig, DeckForecast, LandingDecider, Z95};
 use crate::eval::{TrueDeck, TrueDeckState};
 use crate::frame::FrameInput;
 use std::collections::VecDeque;
@@ -154,7 +154,17 @@ pub struct HorizonErrors {
     pub abs_errors: Vec<f64>,
     /// Truths inside the stated 95 % band.
     pub inside: u64,
+    /// Truths beyond `TAIL_Z` stated deviations (the 95 % band's half-width over 1.96): the
+    /// tails the decision's risk per touchdown lies in, which the 95 % band's coverage says
+    /// nothing of. An honest normal band leaves `TAIL_SHARE` of the truths there.
+    pub beyond_tail: u64,
 }
+
+/// A normal error is beyond this many deviations either way with probability `TAIL_SHARE`:
+/// 1e-3 each side, the default risk per touchdown (the decision judges each limit's tail
+/// with the normal distribution).
+pub const TAIL_Z: f64 = 3.090_232_306_167_813;
+pub const TAIL_SHARE: f64 = 2e-3;
 
 impl HorizonErrors {
     pub fn rms(&self) -> f64 {
@@ -167,6 +177,11 @@ impl HorizonErrors {
     /// Share of truths inside the stated band.
     pub fn coverage(&self) -> f64 {
         self.inside as f64 / self.abs_errors.len() as f64
+    }
+    /// Share of truths beyond `TAIL_Z` stated deviations (an honest normal band's:
+    /// `TAIL_SHARE`).
+    pub fn tail_share(&self) -> f64 {
+        self.beyond_tail as f64 / self.abs_errors.len() as f64
     }
 }
 
@@ -200,6 +215,7 @@ impl ForecastReport {
             for (a, b) in mine.iter_mut().zip(theirs) {
                 a.abs_errors.extend_from_slice(&b.abs_errors);
                 a.inside += b.inside;
+                a.beyond_tail += b.beyond_tail;
             }
         }
         self.windows += other.windows;
@@ -285,6 +301,7 @@ pub fn judge_forecasts(
                 let errors = &mut report.errors[q][j];
                 errors.abs_errors.push(e);
                 errors.inside += u64::from(e <= band[q]);
+                errors.beyond_tail += u64::from(e > TAIL_Z * band[q] / Z95);
             }
         }
         // The whole touchdown: the truth inside the band at every step.
@@ -386,5 +403,48 @@ mod tests {
         assert!(p.errors[0][1].rms() > 5.0 * roll_2s.rms());
         // Persistence's band is the motion's own spread: wide, and so it covers.
         assert!(p.errors[0][1].coverage() > 0.8, "{}", p.errors[0][1].coverage());
+    }
+
+    /// A forecaster that knows the truth and misses it by a fixed number of its own stated
+    /// deviations: every miss is inside the 95 % band, beyond it, or beyond the tail, as
+    /// chosen.
+    struct OffBy {
+        deviations: f64,
+    }
+
+    impl Forecaster for OffBy {
+        fn observe(&mut self, _frame: &FrameInput) {}
+        fn forecast(&self, t: f64) -> Option<DeckForecast> {
+            let std = [0.1, 0.2, 0.01];
+            let truth = sea(t);
+            Some(DeckForecast {
+                value: std::array::from_fn(|k| truth[k] + self.deviations * std[k]),
+                rate: [f64::NAN; 3],
+                band95: std.map(|s| Z95 * s),
+                rate_band95: [f64::NAN; 3],
+            })
+        }
+    }
+
+    /// The tail share counts the misses beyond `TAIL_Z` stated deviations, and only those: a
+    /// miss of 2.5 deviations is outside the 95 % band but not in the tail, one of 3.2 in both.
+    #[test]
+    fn the_tail_share_counts_the_misses_beyond_the_tail() {
+        // 1e-3 each side of a normal error.
+        assert!((libm::erfc(TAIL_Z / std::f64::consts::SQRT_2) - TAIL_SHARE).abs() < 1e-12);
+        let s = stream(0.0);
+        for (deviations, coverage, tail) in [(1.0, 1.0, 0.0), (2.5, 0.0, 0.0), (3.2, 0.0, 1.0)] {
+            let mut f = OffBy { deviations };
+            let r = judge_forecasts(&sea, &mut f, &s, &[0.5, 2.0], 2.0, 1.0);
+            for q in 0..3 {
+                for e in &r.errors[q] {
+                    assert!(e.abs_errors.len() > 100, "{deviations}: {}", e.abs_errors.len());
+                    assert_eq!(e.coverage(), coverage, "{deviations} deviations, quantity {q}");
+                    assert_eq!(e.tail_share(), tail, "{deviations} deviations, quantity {q}");
+                }
+            }
+            // Rates not forecast are not judged.
+            assert!(r.errors[3..].iter().flatten().all(|e| e.abs_errors.is_empty()));
+        }
     }
 }

@@ -211,10 +211,6 @@ pub struct LandingDecider {
     unexplained_at: f64,
     /// When the measured rate was last checked against the model's (`RATE_CHECK_INTERVAL_S`).
     rate_checked_at: f64,
-    /// When the decision could first clear (every check passed up to the forecast's), since
-    /// the history began or the last go-around: `early_risk_per_touchdown` applies for
-    /// `early_window_s` from then (`commit_margins`). None: not yet.
-    early_since: Option<f64>,
 }
 
 /// A capture stamped further in the future than this (s) is a clock jump.
@@ -257,7 +253,6 @@ impl LandingDecider {
             commit_last_frame: f64::NEG_INFINITY,
             last_frame_t: None,
             frame_interval_s: None,
-            early_since: None,
         })
     }
 
@@ -673,7 +668,6 @@ impl LandingDecider {
 
     /// Forgets the history and the models: what follows is learnt afresh (warm-up).
     fn forget(&mut self) {
-        self.early_since = None;
         self.history.clear();
         self.models = None;
         self.past.clear();
@@ -787,15 +781,6 @@ impl LandingDecider {
             || blind_budget_left_s.is_some_and(|budget_s| to_no_return_s <= budget_s)
     }
 
-    /// Whether a new touchdown may be cleared at `now`, every other check passed: the model
-    /// keeps the deck within the capacity over it at a commitment's risk. The first time since
-    /// the history began or the last go-around, this starts the early window
-    /// (`early_risk_per_touchdown`).
-    fn clears(&mut self, m: &Models, now: f64) -> bool {
-        self.early_since.get_or_insert(now);
-        self.predicted_within(m, now, now + self.config.touchdown_s, self.commit_margins(m, now))
-    }
-
     fn transition(&mut self, verdict: Result<(), DecisionReason>, now: f64) -> Decision {
         let committed = self.state == DecisionState::ClearToLand && now < self.commit_end;
         let aborting = self.state == DecisionState::Abort && now < self.abort_until;
@@ -874,7 +859,12 @@ impl LandingDecider {
                     // model says (a noise-free heave whose model was off by 0.06 m/s cleared
                     // at a measured 0.61 m/s against 0.6).
                     decision.reason = DecisionReason::OutsideCapacity;
-                } else if self.clears(&m, now) {
+                } else if self.predicted_within(
+                    &m,
+                    now,
+                    now + self.config.touchdown_s,
+                    self.commit_margins(&m),
+                ) {
                     decision.state = DecisionState::ClearToLand;
                     decision.new_commit = true;
                     self.commit_end = now + self.config.touchdown_s;
@@ -899,8 +889,6 @@ impl LandingDecider {
             .and_then(|m| m.tracks.get(HEAVE))
             .map_or(f64::NAN, |h| h.rate(now));
         if decision.state == DecisionState::Abort && self.state != DecisionState::Abort {
-            // A go-around: the next clearance looks for a deeper calm again.
-            self.early_since = None;
             self.abort_reason = decision.reason;
             self.abort_until = now + self.config.abort_hold_s;
             self.commit_end = f64::NEG_INFINITY;
@@ -1936,66 +1924,6 @@ mod tests {
         (d, m, limits)
     }
 
-    /// For `early_window_s` after the decision could first clear, and again after a go-around,
-    /// a new clearance meets `early_risk_per_touchdown`; then `risk_per_touchdown`. A seeing
-    /// touchdown and its last chance are judged as before.
-    #[test]
-    fn the_first_clearances_look_for_a_deeper_calm() {
-        let (mut d, m, _) = calm_sea_models();
-        let c = d.config().clone();
-        assert!(c.early_risk_per_touchdown < c.risk_per_touchdown);
-        d.early_since = None;
-        assert_eq!(d.commit_margins(&m, 60.0).risk, Some(c.early_risk_per_touchdown));
-        d.early_since = Some(40.0);
-        let just_before = 40.0 + c.early_window_s - 0.1;
-        assert_eq!(
-            d.commit_margins(&m, just_before).risk,
-            Some(c.early_risk_per_touchdown)
-        );
-        let after = 40.0 + c.early_window_s + 0.1;
-        assert_eq!(d.commit_margins(&m, after).risk, Some(c.risk_per_touchdown));
-        assert_eq!(d.entry_margins(&m).risk, Some(c.risk_per_touchdown));
-        assert_eq!(d.last_chance_margins(&m).risk, Some(c.risk_per_touchdown));
-        // A go-around starts the early window again.
-        d.state = DecisionState::ClearToLand;
-        d.commit_end = after + 1.0;
-        let abort = d.transition(Err(DecisionReason::StaleData), after);
-        assert_eq!(abort.state, DecisionState::Abort);
-        assert_eq!(d.early_since, None);
-        // Switched off, the first clearance is at `risk_per_touchdown`.
-        let mut off = LandingDecider::new(DecisionConfig {
-            early_window_s: 0.0,
-            ..Default::default()
-        })
-        .unwrap();
-        off.early_since = Some(60.0);
-        assert_eq!(off.commit_margins(&m, 60.0).risk, Some(c.risk_per_touchdown));
-        // On a stream, the decision first could clear before its first clearance, and the
-        // first clearance comes no earlier than with the window switched off.
-        let first_commit = |config: DecisionConfig| {
-            let mut d = LandingDecider::new(config).unwrap();
-            let mut first = None;
-            for k in 0..1200 {
-                let t = k as f64 * 0.1;
-                let now = t + 0.005;
-                if d.update(t, Some(sea(t, 0.3)), now).new_commit && first.is_none() {
-                    first = Some((now, d.early_since));
-                }
-            }
-            first.expect("a calm sea is cleared within two minutes")
-        };
-        let (early_t, early_since) = first_commit(DecisionConfig::default());
-        let (off_t, _) = first_commit(DecisionConfig {
-            early_window_s: 0.0,
-            ..Default::default()
-        });
-        assert!(
-            early_since.is_some_and(|since| since <= early_t),
-            "{early_since:?} {early_t}"
-        );
-        assert!(early_t >= off_t, "{early_t} {off_t}");
-    }
-
     /// A band measured between `SUSPECT_BAND_SCALE` and `MAX_BAND_SCALE` times too narrow, value
     /// or rate, is suspect while its rate has no misses of its own; beyond, it is unreliable
     /// (judged by its history), not suspect.
@@ -2012,7 +1940,7 @@ mod tests {
         let risk = d.config().risk_per_touchdown;
         assert!(d.exceedance_risk_judging(&m, times(), &limits, MAX_BAND_SCALE) < risk);
         assert!(d.exceedance_risk_judging(&m, times(), &limits, SUSPECT_BAND_SCALE) > risk);
-        let commit = d.commit_margins(&m, 60.0);
+        let commit = d.commit_margins(&m);
         assert!(!d.predicted_within(&m, 60.0, 62.0, commit));
         assert!(d.predicted_within(&m, 60.0, 62.0, d.entry_margins(&m)));
         m.band_scale[HEAVE] = MAX_BAND_SCALE + 0.1;
@@ -2383,27 +2311,6 @@ mod tests {
                     ..Default::default()
                 },
                 "max_age_ms",
-            ),
-            (
-                DecisionConfig {
-                    early_window_s: 1e6,
-                    ..Default::default()
-                },
-                "early_window_s",
-            ),
-            (
-                DecisionConfig {
-                    early_window_s: -1.0,
-                    ..Default::default()
-                },
-                "early_window_s",
-            ),
-            (
-                DecisionConfig {
-                    early_risk_per_touchdown: 2e-3,
-                    ..Default::default()
-                },
-                "early_risk_per_touchdown",
             ),
         ] {
             assert_eq!(c.validate().unwrap_err().field, key);

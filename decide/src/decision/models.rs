@@ -735,27 +735,13 @@ impl LandingDecider {
         }
     }
 
-    /// The margins of a new commitment at `now`: an entry's, with a suspect band
-    /// (`Models::band_suspect`) judged as an unreliable one, and within `early_window_s` of
-    /// when the decision could first clear (`LandingDecider::early_since`) at
-    /// `early_risk_per_touchdown`. The touchdown's last chance judges the band as it is
+    /// The margins of a new commitment: an entry's, with a suspect band (`Models::band_suspect`)
+    /// judged as an unreliable one. The touchdown's last chance judges the band as it is
     /// measured then, and a suspect one's next misses often make it unreliable.
-    pub(super) fn commit_margins(&self, m: &Models, now: f64) -> Margins {
-        let c = &self.config;
-        let entry = self.entry_margins(m);
-        let early = self
-            .early_since
-            .is_none_or(|since| now - since < c.early_window_s);
+    pub(super) fn commit_margins(&self, m: &Models) -> Margins {
         Margins {
             unreliable_band_scale: SUSPECT_BAND_SCALE,
-            risk: entry.risk.map(|r| {
-                if early {
-                    r.min(c.early_risk_per_touchdown)
-                } else {
-                    r
-                }
-            }),
-            ..entry
+            ..self.entry_margins(m)
         }
     }
 

@@ -450,8 +450,20 @@ impl ArModel {
         }
         let (x, unmeasured) = resample(t, y, dt, n, max_bridge_s);
         // x_k = c + sum_i a_i x_{k-i}: the intercept keeps an offset deck exact.
-        let rows = n - order;
-        let (ata, atb) = normal_equations(&x, order);
+        // A row with a grid point inside a gap (its target or a lag) is left out: a gap's
+        // straight line is no motion the deck made, and rows on it would teach the fit a
+        // smoothness (and an innovation variance) the deck does not have.
+        let gap_rows = gap_rows(&unmeasured, order);
+        let rows = n - order - gap_rows.len();
+        if rows < 2 * (order + 1) {
+            return None;
+        }
+        let (mut ata, mut atb) = normal_equations(&x, order);
+        for &r in &gap_rows {
+            let row = design_row(&x, order, r);
+            ata -= &row * row.transpose();
+            atb -= &row * x[r + order];
+        }
         // Least squares with the directions the data do not fix left out (see `AR_CUTOFF`):
         // the eigen-decomposition of the normal equations (the singular values squared: a
         // decomposition of (order + 1)^2 instead of one of the whole design, ten times cheaper).
@@ -470,7 +482,8 @@ impl ArModel {
             }
         });
         let mut coef = &eigen.eigenvectors * scaled;
-        let resid_sq: f64 = (0..rows)
+        let resid_sq: f64 = (0..n - order)
+            .filter(|r| gap_rows.binary_search(r).is_err())
             .map(|r| {
                 let predicted = coef[order] + (0..order).map(|i| coef[i] * x[r + order - 1 - i]).sum::<f64>();
                 (x[r + order] - predicted).powi(2)
@@ -831,6 +844,34 @@ pub fn normal_equations(x: &[f64], p: usize) -> (DMatrix<f64>, DVector<f64>) {
     (ata, atb)
 }
 
+/// The rows of the autoregression of order `p` (row `r`: target `r + p`, lags `r..r + p`) with
+/// a grid point not measured, in increasing order.
+fn gap_rows(unmeasured: &[bool], p: usize) -> Vec<usize> {
+    let rows = unmeasured.len().saturating_sub(p);
+    let mut out = Vec::new();
+    // The newest unmeasured point at or before each row's target, found in one pass.
+    let mut last_unmeasured: Option<usize> = None;
+    for (k, &u) in unmeasured.iter().enumerate().take(p) {
+        if u {
+            last_unmeasured = Some(k);
+        }
+    }
+    for r in 0..rows {
+        if unmeasured[r + p] {
+            last_unmeasured = Some(r + p);
+        }
+        if last_unmeasured.is_some_and(|k| k >= r) {
+            out.push(r);
+        }
+    }
+    out
+}
+
+/// Row `r` of the design of [`normal_equations`]: `x[r + p - 1], ..., x[r], 1`.
+fn design_row(x: &[f64], p: usize, r: usize) -> DVector<f64> {
+    DVector::from_fn(p + 1, |i, _| if i == p { 1.0 } else { x[r + p - 1 - i] })
+}
+
 /// The largest root an autoregressive fit may keep: motion that neither grows nor stays.
 const MAX_ROOT_RADIUS: f64 = 0.999;
 
@@ -879,9 +920,11 @@ fn resample(t: &[f64], y: &[f64], dt: f64, n: usize, max_bridge_s: f64) -> (Vec<
         } else {
             let (ta, tb) = (t[j - 1], t[j]);
             let f = if tb > ta { (g - ta) / (tb - ta) } else { 1.0 };
+            // A grid point on the sample that ends a gap (within a rounding) is that sample:
+            // measured.
             (
                 y[j - 1] + f.clamp(0.0, 1.0) * (y[j] - y[j - 1]),
-                tb - ta > max_bridge_s,
+                tb - ta > max_bridge_s && f < 1.0 - 1e-6,
             )
         };
     }
@@ -1015,6 +1058,48 @@ mod ar_tests {
             "bridged: {inside_bridged} of {total} inside"
         );
         assert!(widened / total as f64 > 1.2, "widened {}", widened / total as f64);
+    }
+
+    /// Gaps inside the window (three of 2.5 s) leave their rows out of the fit: its coefficients
+    /// are the least squares of the rows measured throughout, and its innovation the process's.
+    /// Rows on a gap's straight line would have been fitted too (what `max_bridge_s` infinite
+    /// does), and they understate the innovation.
+    #[test]
+    fn rows_inside_a_gap_are_left_out_of_the_fit() {
+        // A step exact in binary: the resampling grid is then the samples' own times.
+        let (a1, a2, sigma, dt) = (1.6, -0.8, 0.1, 0.25);
+        let x = ar2_process(401, [a1, a2], sigma, 9_000_000);
+        let in_gap = |k: usize| [100usize, 200, 300].iter().any(|&g| (g..g + 10).contains(&k));
+        let kept: Vec<usize> = (0..401).filter(|&k| !in_gap(k)).collect();
+        let t: Vec<f64> = kept.iter().map(|&k| k as f64 * dt).collect();
+        let y: Vec<f64> = kept.iter().map(|&k| x[k]).collect();
+        let fitted = ArModel::fit(&t, &y, 2, dt, 2.0, 0.5).unwrap();
+        // Rows whose target and lags were all measured.
+        let rows: Vec<usize> = (0..401 - 2)
+            .filter(|&r| (r..=r + 2).all(|k| !in_gap(k)))
+            .collect();
+        let a = DMatrix::from_fn(
+            rows.len(),
+            3,
+            |i, j| if j == 2 { 1.0 } else { x[rows[i] + 1 - j] },
+        );
+        let b = DVector::from_fn(rows.len(), |i, _| x[rows[i] + 2]);
+        let exact = a.clone().svd(true, true).solve(&b, 1e-12).unwrap();
+        for (got, want) in fitted.coef.iter().zip(exact.iter()) {
+            assert!((got - want).abs() < 1e-9, "{:?} vs {exact}", fitted.coef);
+        }
+        assert!(
+            (fitted.fit_rms / sigma - 1.0).abs() < 0.15,
+            "innovation {}",
+            fitted.fit_rms
+        );
+        let bridged = ArModel::fit(&t, &y, 2, dt, 2.0, f64::INFINITY).unwrap();
+        assert!(
+            bridged.fit_rms < fitted.fit_rms,
+            "bridged {} kept {}",
+            bridged.fit_rms,
+            fitted.fit_rms
+        );
     }
 
     #[test]

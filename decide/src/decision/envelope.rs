@@ -24,7 +24,7 @@ impl LandingDecider {
         ];
         let times = (0..=steps).map(|k| (from + k as f64 * STEP_S).min(to));
         if let Some(risk) = margins.risk {
-            return self.exceedance_risk_judging(m, times, &limits, margins.unreliable_band_scale) <= risk;
+            return self.exceedance_risk_judging(m, times, &limits, margins) <= risk;
         }
         times.into_iter().all(|t| {
             let (r, p) = (roll.value(t).abs(), pitch.value(t).abs());
@@ -46,7 +46,7 @@ impl LandingDecider {
         times: impl Iterator<Item = f64>,
         limits: &[f64; 6],
     ) -> f64 {
-        self.exceedance_risk_judging(m, times, limits, MAX_BAND_SCALE)
+        self.exceedance_risk_judging(m, times, limits, Margins::NONE)
     }
 
     /// An upper bound of the probability that the deck leaves the capacity (`limits`: roll,
@@ -55,18 +55,33 @@ impl LandingDecider {
     /// largest probability over the times that it is exceeded, summed over the limits. A
     /// limit far from the forecast costs nothing, so the one that binds gets nearly all the
     /// risk (a fixed share each would give it a sixth). A band measured more than
-    /// `unreliable_scale` times too narrow has its rate judged by its history too
-    /// (`MAX_BAND_SCALE`; a new commitment's `SUSPECT_BAND_SCALE`: `commit_margins`).
+    /// `margins.unreliable_band_scale` times too narrow has its rate judged by its history too
+    /// (`MAX_BAND_SCALE`; a new commitment's `SUSPECT_BAND_SCALE`: `commit_margins`); an angle
+    /// whose band is unreliable has its deviation widened by `margins.unreliable_angle_factor`.
     pub(super) fn exceedance_risk_judging(
         &self,
         m: &Models,
         times: impl Iterator<Item = f64>,
         limits: &[f64; 6],
-        unreliable_scale: f64,
+        margins: Margins,
     ) -> f64 {
+        let unreliable_scale = margins.unreliable_band_scale;
         let (roll, pitch) = (&m.tracks[ROLL], &m.tracks[PITCH]);
         let heave = m.tracks.get(HEAVE);
-        let [sr, sp, _] = m.band_scale;
+        // An unreliable rate has a second judge (its misses in its own unit, its history); an
+        // unreliable angle has none, and its band scaled by the past's misses is no bound on a
+        // sea that is changing: scaled 5.96 and 7.27 times, roll and pitch bands cleared into
+        // a true roll of 5.41 deg against 5 as a lull ended (BENCHMARKS.md, "Issue 33's bars
+        // on fresh seeds (2026-12-05, second session)"). A new commitment widens it again.
+        let angle_scale = |k: usize| {
+            let s = m.band_scale[k];
+            if s > MAX_BAND_SCALE {
+                s * margins.unreliable_angle_factor
+            } else {
+                s
+            }
+        };
+        let (sr, sp) = (angle_scale(ROLL), angle_scale(PITCH));
         // A channel whose band has been measured far too narrow (value or rate) states
         // deviations that are not its forecast's error. A campaign cleared on heave bands scaled
         // 3.4-200 times, three times into more than 0.64 m/s of heave rate (BENCHMARKS.md, "A

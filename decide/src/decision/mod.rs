@@ -147,6 +147,10 @@ const MAX_BAND_SCALE: f64 = 3.0;
 /// go-arounds on the development trials were that (BENCHMARKS.md, "A suspect band judged
 /// as an unreliable one by a new commitment").
 const SUSPECT_BAND_SCALE: f64 = 2.0;
+/// What a new commitment widens the deviation of an angle whose band is unreliable by, on top
+/// of its measured scale (`Margins::unreliable_angle_factor`): such a band has missed by more
+/// than `MAX_BAND_SCALE` of its own deviations, and may again by as much.
+const UNRELIABLE_ANGLE_FACTOR: f64 = MAX_BAND_SCALE;
 /// The band's scale before there is evidence (forecasts shown, never a clearance): the
 /// autoregressive predictor's raw 95 % band held about 87 % of the truths 2 s ahead on the
 /// development seas (BENCHMARKS "Deck-motion prediction"); 1.5 widens it to about what the
@@ -211,6 +215,10 @@ pub struct LandingDecider {
     unexplained_at: f64,
     /// When the measured rate was last checked against the model's (`RATE_CHECK_INTERVAL_S`).
     rate_checked_at: f64,
+    /// When the decision could first clear (every check passed up to the forecast's), since
+    /// the history began or the last go-around: `early_risk_per_touchdown` applies for
+    /// `early_window_s` from then (`commit_margins`). None: not yet.
+    early_since: Option<f64>,
 }
 
 /// A capture stamped further in the future than this (s) is a clock jump.
@@ -253,6 +261,7 @@ impl LandingDecider {
             commit_last_frame: f64::NEG_INFINITY,
             last_frame_t: None,
             frame_interval_s: None,
+            early_since: None,
         })
     }
 
@@ -668,6 +677,7 @@ impl LandingDecider {
 
     /// Forgets the history and the models: what follows is learnt afresh (warm-up).
     fn forget(&mut self) {
+        self.early_since = None;
         self.history.clear();
         self.models = None;
         self.past.clear();
@@ -781,6 +791,15 @@ impl LandingDecider {
             || blind_budget_left_s.is_some_and(|budget_s| to_no_return_s <= budget_s)
     }
 
+    /// Whether a new touchdown may be cleared at `now`, every other check passed: the model
+    /// keeps the deck within the capacity over it at a commitment's risk. The first time since
+    /// the history began or the last go-around, this starts the early window
+    /// (`early_risk_per_touchdown`).
+    fn clears(&mut self, m: &Models, now: f64) -> bool {
+        self.early_since.get_or_insert(now);
+        self.predicted_within(m, now, now + self.config.touchdown_s, self.commit_margins(m, now))
+    }
+
     fn transition(&mut self, verdict: Result<(), DecisionReason>, now: f64) -> Decision {
         let committed = self.state == DecisionState::ClearToLand && now < self.commit_end;
         let aborting = self.state == DecisionState::Abort && now < self.abort_until;
@@ -859,12 +878,7 @@ impl LandingDecider {
                     // model says (a noise-free heave whose model was off by 0.06 m/s cleared
                     // at a measured 0.61 m/s against 0.6).
                     decision.reason = DecisionReason::OutsideCapacity;
-                } else if self.predicted_within(
-                    &m,
-                    now,
-                    now + self.config.touchdown_s,
-                    self.commit_margins(&m),
-                ) {
+                } else if self.clears(&m, now) {
                     decision.state = DecisionState::ClearToLand;
                     decision.new_commit = true;
                     self.commit_end = now + self.config.touchdown_s;
@@ -889,6 +903,8 @@ impl LandingDecider {
             .and_then(|m| m.tracks.get(HEAVE))
             .map_or(f64::NAN, |h| h.rate(now));
         if decision.state == DecisionState::Abort && self.state != DecisionState::Abort {
+            // A go-around: the next clearance looks for a deeper calm again.
+            self.early_since = None;
             self.abort_reason = decision.reason;
             self.abort_until = now + self.config.abort_hold_s;
             self.commit_end = f64::NEG_INFINITY;
@@ -1615,8 +1631,14 @@ mod tests {
     #[test]
     fn a_gap_widens_the_band_and_no_longer_waits_out_the_lags() {
         let observe = |t: f64| Some(measured(sea(t, 0.3), t));
-        let mut gapped = LandingDecider::new(DecisionConfig::default()).unwrap();
-        let mut steady = LandingDecider::new(DecisionConfig::default()).unwrap();
+        // Both commit on the same frames (a committed decider refits on a measurement its model
+        // misses, and the two are compared fit for fit): no early window, whose start differs.
+        let config = DecisionConfig {
+            early_window_s: 0.0,
+            ..DecisionConfig::default()
+        };
+        let mut gapped = LandingDecider::new(config.clone()).unwrap();
+        let mut steady = LandingDecider::new(config).unwrap();
         let before = run(&mut gapped, 0.0, 80.0, observe);
         assert!(before.iter().any(|(_, r)| r.state == DecisionState::ClearToLand));
         run(&mut steady, 0.0, 82.0, observe);
@@ -1635,8 +1657,10 @@ mod tests {
             Track::Autoregressive(m) => (m.value(t), m.std(t), m.rate_std(t)),
             Track::Sinusoids(_) => unreachable!("the default predictor is autoregressive"),
         };
+        // From 1 s ahead: the newest value itself is measured, its deviation each fit's
+        // innovation (the gapped fit's on the rows the gap leaves, a few per cent apart).
         for k in 0..3 {
-            for ahead_s in [0.0, 1.0, 2.0] {
+            for ahead_s in [1.0, 2.0] {
                 let t = 83.1 + ahead_s;
                 let (value, std, rate_std) = stated(&gapped, k, t);
                 let (steady_value, steady_std, steady_rate_std) = stated(&steady, k, t);
@@ -1924,6 +1948,66 @@ mod tests {
         (d, m, limits)
     }
 
+    /// For `early_window_s` after the decision could first clear, and again after a go-around,
+    /// a new clearance meets `early_risk_per_touchdown`; then `risk_per_touchdown`. A seeing
+    /// touchdown and its last chance are judged as before.
+    #[test]
+    fn the_first_clearances_look_for_a_deeper_calm() {
+        let (mut d, m, _) = calm_sea_models();
+        let c = d.config().clone();
+        assert!(c.early_risk_per_touchdown < c.risk_per_touchdown);
+        d.early_since = None;
+        assert_eq!(d.commit_margins(&m, 60.0).risk, Some(c.early_risk_per_touchdown));
+        d.early_since = Some(40.0);
+        let just_before = 40.0 + c.early_window_s - 0.1;
+        assert_eq!(
+            d.commit_margins(&m, just_before).risk,
+            Some(c.early_risk_per_touchdown)
+        );
+        let after = 40.0 + c.early_window_s + 0.1;
+        assert_eq!(d.commit_margins(&m, after).risk, Some(c.risk_per_touchdown));
+        assert_eq!(d.entry_margins(&m).risk, Some(c.risk_per_touchdown));
+        assert_eq!(d.last_chance_margins(&m).risk, Some(c.risk_per_touchdown));
+        // A go-around starts the early window again.
+        d.state = DecisionState::ClearToLand;
+        d.commit_end = after + 1.0;
+        let abort = d.transition(Err(DecisionReason::StaleData), after);
+        assert_eq!(abort.state, DecisionState::Abort);
+        assert_eq!(d.early_since, None);
+        // Switched off, the first clearance is at `risk_per_touchdown`.
+        let mut off = LandingDecider::new(DecisionConfig {
+            early_window_s: 0.0,
+            ..Default::default()
+        })
+        .unwrap();
+        off.early_since = Some(60.0);
+        assert_eq!(off.commit_margins(&m, 60.0).risk, Some(c.risk_per_touchdown));
+        // On a stream, the decision first could clear before its first clearance, and the
+        // first clearance comes no earlier than with the window switched off.
+        let first_commit = |config: DecisionConfig| {
+            let mut d = LandingDecider::new(config).unwrap();
+            let mut first = None;
+            for k in 0..1200 {
+                let t = k as f64 * 0.1;
+                let now = t + 0.005;
+                if d.update(t, Some(sea(t, 0.3)), now).new_commit && first.is_none() {
+                    first = Some((now, d.early_since));
+                }
+            }
+            first.expect("a calm sea is cleared within two minutes")
+        };
+        let (early_t, early_since) = first_commit(DecisionConfig::default());
+        let (off_t, _) = first_commit(DecisionConfig {
+            early_window_s: 0.0,
+            ..Default::default()
+        });
+        assert!(
+            early_since.is_some_and(|since| since <= early_t),
+            "{early_since:?} {early_t}"
+        );
+        assert!(early_t >= off_t, "{early_t} {off_t}");
+    }
+
     /// A band measured between `SUSPECT_BAND_SCALE` and `MAX_BAND_SCALE` times too narrow, value
     /// or rate, is suspect while its rate has no misses of its own; beyond, it is unreliable
     /// (judged by its history), not suspect.
@@ -1938,9 +2022,13 @@ mod tests {
         // history's spread (0.5 m/s) too, and does not clear on it.
         let times = || (0..=40).map(|k| 60.0 + 0.05 * k as f64);
         let risk = d.config().risk_per_touchdown;
-        assert!(d.exceedance_risk_judging(&m, times(), &limits, MAX_BAND_SCALE) < risk);
-        assert!(d.exceedance_risk_judging(&m, times(), &limits, SUSPECT_BAND_SCALE) > risk);
-        let commit = d.commit_margins(&m);
+        let judging = |unreliable_band_scale: f64| Margins {
+            unreliable_band_scale,
+            ..Margins::NONE
+        };
+        assert!(d.exceedance_risk_judging(&m, times(), &limits, judging(MAX_BAND_SCALE)) < risk);
+        assert!(d.exceedance_risk_judging(&m, times(), &limits, judging(SUSPECT_BAND_SCALE)) > risk);
+        let commit = d.commit_margins(&m, 60.0);
         assert!(!d.predicted_within(&m, 60.0, 62.0, commit));
         assert!(d.predicted_within(&m, 60.0, 62.0, d.entry_margins(&m)));
         m.band_scale[HEAVE] = MAX_BAND_SCALE + 0.1;
@@ -1951,6 +2039,42 @@ mod tests {
         // Its rate's own misses stand for its error: nothing to suspect.
         m.rate_miss_std[HEAVE] = 0.05;
         assert!(!m.band_suspect(HEAVE));
+    }
+
+    /// A new commitment widens an angle whose band is unreliable by `UNRELIABLE_ANGLE_FACTOR`
+    /// on top of its measured scale (the same risk as the band that much wider, judged as
+    /// measured); an angle within `MAX_BAND_SCALE`, and every judgement but a commitment's, as
+    /// measured.
+    #[test]
+    fn a_new_commitment_widens_an_unreliable_angle_band() {
+        let (d, mut m, limits) = calm_sea_models();
+        let times = || (0..=40).map(|k| 60.0 + 0.05 * k as f64);
+        let commit = Margins {
+            unreliable_band_scale: MAX_BAND_SCALE,
+            ..d.commit_margins(&m, 60.0)
+        };
+        let as_measured = Margins::NONE;
+        // Each angle's limit four unreliable deviations beyond its forecast's largest value:
+        // near enough that a wider band costs risk.
+        let unreliable = MAX_BAND_SCALE + 0.5;
+        let mut tight = limits;
+        for k in [ROLL, PITCH] {
+            let track = &m.tracks[k];
+            let largest = times().map(|t| track.value(t).abs()).fold(0.0, f64::max);
+            let widest = times().map(|t| track.std(t)).fold(0.0, f64::max);
+            tight[k] = largest + 4.0 * unreliable * widest;
+        }
+        let risk = |m: &Models, margins: Margins| d.exceedance_risk_judging(m, times(), &tight, margins);
+        for k in [ROLL, PITCH] {
+            m.band_scale = [1.0; 3];
+            m.band_scale[k] = MAX_BAND_SCALE;
+            assert_eq!(risk(&m, commit), risk(&m, as_measured), "within: as measured");
+            m.band_scale[k] = unreliable;
+            let widened = risk(&m, commit);
+            assert!(widened > risk(&m, as_measured), "channel {k}");
+            m.band_scale[k] = unreliable * UNRELIABLE_ANGLE_FACTOR;
+            assert_eq!(widened, risk(&m, as_measured), "channel {k}");
+        }
     }
 
     /// A channel whose band is unreliable (measured more than `MAX_BAND_SCALE` times too
@@ -2311,6 +2435,27 @@ mod tests {
                     ..Default::default()
                 },
                 "max_age_ms",
+            ),
+            (
+                DecisionConfig {
+                    early_window_s: 1e6,
+                    ..Default::default()
+                },
+                "early_window_s",
+            ),
+            (
+                DecisionConfig {
+                    early_window_s: -1.0,
+                    ..Default::default()
+                },
+                "early_window_s",
+            ),
+            (
+                DecisionConfig {
+                    early_risk_per_touchdown: 2e-3,
+                    ..Default::default()
+                },
+                "early_risk_per_touchdown",
             ),
         ] {
             assert_eq!(c.validate().unwrap_err().field, key);

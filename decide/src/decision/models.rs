@@ -348,6 +348,10 @@ pub(super) struct Margins {
     /// A channel's band measured more than this many times too narrow, its rate without misses
     /// of its own, has its rate judged by its history too (`Models::judged_by_history_above`).
     pub(super) unreliable_band_scale: f64,
+    /// What the deviation of an angle (roll, pitch) whose value band has been measured more
+    /// than `MAX_BAND_SCALE` times too narrow is multiplied by, on top of its measured scale
+    /// (1: judged as measured; a new commitment's: `UNRELIABLE_ANGLE_FACTOR`).
+    pub(super) unreliable_angle_factor: f64,
 }
 
 impl Margins {
@@ -357,6 +361,7 @@ impl Margins {
         heave_rate_mps: 0.0,
         risk: None,
         unreliable_band_scale: MAX_BAND_SCALE,
+        unreliable_angle_factor: 1.0,
     };
 }
 
@@ -732,16 +737,33 @@ impl LandingDecider {
             heave_rate_mps: c.heave_rate_margin_mps,
             risk: banded.then_some(c.risk_per_touchdown),
             unreliable_band_scale: MAX_BAND_SCALE,
+            unreliable_angle_factor: 1.0,
         }
     }
 
-    /// The margins of a new commitment: an entry's, with a suspect band (`Models::band_suspect`)
-    /// judged as an unreliable one. The touchdown's last chance judges the band as it is
-    /// measured then, and a suspect one's next misses often make it unreliable.
-    pub(super) fn commit_margins(&self, m: &Models) -> Margins {
+    /// The margins of a new commitment at `now`: an entry's, with a suspect band
+    /// (`Models::band_suspect`) judged as an unreliable one, an unreliable angle's band widened
+    /// (`UNRELIABLE_ANGLE_FACTOR`), and within `early_window_s` of when the decision could
+    /// first clear (`LandingDecider::early_since`) at `early_risk_per_touchdown`. The
+    /// touchdown's last chance judges the band as it is measured then, and a suspect one's next
+    /// misses often make it unreliable.
+    pub(super) fn commit_margins(&self, m: &Models, now: f64) -> Margins {
+        let c = &self.config;
+        let entry = self.entry_margins(m);
+        let early = self
+            .early_since
+            .is_none_or(|since| now - since < c.early_window_s);
         Margins {
             unreliable_band_scale: SUSPECT_BAND_SCALE,
-            ..self.entry_margins(m)
+            unreliable_angle_factor: UNRELIABLE_ANGLE_FACTOR,
+            risk: entry.risk.map(|r| {
+                if early {
+                    r.min(c.early_risk_per_touchdown)
+                } else {
+                    r
+                }
+            }),
+            ..entry
         }
     }
 

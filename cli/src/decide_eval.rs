@@ -5,7 +5,8 @@
 
 use deckwatch_common::vehicle::VehicleConfig;
 use deckwatch_decide::decision::DecisionConfig;
-use deckwatch_decide::eval::{evaluate, RuleOutcome};
+use deckwatch_decide::eval::{evaluate, ClearanceBands, RuleOutcome};
+use deckwatch_decide::forecast_eval::{QUANTITIES, TAIL_Z};
 use deckwatch_decide::FrameInput;
 use deckwatch_runtime::config::ConfigError;
 use deckwatch_sim::motion::{DeckHeave, MotionProfile, ShipMotion, SpectrumShipMotion};
@@ -137,11 +138,43 @@ fn scale_of(sea_state: u32) -> Result<f64, String> {
     }
 }
 
+/// The bands the clearances were made on, judged over their touchdowns: per quantity the share
+/// that held the truth all through (compare `predict-eval`'s "window" column, over every
+/// instant) and the share that let it beyond the tail the risk is judged in.
+fn print_clearance_bands(b: &ClearanceBands) {
+    let share = |n: u64, q: usize| {
+        if b.judged[q] == 0 {
+            "-".to_string()
+        } else {
+            format!("{:.1}%", 100.0 * n as f64 / b.judged[q] as f64)
+        }
+    };
+    let cells: Vec<String> = QUANTITIES
+        .iter()
+        .enumerate()
+        .map(|(q, name)| {
+            format!(
+                "{name} {} / {}",
+                share(b.inside[q], q),
+                share(b.beyond_tail[q], q)
+            )
+        })
+        .collect();
+    println!(
+        "{:<10} at its {} clearances, the forecast over the touchdown inside its 95 % band / beyond {:.2} stated deviations: {}",
+        "",
+        b.judged[0],
+        TAIL_Z,
+        cells.join(", ")
+    );
+}
+
 fn row(rule: &str, o: &RuleOutcome) -> String {
     format!(
-        "{rule:<14} {:>8} {:>8} {:>7} {:>8} {:>6} {:>8.1}%",
+        "{rule:<14} {:>8} {:>8} {:>9} {:>7} {:>8} {:>6} {:>8.1}%",
         o.commits,
         o.unsafe_commits,
+        o.unsafe_touchdowns,
         o.aborts,
         o.calm_windows,
         o.calm_windows_used,
@@ -343,9 +376,11 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
             config.max_abs_pitch_deg, config.max_abs_roll_rate_dps, config.max_abs_pitch_rate_dps, config.heave,
             config.max_abs_heave_rate_mps, config.touchdown_s
         );
+        // UNSAFE: clearances into a touchdown the true deck broke the capacity in; touched:
+        // those of them not sent around before the point of no return.
         println!(
-            "{:<10} {:<14} {:>8} {:>8} {:>7} {:>8} {:>6} {:>9}",
-            "sea/seed", "rule", "commits", "UNSAFE", "aborts", "calm win", "used", "avail"
+            "{:<10} {:<14} {:>8} {:>8} {:>9} {:>7} {:>8} {:>6} {:>9}",
+            "sea/seed", "rule", "commits", "UNSAFE", "touched", "aborts", "calm win", "used", "avail"
         );
     }
     let (mut total_smart, mut total_naive) = (RuleOutcome::default(), RuleOutcome::default());
@@ -397,6 +432,8 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
                 }
                 t.commits += o.commits;
                 t.unsafe_commits += o.unsafe_commits;
+                t.unsafe_touchdowns += o.unsafe_touchdowns;
+                t.at_clearances.merge(&o.at_clearances);
                 t.aborts += o.aborts;
                 t.calm_windows += o.calm_windows;
                 t.calm_windows_used += o.calm_windows_used;
@@ -422,6 +459,7 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
             reasons.join(", ")
         );
         println!("{:<10} {}", "", row("naive", &total_naive));
+        print_clearance_bands(&total_smart.at_clearances);
         // An oracle that knows the future commits into every truly calm window (availability
         // 100 %), and could commit this share of the time.
         let share = oracle_share.iter().sum::<f64>() / oracle_share.len().max(1) as f64;

@@ -177,13 +177,13 @@ pub fn run(a: PredictEvalArgs) -> Result<(), String> {
     }
     // The tail the decision's risk lies in: the 95 % band holding 95 % says nothing of it.
     println!(
-        "share of truths beyond {TAIL_Z:.2} stated deviations, the tails the risk per touchdown is judged in (an honest normal band's: {:.2} %), at {} s",
+        "share of truths beyond {TAIL_Z:.2} stated deviations, the tails the risk per touchdown is judged in (an honest normal band's: {:.2} %), at {} s, and at some instant of a whole touchdown (window)",
         100.0 * TAIL_SHARE,
         a.horizons.iter().map(|h| h.to_string()).collect::<Vec<_>>().join(", ")
     );
     for (k, name) in a.predictors.iter().enumerate() {
         for (q, quantity) in QUANTITIES.iter().enumerate() {
-            let cells: Vec<String> = overall[k].errors[q]
+            let mut cells: Vec<String> = overall[k].errors[q]
                 .iter()
                 .map(|e| {
                     if e.abs_errors.is_empty() {
@@ -193,6 +193,11 @@ pub fn run(a: PredictEvalArgs) -> Result<(), String> {
                     }
                 })
                 .collect();
+            let windows = overall[k].windows.max(1) as f64;
+            cells.push(format!(
+                "{:>6.2}%",
+                100.0 * overall[k].window_beyond_tail[q] as f64 / windows
+            ));
             if overall[k].errors[q].iter().any(|e| !e.abs_errors.is_empty()) {
                 println!("{:<10} {name:<12} {quantity:<15} {}", "tail", cells.join(" "));
             }

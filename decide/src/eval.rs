@@ -1,9 +1,12 @@
 //! Evaluation of landing rules against the true deck motion: how often a rule commits although
-//! the true deck leaves the capacity during the touchdown (unsafe clearances: must be 0), and
-//! how many of the truly calm windows it uses (availability). Pure: the caller supplies the
-//! true motion and the measured attitude stream (with its noise, dropouts and outliers).
+//! the true deck leaves the capacity during the touchdown (unsafe clearances: must be 0), which
+//! of those the decision sent around before the touchdown's point of no return (the rest are
+//! unsafe touchdowns), and how many of the truly calm windows it uses (availability). Pure:
+//! the caller supplies the true motion and the measured attitude stream (with its noise,
+//! dropouts and outliers).
 
 use crate::decision::{Decision, DecisionConfig, LandingDecider};
+use crate::forecast_eval::WindowVerdict;
 use crate::frame::FrameInput;
 use deckwatch_common::messages::DecisionState;
 
@@ -15,6 +18,10 @@ pub struct RuleOutcome {
     pub unsafe_commits: u64,
     /// Each of them: when it was made and what the true deck broke (to look into).
     pub unsafe_commit_details: Vec<UnsafeCommit>,
+    /// Unsafe commits not sent around before their point of no return (`no_return_ms` before
+    /// contact): the touchdowns that would have met the deck beyond the capacity. The naive
+    /// rule never goes around: all of its unsafe commits.
+    pub unsafe_touchdowns: u64,
     /// Commits later aborted (the state machine only).
     pub aborts: u64,
     /// Truly calm windows (at least one touchdown long).
@@ -29,6 +36,41 @@ pub struct RuleOutcome {
     pub decisions: std::collections::BTreeMap<String, u64>,
     /// Cost of one decision (us): p50, p99, max (state machine only).
     pub update_us: [f64; 3],
+    /// The forecast each new commitment was cleared on, judged over its touchdown against the
+    /// truth (state machine only): the band's honesty where the decision uses it, beside
+    /// `predict-eval`'s over every instant (clearances might pick instants whose band is too
+    /// narrow).
+    pub at_clearances: ClearanceBands,
+}
+
+/// Per quantity (as [`crate::forecast_eval::QUANTITIES`]), of the forecasts new commitments
+/// were cleared on: how many were judged, how many kept the truth inside their stated 95 % band
+/// all through the touchdown, and how many let it beyond `TAIL_Z` stated deviations.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct ClearanceBands {
+    pub judged: [u64; 6],
+    pub inside: [u64; 6],
+    pub beyond_tail: [u64; 6],
+}
+
+impl ClearanceBands {
+    fn add(&mut self, w: &WindowVerdict) {
+        for q in 0..6 {
+            if w.judged[q] {
+                self.judged[q] += 1;
+                self.inside[q] += u64::from(w.inside[q]);
+                self.beyond_tail[q] += u64::from(w.beyond_tail[q]);
+            }
+        }
+    }
+
+    pub fn merge(&mut self, other: &Self) {
+        for q in 0..6 {
+            self.judged[q] += other.judged[q];
+            self.inside[q] += other.inside[q];
+            self.beyond_tail[q] += other.beyond_tail[q];
+        }
+    }
 }
 
 /// An unsafe commit: when it was made, and the limit the true deck went furthest beyond during
@@ -44,6 +86,9 @@ pub struct UnsafeCommit {
     pub limit_value: f64,
     /// When the worst came, after the commit (s).
     pub after_s: f64,
+    /// When the decision sent the touchdown around, after the commit (s), if it did before
+    /// the point of no return.
+    pub sent_around_after_s: Option<f64>,
 }
 
 impl std::fmt::Display for UnsafeCommit {
@@ -52,7 +97,11 @@ impl std::fmt::Display for UnsafeCommit {
             f,
             "{:.1} s: {} {:.3} (limit {}) {:.2} s into the touchdown",
             self.t_s, self.limit, self.worst, self.limit_value, self.after_s
-        )
+        )?;
+        match self.sent_around_after_s {
+            Some(s) => write!(f, "; sent around {s:.2} s in, before the point of no return"),
+            None => write!(f, "; not sent around: an unsafe touchdown"),
+        }
     }
 }
 
@@ -168,13 +217,49 @@ fn calm_intervals(truth: TrueDeck, c: &DecisionConfig, t0: f64, t1: f64) -> (Vec
     (out, safe_time / (t1 - t0))
 }
 
-fn judge(truth: TrueDeck, c: &DecisionConfig, commits: &[f64], outcome: &mut RuleOutcome, t0: f64, t1: f64) {
+/// A commit: when it was made (s) and, if the decision sent it around before its point of no
+/// return, when.
+#[derive(Debug, Clone, Copy)]
+struct Commit {
+    t_s: f64,
+    sent_around_s: Option<f64>,
+}
+
+impl Commit {
+    fn new(t_s: f64) -> Self {
+        Self {
+            t_s,
+            sent_around_s: None,
+        }
+    }
+
+    /// A go-around decided at `now`: it keeps the vehicle off the deck only before the
+    /// touchdown's point of no return (`no_return_ms` before contact).
+    fn sent_around(&mut self, now: f64, c: &DecisionConfig) {
+        if self.sent_around_s.is_none() && now < self.t_s + c.touchdown_s - c.no_return_ms / 1e3 {
+            self.sent_around_s = Some(now);
+        }
+    }
+}
+
+fn judge(
+    truth: TrueDeck,
+    c: &DecisionConfig,
+    commits: &[Commit],
+    outcome: &mut RuleOutcome,
+    t0: f64,
+    t1: f64,
+) {
     let (calm, share) = calm_intervals(truth, c, t0, t1 + c.touchdown_s);
     outcome.calm_windows = calm.len() as u64;
     outcome.safe_time_share = share;
     outcome.commits = commits.len() as u64;
     let mut used = vec![false; calm.len()];
-    for &tc in commits {
+    for &Commit {
+        t_s: tc,
+        sent_around_s,
+    } in commits
+    {
         let steps = (c.touchdown_s / TRUTH_STEP_S).ceil() as usize;
         // The worst violation over the touchdown, if any (a NaN state counts as beyond).
         let worst = (0..=steps)
@@ -188,11 +273,13 @@ fn judge(truth: TrueDeck, c: &DecisionConfig, commits: &[f64], outcome: &mut Rul
                     worst,
                     limit_value,
                     after_s,
+                    sent_around_after_s: sent_around_s.map(|s| s - tc),
                 })
             })
             .max_by(|a, b| (a.worst.abs() / a.limit_value).total_cmp(&(b.worst.abs() / b.limit_value)));
         if let Some(unsafe_commit) = worst {
             outcome.unsafe_commits += 1;
+            outcome.unsafe_touchdowns += u64::from(sent_around_s.is_none());
             outcome.unsafe_commit_details.push(unsafe_commit);
             continue;
         }
@@ -255,6 +342,11 @@ pub fn evaluate(
         let clock = std::time::Instant::now();
         let d = decider.decide_frame(f);
         cost_us.push(clock.elapsed().as_secs_f64() * 1e6);
+        if d.new_commit {
+            // The model it was cleared on, before the refit between frames replaces it.
+            let w = WindowVerdict::judge(truth, |t| decider.forecast(t), f.t_s, config.touchdown_s);
+            smart.at_clearances.add(&w);
+        }
         decider.refit_between_frames();
         *smart
             .decisions
@@ -262,9 +354,12 @@ pub fn evaluate(
             .or_default() += 1;
         let now = decided_at(f);
         if d.new_commit {
-            commits.push(now);
+            commits.push(Commit::new(now));
         }
         if d.state == DecisionState::Abort && previous != DecisionState::Abort {
+            if let Some(last) = commits.last_mut() {
+                last.sent_around(now, config);
+            }
             smart.aborts += 1;
             *smart
                 .abort_reasons
@@ -276,7 +371,7 @@ pub fn evaluate(
         // touchdown of its own is under way.
         if let Some(d) = f.deck.filter(|_| !f.vehicle_missing && !f.frozen_image) {
             if now >= naive_until && config.naive_within(d.roll_deg, d.pitch_deg) {
-                naive_commits.push(now);
+                naive_commits.push(Commit::new(now));
                 naive_until = now + config.touchdown_s;
             }
         }
@@ -295,6 +390,42 @@ mod tests {
     use super::*;
     use crate::decision::DeckObservation;
     use std::f64::consts::TAU;
+
+    /// An unsafe clearance sent around before its point of no return is still an unsafe
+    /// clearance, but no unsafe touchdown; one sent around later is both.
+    #[test]
+    fn a_go_around_before_the_point_of_no_return_keeps_an_unsafe_clearance_off_the_deck() {
+        let c = DecisionConfig::default();
+        // Level, and heaving at 1 m/s (beyond the capacity) from 11.9 s on.
+        let truth = |t: f64| [0.0, 0.0, if t < 11.9 { 0.0 } else { t - 11.9 }];
+        let no_return_s = c.touchdown_s - c.no_return_ms / 1e3;
+        let mut early = Commit::new(10.0);
+        early.sent_around(10.0 + no_return_s - 0.05, &c);
+        let mut late = Commit::new(10.0);
+        late.sent_around(10.0 + no_return_s + 0.05, &c);
+        let mut safe = Commit::new(1.0);
+        safe.sent_around(1.5, &c);
+        let mut outcome = RuleOutcome::default();
+        judge(
+            &truth,
+            &c,
+            &[safe, early, late, Commit::new(10.0)],
+            &mut outcome,
+            0.0,
+            30.0,
+        );
+        assert_eq!(outcome.commits, 4);
+        assert_eq!(outcome.unsafe_commits, 3);
+        assert_eq!(outcome.unsafe_touchdowns, 2);
+        let sent: Vec<_> = outcome
+            .unsafe_commit_details
+            .iter()
+            .map(|u| u.sent_around_after_s)
+            .collect();
+        assert!((sent[0].unwrap() - (no_return_s - 0.05)).abs() < 1e-9, "{sent:?}");
+        assert_eq!(sent[1..], [None, None]);
+        assert_eq!(outcome.unsafe_commit_details[0].limit, "heave-rate");
+    }
 
     #[test]
     fn a_calm_sea_is_used_and_the_naive_rule_is_unsafe_on_a_rough_one() {
@@ -318,6 +449,17 @@ mod tests {
         assert_eq!(smart.calm_windows, 1, "always calm: one long window");
         assert_eq!(smart.calm_windows_used, 1);
         assert_eq!(naive.unsafe_commits, 0);
+        // Every clearance's forecast is judged over its touchdown, every quantity (heave too).
+        // (Noise-free samples let the fit state bands of micrometres that the truth leaves: on
+        // this stream most are left, far from any limit. The bands' honesty is measured on
+        // noisy seas: BENCHMARKS.md.)
+        let bands = &smart.at_clearances;
+        assert!(smart.commits > 0);
+        assert_eq!(bands.judged, [smart.commits; 6], "{bands:?}");
+        assert!(
+            (0..6).all(|q| bands.inside[q] + bands.beyond_tail[q] <= bands.judged[q]),
+            "{bands:?}"
+        );
         // The vehicle's attitude missing from 60 s on: nothing is cleared after that.
         let outage: Vec<FrameInput> = stream
             .iter()

@@ -196,6 +196,8 @@ pub struct ForecastReport {
     pub windows: u64,
     /// Per quantity: windows whose truth stayed inside the band all through the touchdown.
     pub window_inside: [u64; 6],
+    /// Per quantity: windows whose truth went beyond `TAIL_Z` stated deviations at some step.
+    pub window_beyond_tail: [u64; 6],
     /// Windows whose truth stayed inside every quantity's band.
     pub window_all_inside: u64,
 }
@@ -221,6 +223,7 @@ impl ForecastReport {
         self.windows += other.windows;
         for k in 0..6 {
             self.window_inside[k] += other.window_inside[k];
+            self.window_beyond_tail[k] += other.window_beyond_tail[k];
         }
         self.window_all_inside += other.window_all_inside;
     }
@@ -258,6 +261,50 @@ fn forecast_quantities(f: &DeckForecast) -> ([f64; 6], [f64; 6]) {
 
 /// Step of the touchdown window's check (s).
 const WINDOW_STEP_S: f64 = 0.05;
+
+/// One forecast judged over a whole touchdown `[t, t + touchdown_s]`, per quantity (as
+/// [`QUANTITIES`]): whether it was forecast with a band, whether the truth stayed inside the
+/// stated 95 % band at every step, and whether it went beyond `TAIL_Z` stated deviations at
+/// some step (the tail the risk per touchdown is judged in).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WindowVerdict {
+    pub judged: [bool; 6],
+    pub inside: [bool; 6],
+    pub beyond_tail: [bool; 6],
+}
+
+impl WindowVerdict {
+    pub fn judge(
+        truth: TrueDeck,
+        forecast: impl Fn(f64) -> Option<DeckForecast>,
+        t: f64,
+        touchdown_s: f64,
+    ) -> Self {
+        let steps = (touchdown_s / WINDOW_STEP_S).ceil() as usize;
+        let mut w = Self {
+            judged: [false; 6],
+            inside: [true; 6],
+            beyond_tail: [false; 6],
+        };
+        for k in 0..=steps {
+            let tk = t + (k as f64 * WINDOW_STEP_S).min(touchdown_s);
+            let Some(f) = forecast(tk) else {
+                continue;
+            };
+            let (mean, band) = forecast_quantities(&f);
+            let truth = truth_at(truth, tk);
+            for q in 0..6 {
+                if mean[q].is_finite() && band[q].is_finite() {
+                    let e = (mean[q] - truth[q]).abs();
+                    w.judged[q] = true;
+                    w.inside[q] &= e <= band[q];
+                    w.beyond_tail[q] |= e > TAIL_Z * band[q] / Z95;
+                }
+            }
+        }
+        w
+    }
+}
 
 /// Runs `forecaster` over `stream` and, every `every_s` of the stream once it forecasts, judges
 /// its forecasts at `horizons_s` after the frame's time, and over the touchdown
@@ -304,29 +351,13 @@ pub fn judge_forecasts(
                 errors.beyond_tail += u64::from(e > TAIL_Z * band[q] / Z95);
             }
         }
-        // The whole touchdown: the truth inside the band at every step.
-        let steps = (touchdown_s / WINDOW_STEP_S).ceil() as usize;
-        let mut inside = [true; 6];
-        let mut judged = [false; 6];
-        for k in 0..=steps {
-            let tk = t + (k as f64 * WINDOW_STEP_S).min(touchdown_s);
-            let Some(f) = forecaster.forecast(tk) else {
-                continue;
-            };
-            let (mean, band) = forecast_quantities(&f);
-            let truth = truth_at(truth, tk);
-            for q in 0..6 {
-                if mean[q].is_finite() && band[q].is_finite() {
-                    judged[q] = true;
-                    inside[q] &= (mean[q] - truth[q]).abs() <= band[q];
-                }
-            }
-        }
+        let w = WindowVerdict::judge(truth, |tk| forecaster.forecast(tk), t, touchdown_s);
         report.windows += 1;
         for q in 0..6 {
-            report.window_inside[q] += u64::from(judged[q] && inside[q]);
+            report.window_inside[q] += u64::from(w.judged[q] && w.inside[q]);
+            report.window_beyond_tail[q] += u64::from(w.judged[q] && w.beyond_tail[q]);
         }
-        report.window_all_inside += u64::from((0..6).all(|q| !judged[q] || inside[q]));
+        report.window_all_inside += u64::from((0..6).all(|q| !w.judged[q] || w.inside[q]));
     }
     report
 }
@@ -445,6 +476,22 @@ mod tests {
             }
             // Rates not forecast are not judged.
             assert!(r.errors[3..].iter().flatten().all(|e| e.abs_errors.is_empty()));
+            // A whole touchdown the same: inside all through at 1 deviation, beyond the tail
+            // at some instant at 3.2; the rates not judged.
+            assert_eq!(
+                r.window_inside[..3],
+                [(coverage as u64) * r.windows; 3],
+                "{deviations}"
+            );
+            assert_eq!(
+                r.window_beyond_tail[..3],
+                [(tail as u64) * r.windows; 3],
+                "{deviations}"
+            );
+            assert_eq!(r.window_beyond_tail[3..], [0; 3]);
+            let w = WindowVerdict::judge(&sea, |t| f.forecast(t), 100.0, 2.0);
+            assert_eq!(w.judged, [true, true, true, false, false, false]);
+            assert_eq!(w.beyond_tail[..3], [tail == 1.0; 3], "{deviations}");
         }
     }
 }

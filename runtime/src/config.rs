@@ -311,6 +311,12 @@ mod tests {
             sinusoids("[decide]\nvertical_speed_error_mps = 0.01\n").vertical_speed_error_mps,
             0.01
         );
+        // So is its attitude error.
+        assert_eq!(ar.vehicle_attitude_error_deg, 0.2);
+        assert_eq!(
+            sinusoids("[decide]\nvehicle_attitude_error_deg = 0.05\n").vehicle_attitude_error_deg,
+            0.05
+        );
     }
 
     #[test]

@@ -105,6 +105,13 @@ pub struct DecisionConfig {
     /// quadrature; 0 trusts the autopilot's vertical speed as exact
     /// ([`AUTOPILOT_VERTICAL_SPEED_ERROR_MPS`]).
     pub vertical_speed_error_mps: f64,
+    /// The autopilot's roll and pitch error (deg, standard deviation; slow, so one value over a
+    /// touchdown), with the camera's mounting calibration's. The deck's attitude is the
+    /// camera's measurement composed with the vehicle's, so this error is a bias of the measured
+    /// deck angles that the forecast's band, fitted to the measurements, cannot contain. With
+    /// `ar` it is added to the roll and pitch bands in quadrature (tilt too); 0 trusts the
+    /// autopilot's attitude as exact ([`AUTOPILOT_ATTITUDE_ERROR_DEG`]).
+    pub vehicle_attitude_error_deg: f64,
     /// The prediction is unreliable if it misses the newest seconds of history by more.
     pub max_holdout_error_deg: f64,
     /// ... or the heave by more (m).
@@ -180,6 +187,7 @@ impl Default for DecisionConfig {
             rate_margin_dps: f64::NAN,
             heave_rate_margin_mps: f64::NAN,
             vertical_speed_error_mps: AUTOPILOT_VERTICAL_SPEED_ERROR_MPS,
+            vehicle_attitude_error_deg: AUTOPILOT_ATTITUDE_ERROR_DEG,
             max_holdout_error_deg: 2.0,
             max_holdout_error_m: 0.3,
             holdout_s: 2.0,
@@ -236,6 +244,14 @@ const MAX_EARLY_WINDOW_S: f64 = 120.0;
 /// unsafe touchdowns (BENCHMARKS.md, "The vehicle's height fused with the autopilot's vertical
 /// speed"). An autopilot with a better vertical speed (RTK) may state less.
 pub const AUTOPILOT_VERTICAL_SPEED_ERROR_MPS: f64 = 0.05;
+
+/// `vehicle_attitude_error_deg` by default (deg): a GNSS-aided estimator's roll and pitch error
+/// after its accelerometer biases are learnt, a few tenths of a degree and slow. With the
+/// autopilot's roll and pitch biased by 0.3 deg, 5-7 % of `decide-eval`'s clearances had the
+/// true roll or pitch beyond 3.09 of the forecast's deviations during the touchdown, against
+/// 0.8-1.0 % with an exact autopilot (BENCHMARKS.md, "The autopilot's attitude error in the
+/// angle bands"). An autopilot with a better attitude (a calibrated, quiet IMU) may state less.
+pub const AUTOPILOT_ATTITUDE_ERROR_DEG: f64 = 0.2;
 
 impl DecisionConfig {
     /// The naive baseline the state machine is measured against: the deck's current roll and
@@ -341,6 +357,7 @@ impl DecisionConfig {
             ("rate_margin_dps", self.rate_margin_dps),
             ("heave_rate_margin_mps", self.heave_rate_margin_mps),
             ("vertical_speed_error_mps", self.vertical_speed_error_mps),
+            ("vehicle_attitude_error_deg", self.vehicle_attitude_error_deg),
             ("gap_recovery_s", self.gap_recovery_s),
             ("abort_hold_s", self.abort_hold_s),
             ("ride_through_ms", self.ride_through_ms),

@@ -59,8 +59,8 @@ impl LandingDecider {
     /// beyond 3.09 deviations at some instant of a touchdown 4 times as often as at its end
     /// (BENCHMARKS.md, "Unsafe clearances sent around; the bands at the clearances"). The
     /// measured share of clearances into a broken limit stays below the risk: the band's scale
-    /// is read at the 97.5th percentile and the limits' risks are summed. A band measured more than
-    /// `margins.unreliable_band_scale` times too narrow has its rate judged by its history too
+    /// is read at the 97.5th percentile and the limits' risks are summed. A band measured more
+    /// than `margins.unreliable_band_scale` times too narrow has its rate judged by its history too
     /// (`MAX_BAND_SCALE`; a new commitment's `SUSPECT_BAND_SCALE`: `commit_margins`); an angle
     /// whose band is unreliable has its deviation widened by `margins.unreliable_band_factor`,
     /// and so has the scaled heave-rate deviation of an unreliable heave channel.

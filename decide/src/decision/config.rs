@@ -85,6 +85,8 @@ pub struct DecisionConfig {
     /// "Issue 33's bars on fresh seeds (2026-12-05, second session)").
     /// `early_window_s = 0` clears at `risk_per_touchdown` from the start.
     pub early_risk_per_touchdown: f64,
+    /// How long `early_risk_per_touchdown` applies (s), from when the decision could first
+    /// clear; at most `MAX_EARLY_WINDOW_S`.
     pub early_window_s: f64,
     /// Sinusoids per angle.
     pub components: usize,

@@ -751,10 +751,11 @@ impl LandingDecider {
 
     /// The margins of a new commitment at `now`: an entry's, with a suspect band
     /// (`Models::band_suspect`) judged as an unreliable one, an unreliable band widened
-    /// (`UNRELIABLE_BAND_FACTOR`: angles, and the heave rate of an unreliable heave channel), and within `early_window_s` of when the decision could
-    /// first clear (`LandingDecider::early_since`) at `early_risk_per_touchdown`. The
-    /// touchdown's last chance judges the band as it is measured then, and a suspect one's next
-    /// misses often make it unreliable.
+    /// (`UNRELIABLE_BAND_FACTOR`: angles, and the heave rate of an unreliable heave channel),
+    /// and within `early_window_s` of when the decision could first clear
+    /// (`LandingDecider::early_since`) at `early_risk_per_touchdown`. The touchdown's last
+    /// chance judges the band as it is measured then, and a suspect one's next misses often
+    /// make it unreliable.
     pub(super) fn commit_margins(&self, m: &Models, now: f64) -> Margins {
         let c = &self.config;
         let entry = self.entry_margins(m);

@@ -9,7 +9,7 @@ ratio (the issue asks for at most 0.5 on roll and pitch, at most 1 on yaw), fram
 the share of the full pose's errors within two of its stated standard deviations (the issue:
 about 95 %).
 
-Usage: python3 bench/imaging_models.py DECKWATCH_BINARY OUT_DIR [--frames N] [--seed S]
+Usage: python3 bench/imaging_models.py DECKWATCH_BINARY OUT_DIR [--frames N] [--seed S] [--widths 640,1640,3280]
 Frames are 0.5 s apart (decorrelated ship motion). The blur of a lens is given for a 3280 px
 wide frame and scaled with the width (a binned mode halves it in pixels), at least 1 px. Needs numpy and
 opencv-python-headless (ci/peers.sh installs them).
@@ -74,11 +74,15 @@ def main():
     ap.add_argument("out")
     ap.add_argument("--frames", type=int, default=40)
     ap.add_argument("--seed", type=int, default=61)
+    ap.add_argument("--widths", default="640,1640,3280", help="the resolutions to run, by width")
     a = ap.parse_args()
+    widths = {int(w) for w in a.widths.split(",")}
     os.makedirs(a.out, exist_ok=True)
     print("| imaging model | resolution | full pose RMSE r / p / y (deg) | OpenCV IPPE RMSE r / p / y | ratio r / p / y | missed (ours / OpenCV) | within 2 sigma r / p / y |")
     print("| --- | --- | --- | --- | --- | --- | --- |")
     for (w, h) in RESOLUTIONS:
+        if w not in widths:
+            continue
         for k, (name, options) in enumerate(models(w, a.out)):
             rec = os.path.join(a.out, f"{w}-{k}")
             if not os.path.exists(os.path.join(rec, "frames.csv")):

@@ -1,5 +1,6 @@
 //! Detector speed on 3280x2464 simulator frames (rpi-v2, realistic noise and blur, ship motion),
-//! one thread: `cargo bench -p deckwatch-detect --bench detect`.
+//! one thread: `cargo bench -p deckwatch-detect --bench detect`. Tracked detection also at
+//! 640x480 (a Pi's 30 fps stream), where the discs are small (radius about 5 px from 5 m).
 //!
 //! Criterion measures full-frame and tracked detection; then, in the same run, a plain timing
 //! loop measures the detector and the OpenCV baseline (`opencv_baseline.py`: threshold +
@@ -14,26 +15,47 @@ use deckwatch_detect::{Detector, DetectorConfig};
 use deckwatch_sim::{FrameSimulator, RenderOptions, Renderer, Scenario};
 use std::time::Instant;
 
-fn frames(n: u64) -> Vec<GrayImage> {
-    let cam = CameraModel::rpi_v2();
+fn render_frames(cam: CameraModel, n: u64) -> Vec<GrayImage> {
     let r = Renderer::new(cam, DeckLayout::paper(), RenderOptions::realistic(), 3).unwrap();
     let mut sim = FrameSimulator::new(Scenario::Ship.profile(3, 1.0), r, 1.0, 0.0, 1, 3).unwrap();
     (0..n)
         .map(|k| {
-            let mut img = GrayImage::new(3280, 2464);
+            let mut img = GrayImage::new(cam.width as usize, cam.height as usize);
             sim.render_frame(k, &mut img.view_mut()).unwrap();
             img
         })
         .collect()
 }
 
+/// `iters` tracked detections, each after a full-frame one on the same frame (not timed) that
+/// sets the tracking state.
+fn tracked(det: &mut Detector, frames: &[GrayImage], k: &mut usize, iters: u64) -> std::time::Duration {
+    let mut total = std::time::Duration::ZERO;
+    for _ in 0..iters {
+        *k = (*k + 1) % frames.len();
+        det.detect_full(frames[*k].view());
+        let t0 = Instant::now();
+        let set = det.detect(frames[*k].view());
+        total += t0.elapsed();
+        assert!(set.tracked.get());
+    }
+    total
+}
+
 fn main() {
     let cam = CameraModel::rpi_v2();
     let deck = DeckLayout::paper();
-    let frames = frames(8);
+    let frames = render_frames(cam, 8);
     let mut det = Detector::new(cam, deck, DetectorConfig::for_camera(&cam, &deck));
 
     let mut c = Criterion::default().sample_size(50).configure_from_args();
+    let small_cam = cam.scaled_to(640, 480);
+    let small_frames = render_frames(small_cam, 8);
+    let mut small_det = Detector::new(small_cam, deck, DetectorConfig::for_camera(&small_cam, &deck));
+    c.bench_function("detect_640x480/tracked", |b| {
+        let mut k = 0;
+        b.iter_custom(|iters| tracked(&mut small_det, &small_frames, &mut k, iters))
+    });
     let mut group = c.benchmark_group("detect_3280x2464");
     let mut k = 0;
     group.bench_function("full_frame", |b| {
@@ -46,18 +68,7 @@ fn main() {
     // regions around them are searched.
     let mut k = 0;
     group.bench_function("tracked", |b| {
-        b.iter_custom(|iters| {
-            let mut total = std::time::Duration::ZERO;
-            for _ in 0..iters {
-                k = (k + 1) % frames.len();
-                det.detect_full(frames[k].view()); // sets the tracking state (not timed)
-                let t0 = Instant::now();
-                let set = det.detect(frames[k].view());
-                total += t0.elapsed();
-                assert!(set.tracked.get());
-            }
-            total
-        })
+        b.iter_custom(|iters| tracked(&mut det, &frames, &mut k, iters))
     });
     group.finish();
     c.final_summary();

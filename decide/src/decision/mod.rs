@@ -148,13 +148,10 @@ const MAX_BAND_SCALE: f64 = 3.0;
 /// as an unreliable one by a new commitment").
 const SUSPECT_BAND_SCALE: f64 = 2.0;
 /// What a new commitment widens the deviation of an angle whose band is unreliable by, on top
-/// of its measured scale, and the scaled heave-rate deviation of an unreliable heave channel
-/// (`Margins::unreliable_band_factor`): such a band has missed by more than `MAX_BAND_SCALE` of
-/// its own deviations, and may again by as much. The heave rate too since a held-out sea state 5
-/// cleared 25.7 s into a series on a heave-rate band of 0.053 m/s whose value band had been
-/// measured 15 times too narrow, and met 0.79 m/s against a forecast of 0.18 (BENCHMARKS.md,
-/// "An unreliable heave band's rate widened by a new commitment").
-const UNRELIABLE_BAND_FACTOR: f64 = MAX_BAND_SCALE;
+/// of its measured scale (`Margins::unreliable_angle_factor`): such a band has missed by more
+/// than `MAX_BAND_SCALE` of its own deviations, and may again by as much. (A rate has its own
+/// judges, and a new commitment takes it as far off as its value: `Margins::rate_as_value`.)
+const UNRELIABLE_ANGLE_FACTOR: f64 = MAX_BAND_SCALE;
 /// The band's scale before there is evidence (forecasts shown, never a clearance): the
 /// autoregressive predictor's raw 95 % band held about 87 % of the truths 2 s ahead on the
 /// development seas (BENCHMARKS "Deck-motion prediction"); 1.5 widens it to about what the
@@ -2045,7 +2042,7 @@ mod tests {
         assert!(!m.band_suspect(HEAVE));
     }
 
-    /// A new commitment widens an angle whose band is unreliable by `UNRELIABLE_BAND_FACTOR`
+    /// A new commitment widens an angle whose band is unreliable by `UNRELIABLE_ANGLE_FACTOR`
     /// on top of its measured scale (the same risk as the band that much wider, judged as
     /// measured); an angle within `MAX_BAND_SCALE`, and every judgement but a commitment's, as
     /// measured.
@@ -2076,19 +2073,19 @@ mod tests {
             m.band_scale[k] = unreliable;
             let widened = risk(&m, commit);
             assert!(widened > risk(&m, as_measured), "channel {k}");
-            m.band_scale[k] = unreliable * UNRELIABLE_BAND_FACTOR;
+            m.band_scale[k] = unreliable * UNRELIABLE_ANGLE_FACTOR;
             assert_eq!(widened, risk(&m, as_measured), "channel {k}");
         }
     }
 
-    /// A new commitment widens the scaled heave-rate deviation of a heave channel whose band is
-    /// unreliable (here its value's, measured more than `MAX_BAND_SCALE` times too narrow) by
-    /// `UNRELIABLE_BAND_FACTOR`, as if the rate's band had been measured that much wider; a
-    /// channel within `MAX_BAND_SCALE`, and every judgement but a commitment's, as measured;
-    /// the spread of the rate's misses stays the floor.
+    /// A new commitment takes the rate of a channel whose band is unreliable (here its value's,
+    /// measured more than `MAX_BAND_SCALE` times too narrow) as far off as its value: the same
+    /// risk as the rate's band measured that much too narrow; a channel within
+    /// `MAX_BAND_SCALE`, a rate band measured wider than the value's, and every judgement but
+    /// a commitment's, as measured; the spread of the rate's misses stays the floor.
     #[test]
-    fn a_new_commitment_widens_an_unreliable_heave_channels_rate() {
-        let (d, mut m, limits) = calm_sea_models();
+    fn a_new_commitment_takes_an_unreliable_channels_rate_as_far_off_as_its_value() {
+        let (d, m, limits) = calm_sea_models();
         // No autopilot errors: the rate's own deviation alone.
         let d = LandingDecider::new(DecisionConfig {
             vertical_speed_error_mps: 0.0,
@@ -2102,24 +2099,38 @@ mod tests {
             ..d.commit_margins(&m, 60.0)
         };
         let as_measured = Margins::NONE;
-        let heave = &m.tracks[HEAVE];
-        let largest = times().map(|t| heave.rate(t).abs()).fold(0.0, f64::max);
-        let widest = times().map(|t| heave.rate_std(t)).fold(0.0, f64::max);
-        let mut tight = limits;
-        tight[5] = largest + 4.0 * widest;
-        m.rate_miss_std[HEAVE] = 0.0;
-        let risk = |m: &Models, margins: Margins| d.exceedance_risk_judging(m, times(), &tight, margins);
-        m.band_scale[HEAVE] = MAX_BAND_SCALE;
-        assert_eq!(risk(&m, commit), risk(&m, as_measured), "within: as measured");
-        m.band_scale[HEAVE] = MAX_BAND_SCALE + 0.5;
-        let widened = risk(&m, commit);
-        assert!(widened > 10.0 * risk(&m, as_measured), "{widened}");
-        m.rate_band_scale[HEAVE] = UNRELIABLE_BAND_FACTOR;
-        assert_eq!(widened, risk(&m, as_measured));
-        // The misses' spread wider still: it is the deviation either way.
-        m.rate_band_scale[HEAVE] = 1.0;
-        m.rate_miss_std[HEAVE] = 10.0 * widest;
-        assert_eq!(risk(&m, commit), risk(&m, as_measured));
+        let unreliable = MAX_BAND_SCALE + 0.5;
+        for k in [ROLL, PITCH, HEAVE] {
+            let mut m = m.clone();
+            let track = &m.tracks[k];
+            let largest = times().map(|t| track.rate(t).abs()).fold(0.0, f64::max);
+            let widest = times().map(|t| track.rate_std(t)).fold(0.0, f64::max);
+            // The angles out of reach, the rate's limit four of its stated deviations beyond
+            // its largest forecast.
+            let mut tight = limits;
+            tight[..3].fill(1e3);
+            tight[3 + k] = largest + 4.0 * widest;
+            m.rate_miss_std[k] = 0.0;
+            let risk = |m: &Models, margins: Margins| d.exceedance_risk_judging(m, times(), &tight, margins);
+            m.band_scale[k] = MAX_BAND_SCALE;
+            assert_eq!(
+                risk(&m, commit),
+                risk(&m, as_measured),
+                "channel {k} within: as measured"
+            );
+            m.band_scale[k] = unreliable;
+            let widened = risk(&m, commit);
+            assert!(widened > 10.0 * risk(&m, as_measured), "channel {k}: {widened}");
+            m.rate_band_scale[k] = unreliable;
+            assert_eq!(widened, risk(&m, as_measured), "channel {k}");
+            // A rate band measured wider than the value's: as measured.
+            m.rate_band_scale[k] = 2.0 * unreliable;
+            assert_eq!(risk(&m, commit), risk(&m, as_measured), "channel {k}");
+            // The misses' spread wider still: it is the deviation either way.
+            m.rate_band_scale[k] = 1.0;
+            m.rate_miss_std[k] = 10.0 * unreliable * widest;
+            assert_eq!(risk(&m, commit), risk(&m, as_measured), "channel {k}");
+        }
     }
 
     /// A channel whose band is unreliable (measured more than `MAX_BAND_SCALE` times too

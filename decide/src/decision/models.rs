@@ -72,16 +72,22 @@ impl Models {
     /// millimetres per second, 4 to 80 times short of its misses and varying from fit to fit;
     /// the misses themselves do not depend on what each fit stated.
     pub(super) fn rate_std(&self, k: usize, t: f64) -> f64 {
-        self.rate_std_judging(k, t, 1.0)
+        self.rate_std_judging(k, t, false)
     }
 
-    /// [`Self::rate_std`] with the scaled deviation of a channel whose band is unreliable
-    /// widened by `unreliable_factor` (a new commitment's `Margins::unreliable_band_factor`);
-    /// the spread of its misses stays the floor.
-    pub(super) fn rate_std_judging(&self, k: usize, t: f64, unreliable_factor: f64) -> f64 {
-        let scaled = self.rate_band_scale[k] * self.tracks[k].rate_std(t);
-        if self.band_unreliable(k) {
-            (unreliable_factor * scaled).max(self.rate_miss_std[k])
+    /// [`Self::rate_std`], with `as_value` (a new commitment's `Margins::rate_as_value`) the
+    /// rate of a channel whose band is unreliable scaled at least as much as its value's band:
+    /// one model states both, from one innovation, and a value that missed by 15 of its
+    /// deviations says its rate may too. The spread of its misses stays the floor.
+    pub(super) fn rate_std_judging(&self, k: usize, t: f64, as_value: bool) -> f64 {
+        let unreliable = self.band_unreliable(k);
+        let scale = match unreliable && as_value {
+            true => self.rate_band_scale[k].max(self.band_scale[k]),
+            false => self.rate_band_scale[k],
+        };
+        let scaled = scale * self.tracks[k].rate_std(t);
+        if unreliable {
+            scaled.max(self.rate_miss_std[k])
         } else {
             scaled
         }
@@ -356,10 +362,12 @@ pub(super) struct Margins {
     /// of its own, has its rate judged by its history too (`Models::judged_by_history_above`).
     pub(super) unreliable_band_scale: f64,
     /// What the deviation of an angle (roll, pitch) whose value band has been measured more
-    /// than `MAX_BAND_SCALE` times too narrow is multiplied by, on top of its measured scale,
-    /// and the scaled heave-rate deviation of a heave channel whose band (value or rate) has
-    /// (1: judged as measured; a new commitment's: `UNRELIABLE_BAND_FACTOR`).
-    pub(super) unreliable_band_factor: f64,
+    /// than `MAX_BAND_SCALE` times too narrow is multiplied by, on top of its measured scale
+    /// (1: judged as measured; a new commitment's: `UNRELIABLE_ANGLE_FACTOR`).
+    pub(super) unreliable_angle_factor: f64,
+    /// Whether the rate of a channel whose band is unreliable is scaled at least as much as its
+    /// value's band (`Models::rate_std_judging`; a new commitment's).
+    pub(super) rate_as_value: bool,
 }
 
 impl Margins {
@@ -369,7 +377,8 @@ impl Margins {
         heave_rate_mps: 0.0,
         risk: None,
         unreliable_band_scale: MAX_BAND_SCALE,
-        unreliable_band_factor: 1.0,
+        unreliable_angle_factor: 1.0,
+        rate_as_value: false,
     };
 }
 
@@ -745,13 +754,15 @@ impl LandingDecider {
             heave_rate_mps: c.heave_rate_margin_mps,
             risk: banded.then_some(c.risk_per_touchdown),
             unreliable_band_scale: MAX_BAND_SCALE,
-            unreliable_band_factor: 1.0,
+            unreliable_angle_factor: 1.0,
+            rate_as_value: false,
         }
     }
 
     /// The margins of a new commitment at `now`: an entry's, with a suspect band
-    /// (`Models::band_suspect`) judged as an unreliable one, an unreliable band widened
-    /// (`UNRELIABLE_BAND_FACTOR`: angles, and the heave rate of an unreliable heave channel),
+    /// (`Models::band_suspect`) judged as an unreliable one, an unreliable angle's band widened
+    /// (`UNRELIABLE_ANGLE_FACTOR`) and an unreliable channel's rate taken as far off as its
+    /// value (`Margins::rate_as_value`),
     /// and within `early_window_s` of when the decision could first clear
     /// (`LandingDecider::early_since`) at `early_risk_per_touchdown`. The touchdown's last
     /// chance judges the band as it is measured then, and a suspect one's next misses often
@@ -764,7 +775,8 @@ impl LandingDecider {
             .is_none_or(|since| now - since < c.early_window_s);
         Margins {
             unreliable_band_scale: SUSPECT_BAND_SCALE,
-            unreliable_band_factor: UNRELIABLE_BAND_FACTOR,
+            unreliable_angle_factor: UNRELIABLE_ANGLE_FACTOR,
+            rate_as_value: true,
             risk: entry.risk.map(|r| {
                 if early {
                     r.min(c.early_risk_per_touchdown)

@@ -2042,6 +2042,16 @@ mod tests {
         assert!(!m.band_suspect(HEAVE));
     }
 
+    /// A new commitment's margins at 60 s with a band taken as unreliable where every other
+    /// judgement takes it (beyond `MAX_BAND_SCALE`, not `SUSPECT_BAND_SCALE`): what differs from
+    /// `Margins::NONE` on an unreliable band is then only how a commitment widens it.
+    fn widening_commit_margins(d: &LandingDecider, m: &Models) -> Margins {
+        Margins {
+            unreliable_band_scale: MAX_BAND_SCALE,
+            ..d.commit_margins(m, 60.0)
+        }
+    }
+
     /// A new commitment widens an angle whose band is unreliable by `UNRELIABLE_ANGLE_FACTOR`
     /// on top of its measured scale (the same risk as the band that much wider, judged as
     /// measured); an angle within `MAX_BAND_SCALE`, and every judgement but a commitment's, as
@@ -2050,10 +2060,7 @@ mod tests {
     fn a_new_commitment_widens_an_unreliable_angle_band() {
         let (d, mut m, limits) = calm_sea_models();
         let times = || (0..=40).map(|k| 60.0 + 0.05 * k as f64);
-        let commit = Margins {
-            unreliable_band_scale: MAX_BAND_SCALE,
-            ..d.commit_margins(&m, 60.0)
-        };
+        let commit = widening_commit_margins(&d, &m);
         let as_measured = Margins::NONE;
         // Each angle's limit four unreliable deviations beyond its forecast's largest value:
         // near enough that a wider band costs risk.
@@ -2094,10 +2101,7 @@ mod tests {
         })
         .unwrap();
         let times = || (0..=40).map(|k| 60.0 + 0.05 * k as f64);
-        let commit = Margins {
-            unreliable_band_scale: MAX_BAND_SCALE,
-            ..d.commit_margins(&m, 60.0)
-        };
+        let commit = widening_commit_margins(&d, &m);
         let as_measured = Margins::NONE;
         let unreliable = MAX_BAND_SCALE + 0.5;
         for k in [ROLL, PITCH, HEAVE] {

@@ -753,20 +753,18 @@ impl LandingDecider {
             rate_dps: c.rate_margin_dps,
             heave_rate_mps: c.heave_rate_margin_mps,
             risk: banded.then_some(c.risk_per_touchdown),
-            unreliable_band_scale: MAX_BAND_SCALE,
-            unreliable_angle_factor: 1.0,
-            rate_as_value: false,
+            // Bands judged as measured.
+            ..Margins::NONE
         }
     }
 
     /// The margins of a new commitment at `now`: an entry's, with a suspect band
     /// (`Models::band_suspect`) judged as an unreliable one, an unreliable angle's band widened
     /// (`UNRELIABLE_ANGLE_FACTOR`) and an unreliable channel's rate taken as far off as its
-    /// value (`Margins::rate_as_value`),
-    /// and within `early_window_s` of when the decision could first clear
-    /// (`LandingDecider::early_since`) at `early_risk_per_touchdown`. The touchdown's last
-    /// chance judges the band as it is measured then, and a suspect one's next misses often
-    /// make it unreliable.
+    /// value (`Margins::rate_as_value`), and within `early_window_s` of when the decision could
+    /// first clear (`LandingDecider::early_since`) at `early_risk_per_touchdown`. The
+    /// touchdown's last chance judges the band as it is measured then, and a suspect one's next
+    /// misses often make it unreliable.
     pub(super) fn commit_margins(&self, m: &Models, now: f64) -> Margins {
         let c = &self.config;
         let entry = self.entry_margins(m);

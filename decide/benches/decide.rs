@@ -65,27 +65,27 @@ fn main() {
         })
     });
     group.finish();
-    // The autoregressive fit's normal equations for one channel (order 48 on 120 s at 5 Hz):
-    // from lagged products (what the fit uses) beside multiplying the design matrix out (what
-    // it did before), in one run.
+    // The autoregressive fit's normal equations for one channel (the default order on 120 s at
+    // 5 Hz): from lagged products (what the fit uses) beside multiplying the design matrix out
+    // (what it did before), in one run.
     let mut group = c.benchmark_group("ar_normal_equations");
     let x: Vec<f64> = (0..600).map(|k| deck_at(k as f64 * 0.2).roll_deg).collect();
-    const ORDER: usize = 48;
+    let order = DecisionConfig::default().ar_order;
     group.bench_function("lagged_products", |b| {
-        b.iter(|| deckwatch_decide::predict::normal_equations(black_box(&x), ORDER))
+        b.iter(|| deckwatch_decide::predict::normal_equations(black_box(&x), order))
     });
     group.bench_function("design_product", |b| {
         b.iter(|| {
             let x = black_box(&x);
-            let rows = x.len() - ORDER;
-            let a = nalgebra::DMatrix::from_fn(rows, ORDER + 1, |r, i| {
-                if i == ORDER {
+            let rows = x.len() - order;
+            let a = nalgebra::DMatrix::from_fn(rows, order + 1, |r, i| {
+                if i == order {
                     1.0
                 } else {
-                    x[r + ORDER - 1 - i]
+                    x[r + order - 1 - i]
                 }
             });
-            let y = nalgebra::DVector::from_fn(rows, |r, _| x[r + ORDER]);
+            let y = nalgebra::DVector::from_fn(rows, |r, _| x[r + order]);
             (a.tr_mul(&a), a.tr_mul(&y))
         })
     });
@@ -94,7 +94,7 @@ fn main() {
     let y: Vec<f64> = t.iter().map(|&t| deck_at(t).roll_deg).collect();
     group.bench_function("whole_fit_one_channel", |b| {
         b.iter(|| {
-            deckwatch_decide::predict::ArModel::fit(black_box(&t), black_box(&y), ORDER, 0.2, 25.0, 0.5)
+            deckwatch_decide::predict::ArModel::fit(black_box(&t), black_box(&y), order, 0.2, 25.0, 0.5)
         })
     });
     // The same with a 2 s gap ending 1 s before the newest sample: the forecast starts from
@@ -110,7 +110,7 @@ fn main() {
             deckwatch_decide::predict::ArModel::fit(
                 black_box(&t_gap),
                 black_box(&y_gap),
-                ORDER,
+                order,
                 0.2,
                 25.0,
                 0.5,

@@ -383,6 +383,13 @@ mod tests {
     }
 }
 
+/// Rows of the fit per coefficient an autoregression over a history with gaps keeps at least
+/// (one without gaps: two, the three samples per coefficient of a short history). With two, the
+/// lowered fits of the fault options' gappy histories sent twice as many committed touchdowns
+/// around as 48 lags did (105 against 53 on the development seeds); with four, 66 (BENCHMARKS.md,
+/// "Forecasts from 19.2 s of lags").
+const GAPPED_ROWS_PER_COEF: usize = 4;
+
 /// An autoregressive predictor of one angle: the history resampled on a uniform grid, `x_k` as a
 /// linear combination of the `order` values before it (least squares over the window), run
 /// forward to give the prediction. Narrow-band motion whose amplitudes drift (an irregular sea)
@@ -444,21 +451,30 @@ impl ArModel {
         let n = ((t[n_in - 1] - t[0]) / dt).floor() as usize + 1;
         // A short history fits a lower order (at least three samples per coefficient): the
         // first forecasts after a warm-up are coarser, and their stated variance says so.
-        let order = order.min(n.saturating_sub(2) / 3);
-        if order < 2 {
-            return None;
-        }
+        let mut order = order.min(n.saturating_sub(2) / 3);
         let (x, unmeasured) = resample(t, y, dt, n, max_bridge_s);
         // x_k = c + sum_i a_i x_{k-i}: the intercept keeps an offset deck exact.
         // A row with a grid point inside a gap (its target or a lag) is left out: a gap's
         // straight line is no motion the deck made, and rows on it pulled the coefficients (a
         // heave-rate forecast 0.33 m/s short of the truth 2 s ahead: BENCHMARKS.md, "An unsafe
-        // commit in main on held-out seeds").
-        let gap_rows = gap_rows(&unmeasured, order);
-        let rows = n - order - gap_rows.len();
-        if rows < 2 * (order + 1) {
+        // commit in main on held-out seeds"). Each gap takes as many rows as there are lags, so
+        // a history with gaps fits a lower order too, the highest that keeps `GAPPED_ROWS_PER_COEF`
+        // rows per coefficient: with 96 lags the gaps of a frozen camera and a lost attitude
+        // stream three times a minute left no fit at all (BENCHMARKS.md, "Forecasts from 19.2 s
+        // of lags").
+        let rows_per_coef = |gap_rows: &[usize]| match gap_rows.is_empty() {
+            true => 2,
+            false => GAPPED_ROWS_PER_COEF,
+        };
+        let mut gap_rows = self::gap_rows(&unmeasured, order);
+        while order >= 2 && n - order - gap_rows.len() < rows_per_coef(&gap_rows) * (order + 1) {
+            order -= 1;
+            gap_rows = self::gap_rows(&unmeasured, order);
+        }
+        if order < 2 {
             return None;
         }
+        let rows = n - order - gap_rows.len();
         let (mut ata, mut atb) = normal_equations(&x, order);
         // Each such row taken back out: a rank-one downdate in place, one row vector reused.
         let mut row = DVector::zeros(order + 1);
@@ -1106,6 +1122,40 @@ mod ar_tests {
             bridged.fit_rms,
             fitted.fit_rms
         );
+    }
+
+    /// Gaps that leave too few rows for the order asked for lower the order instead of leaving
+    /// no fit: 120 s on the 0.2 s grid with a 3 s gap every 20 s, where every row of 96 lags
+    /// reaches into a gap. The fit is of the highest order with `GAPPED_ROWS_PER_COEF` rows per
+    /// coefficient, and the same as asking for that order.
+    #[test]
+    fn gaps_that_leave_too_few_rows_lower_the_order() {
+        let (a1, a2, sigma, dt) = (1.6, -0.8, 0.1, 0.2);
+        let x = ar2_process(601, [a1, a2], sigma, 11_000_000);
+        let in_gap = |k: usize| k % 100 >= 85;
+        let kept: Vec<usize> = (0..601).filter(|&k| !in_gap(k)).collect();
+        let t: Vec<f64> = kept.iter().map(|&k| k as f64 * dt).collect();
+        let y: Vec<f64> = kept.iter().map(|&k| x[k]).collect();
+        let lowered = ArModel::fit(&t, &y, 96, dt, 2.0, 0.5).expect("a lower order fits");
+        let order = lowered.order();
+        assert!((2..96).contains(&order), "order {order}");
+        let rows = |p: usize| 601 - p - gap_rows(&resample(&t, &y, dt, 601, 0.5).1, p).len();
+        let per_coef = GAPPED_ROWS_PER_COEF;
+        assert!(
+            rows(order) >= per_coef * (order + 1),
+            "{} rows for order {order}",
+            rows(order)
+        );
+        assert!(
+            rows(order + 1) < per_coef * (order + 2),
+            "order {} fits too",
+            order + 1
+        );
+        let asked = ArModel::fit(&t, &y, order, dt, 2.0, 0.5).unwrap();
+        assert_eq!(lowered.coef, asked.coef);
+        // Without the gaps the order asked for fits.
+        let all: Vec<f64> = (0..601).map(|k| k as f64 * dt).collect();
+        assert_eq!(ArModel::fit(&all, &x, 96, dt, 2.0, 0.5).unwrap().order(), 96);
     }
 
     #[test]

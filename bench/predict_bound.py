@@ -22,6 +22,7 @@ not the same seas as `decide-eval --seeds`. Calm windows and safe touchdowns are
 Usage: python3 bench/predict_bound.py [--lags-s 9.6] [--joint] [--sea-states 3,4,5,6]
        [--seeds 1,2] [--headings 0,110,160] [--minutes 10] [--risk 1e-3] [--band-scale 1]
        [--noise-deg 0.05] [--heave-noise-m 0.02] [--coherence 1] [--fitted]
+       [--vertical-speed-error-mps 0] [--attitude-error-deg 0]
 `--fitted`: instead of the bound, the rate forecast errors of autoregressions fitted on the noisy
 samples as the decider fits them, one per channel (what the decider does) and one of the three
 channels together.
@@ -220,15 +221,19 @@ def run(sea_state, seed, heading, args):
     for i, t in enumerate(decisions):
         worst = [0.0] * 6
         for j in range(len(horizons)):
-            roll = (mean["roll"][i, 0, j], scale * std["roll"][i, 0, j])
-            pitch = (mean["pitch"][i, 0, j], scale * std["pitch"][i, 0, j])
+            roll = (mean["roll"][i, 0, j], math.hypot(scale * std["roll"][i, 0, j], args.attitude_error_deg))
+            pitch = (mean["pitch"][i, 0, j], math.hypot(scale * std["pitch"][i, 0, j], args.attitude_error_deg))
             tails = (
                 outside(*roll, LIMITS["roll"]),
                 outside(*pitch, LIMITS["pitch"]),
                 tilt_outside(roll, pitch, LIMITS["tilt"]),
                 outside(mean["roll"][i, 1, j], scale * std["roll"][i, 1, j], LIMITS["roll_rate"]),
                 outside(mean["pitch"][i, 1, j], scale * std["pitch"][i, 1, j], LIMITS["pitch_rate"]),
-                outside(mean["heave"][i, 1, j], scale * std["heave"][i, 1, j], LIMITS["heave_rate"]),
+                outside(
+                    mean["heave"][i, 1, j],
+                    math.hypot(scale * std["heave"][i, 1, j], args.vertical_speed_error_mps),
+                    LIMITS["heave_rate"],
+                ),
             )
             worst = [max(w, p) for w, p in zip(worst, tails)]
             if sum(worst) > args.risk:
@@ -332,6 +337,18 @@ def main():
     p.add_argument("--minutes", type=float, default=10.0)
     p.add_argument("--risk", type=float, default=1e-3, help="[decide] risk_per_touchdown")
     p.add_argument("--band-scale", type=float, default=1.0, help="widen the honest band by this factor")
+    p.add_argument(
+        "--vertical-speed-error-mps",
+        type=float,
+        default=0.0,
+        help="[decide] vertical_speed_error_mps: added to the heave rate's deviation in quadrature, as the decider adds it",
+    )
+    p.add_argument(
+        "--attitude-error-deg",
+        type=float,
+        default=0.0,
+        help="[decide] vehicle_attitude_error_deg: added to roll's and pitch's deviations in quadrature",
+    )
     p.add_argument("--noise-deg", type=float, default=0.05)
     p.add_argument("--heave-noise-m", type=float, default=0.02)
     p.add_argument(

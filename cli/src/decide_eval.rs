@@ -369,12 +369,13 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
     let n = frames(&a, minutes);
     if !a.json {
         println!(
-            "{} min at {} Hz per series, {} motion, noise {} deg, heave x{}: camera height noise {} m, autopilot height noise {} m, drift {} m/s, fused over {} s; dropout {}, outliers {}, NaN {}, stale {}, frozen {}/min of {} s, jitter {} ms; vehicle {} (autopilot noise {} deg, bias {:?} deg, timing {} ms, {} outages/min of {} s); capacity roll/pitch {}/{} deg, rates {}/{} deg/s, heave {:?} rate {} m/s, touchdown {} s",
+            "{} min at {} Hz per series, {} motion, noise {} deg, heave x{}: camera height noise {} m, autopilot height noise {} m, drift {} m/s, fused over {} s; dropout {}, outliers {}, NaN {}, stale {}, frozen {}/min of {} s, jitter {} ms; vehicle {} (autopilot noise {} deg, bias {:?} deg, timing {} ms, {} outages/min of {} s); capacity roll/pitch {}/{} deg, rates {}/{} deg/s, heave {:?} rate {} m/s, touchdown {} s; the decider states the autopilot's vertical-speed error {} m/s and attitude error {} deg",
             minutes, a.rate, a.motion_csv.as_ref().map_or(a.motion.name().to_string(), |p| p.display().to_string()), a.noise_deg, a.heave_scale, a.heave_noise_m, a.vehicle_height_noise_m, a.vehicle_height_drift_mps, pipeline.vehicle.height_fusion_s, a.dropout, a.outliers, a.nan_share, a.stale_share,
             a.frozen_per_min, a.frozen_s, a.jitter_ms, clap::ValueEnum::to_possible_value(&a.vehicle).map(|v| v.get_name().to_string()).unwrap_or_default(), a.vehicle_noise_deg,
             a.vehicle_bias_deg, a.vehicle_time_error_ms, a.vehicle_outages_per_min, a.vehicle_outage_s, config.max_abs_roll_deg,
             config.max_abs_pitch_deg, config.max_abs_roll_rate_dps, config.max_abs_pitch_rate_dps, config.heave,
-            config.max_abs_heave_rate_mps, config.touchdown_s
+            config.max_abs_heave_rate_mps, config.touchdown_s, config.vertical_speed_error_mps,
+            config.vehicle_attitude_error_deg
         );
         // UNSAFE: clearances into a touchdown the true deck broke the capacity in; touched:
         // those of them not sent around before the point of no return.

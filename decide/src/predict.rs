@@ -900,7 +900,7 @@ fn truncated_solve(ata: DMatrix<f64>, atb: &DVector<f64>) -> Option<DVector<f64>
 }
 
 /// `a` scaled so that every root of `z^p - a_1 z^(p-1) - ... - a_p` is within
-/// `MAX_ROOT_RADIUS` (unchanged if they are); None if the coefficients are not finite.
+/// `MAX_ROOT_RADIUS` (unchanged if they are); None when [`root_radius_bound`] finds none.
 fn with_roots_within_max_radius(a: &[f64]) -> Option<Vec<f64>> {
     let radius = root_radius_bound(a)?;
     let r = (MAX_ROOT_RADIUS / radius).min(1.0);
@@ -917,7 +917,8 @@ const ROOT_RADIUS_TOLERANCE: f64 = 1e-9;
 
 /// A radius that every root of `z^p - a_1 z^(p-1) - ... - a_p` lies within, at most
 /// `ROOT_RADIUS_TOLERANCE` (relative) above the largest root's modulus, or `MAX_ROOT_RADIUS`
-/// if they all lie within that; None if the coefficients are not finite. Bisection with the
+/// if they all lie within that; None if the coefficients are not finite, or if the step-down
+/// cannot place the roots even at 256 times Cauchy's bound (rounding). Bisection with the
 /// step-down test ([`roots_within`]), `O(p^2)` a step: the companion matrix's eigenvalues took
 /// 2.3 ms at 96 lags, three quarters of a fit, and nalgebra's did not converge on some
 /// matrices (a root at every 96th of the circle: BENCHMARKS.md, "The roots' radius by

@@ -10,6 +10,7 @@
 //! - `deckwatch sim markers` / `deckwatch estimate-table`: the marker-table tools.
 //! - `deckwatch sweep`: simulate a scenario at the level of marker points and run every variant of
 //!   the paper's estimator on it, side by side (accuracy and per-frame cost).
+//! - `deckwatch sim motion`: a ship-motion model's deck motion as a motion file (`--motion-csv`).
 //! - `deckwatch sim record`: render a scenario into a recording with ground truth (optionally
 //!   also as frames for libcamera's virtual camera).
 //! - `deckwatch cameras`: the cameras libcamera sees, their formats and controls.
@@ -49,6 +50,7 @@ mod inproc;
 mod launch;
 mod pipeline;
 mod predict_eval;
+mod sim_motion;
 mod soak;
 mod tables;
 mod trials;
@@ -156,6 +158,9 @@ enum SimCommand {
     Record(Box<RecordArgs>),
     /// Write a scenario's exact (or noisy) marker pixels with ground truth as a marker table.
     Markers(Box<tables::MarkersArgs>),
+    /// Write a ship-motion model's deck motion as a motion file (`--motion-csv` of decide-eval,
+    /// predict-eval and trials): `spectrum`, `nonlinear-roll`, `short-crested`.
+    Motion(Box<sim_motion::MotionArgs>),
 }
 
 #[derive(clap::Args)]
@@ -470,6 +475,9 @@ fn main() -> ExitCode {
         Command::Sim {
             command: SimCommand::Record(a),
         } => record(*a),
+        Command::Sim {
+            command: SimCommand::Motion(a),
+        } => sim_motion::run(*a),
         Command::Recording {
             command: RecordingCommand::Check { dir },
         } => check_recording(&dir),

@@ -548,6 +548,24 @@ struct EncounteredWave {
     pitch_deg: [f64; 2],
     /// Heave: `heave_m[0] sin + heave_m[1] cos`.
     heave_m: [f64; 2],
+    /// The wave itself: its angular frequency (rad/s) and amplitude (m), for a roll model of its
+    /// own on the same waves ([`WaveEncounter`]).
+    wave_rate: f64,
+    amplitude_m: f64,
+}
+
+/// One wave of a spectrum sea as the ship meets it: what a response model of its own needs
+/// (`ship::nonlinear_roll` forces its roll equation with these waves' slopes, so its pitch and
+/// heave stay the spectrum sea's). The wave's slope across the ship goes as
+/// `sin(encounter_rad_s t + phase_rad)`, as the spectrum sea's roll does.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WaveEncounter {
+    /// The wave's own angular frequency (rad/s) and amplitude (m).
+    pub wave_rad_s: f64,
+    pub amplitude_m: f64,
+    /// Its encounter angular frequency (rad/s) and phase (rad).
+    pub encounter_rad_s: f64,
+    pub phase_rad: f64,
 }
 
 impl EncounteredWave {
@@ -618,6 +636,8 @@ impl SpectrumShipMotion {
                 roll_deg: slope_deg * resonance,
                 pitch_deg: EncounteredWave::shifted(0.6 * slope_deg * low_pass(wpitch), 0.5),
                 heave_m: EncounteredWave::shifted(a * low_pass(wheave), -0.3),
+                wave_rate: w,
+                amplitude_m: a,
             });
         }
         let yaw_deg = sinusoids(&mut rng, &SEA_STATE_6_YAW, hs_m / 5.0);
@@ -639,8 +659,18 @@ impl SpectrumShipMotion {
         sea_state_waves(sea_state).map(|(hs, tp)| Self::jonswap_from(hs, tp, seed, mean_heading_deg))
     }
 
+    /// The waves as the ship meets them.
+    pub fn encounters(&self) -> impl Iterator<Item = WaveEncounter> + '_ {
+        self.waves.iter().map(|w| WaveEncounter {
+            wave_rad_s: w.wave_rate,
+            amplitude_m: w.amplitude_m,
+            encounter_rad_s: w.rate,
+            phase_rad: w.phase,
+        })
+    }
+
     /// The heading of the waves off the bow (rad): wandering +-25 deg over 10 min about the mean.
-    fn heading(&self, t_s: f64) -> f64 {
+    pub fn wave_heading_rad(&self, t_s: f64) -> f64 {
         self.mean_heading + (25.0 * (TAU * t_s / 600.0).sin()).to_radians()
     }
 
@@ -665,7 +695,7 @@ impl SpectrumShipMotion {
 
 impl MotionProfile for SpectrumShipMotion {
     fn sample(&self, t_s: f64) -> MotionSample {
-        let chi = self.heading(t_s);
+        let chi = self.wave_heading_rad(t_s);
         let [roll, pitch, heave_m] = self.motion(t_s);
         MotionSample {
             t_s,

@@ -3,10 +3,12 @@
 //!
 //! The file is CSV with a header naming the columns `time_s`, `roll_deg`, `pitch_deg`,
 //! `heave_m` and optionally `yaw_deg`, in any order. Angles are the deck's attitude in W, the
-//! roll/pitch/yaw of README's "Recording format" (the ground truth's convention); heave is the deck centre's height (m, up). Times strictly increase
+//! roll/pitch/yaw of docs/recording.md's "Recording format" (the ground truth's convention); heave is the deck centre's height (m, up). Times strictly increase
 //! and no step is longer than [`MAX_STEP_S`] (at least 10 Hz, not necessarily uniform). Lines
 //! starting with `#` and blank lines are skipped. Between samples the motion is a cubic
 //! Hermite curve whose slopes are the neighbours' finite differences, so rates are continuous.
+//! [`write_motion_csv`] writes the same format (all five columns, `deckwatch sim motion`),
+//! checking each value by the reader's rules.
 
 use crate::motion::{MotionProfile, MotionSample, TrackingError};
 use deckwatch_common::Rpy;
@@ -36,6 +38,38 @@ pub struct RecordedShipMotion {
 }
 
 const COLUMNS: [&str; 5] = ["time_s", "roll_deg", "pitch_deg", "heave_m", "yaw_deg"];
+
+/// Whether `x` can be column `c` of [`COLUMNS`]: finite and within its range (deg, m, s).
+fn check_value(c: usize, x: f64) -> Result<(), String> {
+    let limit = match c {
+        0 => 1e9,
+        1..=2 => 90.0,
+        3 => 100.0,
+        _ => 360.0,
+    };
+    if x.is_finite() && x.abs() <= limit {
+        Ok(())
+    } else {
+        Err(format!(
+            "{} = {x} is not a finite value within +-{limit}",
+            COLUMNS[c]
+        ))
+    }
+}
+
+/// Whether a sample at `t_s` may follow one at `previous_s`: later, by at most [`MAX_STEP_S`].
+fn check_step(previous_s: f64, t_s: f64) -> Result<(), String> {
+    let step = t_s - previous_s;
+    if !(step > 0.0) {
+        return Err(format!("time {t_s} does not follow {previous_s}"));
+    }
+    if step > MAX_STEP_S {
+        return Err(format!(
+            "{step:.3} s after the sample before: the motion must be sampled at 10 Hz or faster (steps up to {MAX_STEP_S} s)"
+        ));
+    }
+    Ok(())
+}
 
 impl RecordedShipMotion {
     /// Reads a motion file.
@@ -107,39 +141,12 @@ impl RecordedShipMotion {
                 let x: f64 = fields[i]
                     .parse()
                     .map_err(|_| error(line, i + 1, format!("`{}` is not a number", fields[i])))?;
-                let limit = match c {
-                    0 => 1e9,
-                    1..=2 => 90.0,
-                    3 => 100.0,
-                    _ => 360.0,
-                };
-                if !(x.is_finite() && x.abs() <= limit) {
-                    return Err(error(
-                        line,
-                        i + 1,
-                        format!("{} = {x} is not a finite value within +-{limit}", COLUMNS[c]),
-                    ));
-                }
+                check_value(c, x).map_err(|problem| error(line, i + 1, problem))?;
                 *value = x;
             }
             if let Some(&previous) = t.last() {
-                let step = values[0] - previous;
-                if !(step > 0.0) {
-                    return Err(error(
-                        line,
-                        index[0].map_or(0, |i| i + 1),
-                        format!("time {} does not follow {previous}", values[0]),
-                    ));
-                }
-                if step > MAX_STEP_S {
-                    return Err(error(
-                        line,
-                        index[0].map_or(0, |i| i + 1),
-                        format!(
-                            "{step:.3} s after the sample before: the motion must be sampled at 10 Hz or faster (steps up to {MAX_STEP_S} s)"
-                        ),
-                    ));
-                }
+                check_step(previous, values[0])
+                    .map_err(|problem| error(line, index[0].map_or(0, |i| i + 1), problem))?;
             }
             t.push(values[0]);
             v.push([values[1], values[2], values[4], values[3]]);
@@ -195,6 +202,110 @@ impl RecordedShipMotion {
     }
 }
 
+/// One sample of a motion file: the deck's attitude in W (deg, CONVENTIONS.md §2) and its
+/// centre's height (m, up) at `time_s`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MotionRow {
+    pub time_s: f64,
+    pub roll_deg: f64,
+    pub pitch_deg: f64,
+    pub yaw_deg: f64,
+    pub heave_m: f64,
+}
+
+impl MotionRow {
+    /// The deck of a simulated sample.
+    pub fn of(sample: &MotionSample) -> Self {
+        let [roll_deg, pitch_deg, yaw_deg] = sample.attitude.to_degrees();
+        Self {
+            time_s: sample.t_s,
+            roll_deg,
+            pitch_deg,
+            yaw_deg,
+            heave_m: sample.deck_heave_m,
+        }
+    }
+
+    /// The values in [`COLUMNS`]' order.
+    fn values(&self) -> [f64; 5] {
+        [
+            self.time_s,
+            self.roll_deg,
+            self.pitch_deg,
+            self.heave_m,
+            self.yaw_deg,
+        ]
+    }
+}
+
+/// Decimals a written motion file keeps of every value (s, deg, m): it reads back within
+/// `0.5e-6` of what was written.
+pub const WRITTEN_DECIMALS: usize = 6;
+
+/// The text of a motion file holding `rows` (all five columns), after `comments` (each line of
+/// them as a `# ` line, which readers skip): the format [`RecordedShipMotion::parse`] reads. Each
+/// value is checked as written (rounded to [`WRITTEN_DECIMALS`]) by the reader's own rules, so
+/// what is written is read; `file` names the file in the errors, whose lines are the file's.
+pub fn motion_csv_text(
+    comments: &[String],
+    rows: &[MotionRow],
+    file: &str,
+) -> Result<String, MotionFileError> {
+    let mut text = String::new();
+    let mut line = 0;
+    for comment in comments {
+        for part in comment.lines() {
+            text += &format!("# {part}\n");
+            line += 1;
+        }
+    }
+    text += &COLUMNS.join(",");
+    text.push('\n');
+    line += 1;
+    let error = |line: usize, column: usize, problem: String| MotionFileError {
+        file: file.to_string(),
+        line,
+        column,
+        problem,
+    };
+    if rows.len() < 2 {
+        return Err(error(0, 0, "fewer than two samples".into()));
+    }
+    let mut previous_s = None;
+    for row in rows {
+        line += 1;
+        let mut fields = Vec::with_capacity(COLUMNS.len());
+        for (c, x) in row.values().into_iter().enumerate() {
+            let field = format!("{x:.WRITTEN_DECIMALS$}");
+            // What the reader will see: the rounded value (NaN and infinities fail its check).
+            let written: f64 = field.parse().unwrap_or(f64::NAN);
+            check_value(c, written).map_err(|problem| error(line, c + 1, problem))?;
+            if c == 0 {
+                if let Some(previous_s) = previous_s {
+                    check_step(previous_s, written).map_err(|problem| error(line, 1, problem))?;
+                }
+                previous_s = Some(written);
+            }
+            fields.push(field);
+        }
+        text += &fields.join(",");
+        text.push('\n');
+    }
+    Ok(text)
+}
+
+/// Writes [`motion_csv_text`] of `rows` to `path`.
+pub fn write_motion_csv(path: &Path, comments: &[String], rows: &[MotionRow]) -> Result<(), MotionFileError> {
+    let name = path.display().to_string();
+    let text = motion_csv_text(comments, rows, &name)?;
+    std::fs::write(path, text).map_err(|e| MotionFileError {
+        file: name,
+        line: 0,
+        column: 0,
+        problem: format!("cannot write: {e}"),
+    })
+}
+
 impl MotionProfile for RecordedShipMotion {
     /// Time counts from the file's first sample.
     fn sample(&self, t_s: f64) -> MotionSample {
@@ -239,6 +350,72 @@ mod tests {
         assert!((rate - 1.4 * (0.7 * tt).cos()).abs() < 0.02, "{rate}");
         let s = m.sample(t);
         assert!((s.attitude.to_degrees()[0] - r).abs() < 1e-9 && s.deck_heave_m == h);
+    }
+
+    #[test]
+    fn a_written_file_reads_back_as_written() {
+        // An irrational-ish motion at 25 Hz (steps that are not exact in decimal), with yaw.
+        let rows: Vec<MotionRow> = (0..500)
+            .map(|k| {
+                let t = k as f64 / 25.0;
+                MotionRow {
+                    time_s: t,
+                    roll_deg: 20.0 * (0.61 * t).sin() + 1e-7,
+                    pitch_deg: -3.0 * (0.9 * t + 0.3).cos(),
+                    yaw_deg: 1.5 * (0.05 * t).sin(),
+                    heave_m: 1.2 * (0.7 * t).sin() - 0.4 * (1.3 * t).cos(),
+                }
+            })
+            .collect();
+        let comments = vec!["deckwatch sim motion\nsecond line".to_string()];
+        let text = motion_csv_text(&comments, &rows, "m.csv").unwrap();
+        assert!(text.starts_with("# deckwatch sim motion\n# second line\ntime_s,roll_deg,"));
+        let read = RecordedShipMotion::parse(&text, "m.csv").unwrap();
+        assert_eq!(read.t.len(), rows.len());
+        let tolerance = 0.5e-6 + 1e-12;
+        for (k, row) in rows.iter().enumerate() {
+            assert!((read.t[k] - row.time_s).abs() <= tolerance);
+            // At its own samples the curve is the samples: roll, pitch, yaw, heave.
+            let [r, p, y, h] = read.at(read.t[k] - read.t[0]);
+            for (got, want) in [
+                (r, row.roll_deg),
+                (p, row.pitch_deg),
+                (y, row.yaw_deg),
+                (h, row.heave_m),
+            ] {
+                assert!((got - want).abs() <= tolerance, "row {k}: {got} vs {want}");
+            }
+        }
+        // Through a file too.
+        let path = std::env::temp_dir().join(format!("deckwatch-motion-{}.csv", std::process::id()));
+        write_motion_csv(&path, &comments, &rows).unwrap();
+        let loaded = RecordedShipMotion::load(&path);
+        let _ = std::fs::remove_file(&path);
+        assert_eq!(loaded.unwrap(), read);
+    }
+
+    #[test]
+    fn what_the_reader_would_refuse_is_not_written() {
+        let row = |t: f64, roll: f64| MotionRow {
+            time_s: t,
+            roll_deg: roll,
+            pitch_deg: 0.0,
+            yaw_deg: 0.0,
+            heave_m: 0.0,
+        };
+        let e = |rows: &[MotionRow]| motion_csv_text(&[], rows, "w.csv").unwrap_err().to_string();
+        assert!(e(&[row(0.0, 0.0)]).contains("fewer than two samples"));
+        assert!(e(&[row(0.0, 0.0), row(0.1, 91.0)]).contains("w.csv:3:2: roll_deg = 91"));
+        assert!(e(&[row(0.0, 0.0), row(0.1, f64::NAN)]).contains("w.csv:3:2"));
+        assert!(e(&[row(0.0, 0.0), row(0.2, 0.0)]).contains("w.csv:3:1: 0.200 s after"));
+        // Times that round to the same microsecond do not follow each other.
+        assert!(e(&[row(0.0, 0.0), row(1e-7, 0.0)]).contains("does not follow"));
+        let e = write_motion_csv(
+            Path::new("/nonexistent/m.csv"),
+            &[],
+            &[row(0.0, 0.0), row(0.1, 0.0)],
+        );
+        assert!(e.unwrap_err().to_string().contains("cannot write"));
     }
 
     #[test]

@@ -1,5 +1,5 @@
 //! The landing decision on a ship's motion from a CSV file (`time_s,roll_deg,pitch_deg,heave_m`,
-//! README "Ship motion from a file"), sampled at 10 Hz as a camera would see it: when it first
+//! docs/recording.md, "Ship motion from a file"), sampled at 10 Hz as a camera would see it: when it first
 //! clears, and what it said how often. The decider alone: the same calls the decide stage makes.
 //!
 //!     cargo run --example decide_on_attitudes -- ship.csv

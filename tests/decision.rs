@@ -219,7 +219,7 @@ fn ship_motion_from_a_file() {
     ]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    for predictor in ["persistence", "sinusoids", "ar"] {
+    for predictor in ["persistence", "ar"] {
         assert!(
             text.lines()
                 .any(|l| l.starts_with("all") && l.contains(predictor) && l.contains("roll_deg")),

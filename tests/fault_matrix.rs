@@ -222,7 +222,7 @@ fn every_fault_is_survived_and_never_cleared_on() {
         format!(
             "[bus]\ndomain = \"{domain}\"\n\
              [sim]\nscenario = \"ship\"\nframes = 100000\nrate = {RATE_HZ}\nsea_scale = 0.2\n\
-             [decide]\nmin_history_s = 10.0\nerror_memory_s = 6.0\nmax_age_ms = {}\n\
+             [decide]\nmax_age_ms = {}\n[decide.forecast]\nkind = \"ar\"\nmin_history_s = 10.0\n\
              [link]\nenabled = true\naddress = \"udpout:127.0.0.1:{port}\"\n\
              [record]\npath = \"{}\"\nframes = \"none\"\n\
              [rerun]\nsink = \"off\"\n",

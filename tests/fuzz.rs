@@ -168,6 +168,8 @@ fn camera_json_text() -> impl Strategy<Value = String> {
 fn toml_text() -> impl Strategy<Value = String> {
     const LINES: &[&str] = &[
         "[decide]",
+        "[decide.forecast]",
+        "kind = \"ar\"",
         "[sim]",
         "[image]",
         "[replay]",

@@ -86,7 +86,11 @@ fn inproc_and_processes_agree_bit_for_bit() {
         rec_s,
     ]);
     let config = dir.path().join("pipeline.toml");
-    std::fs::write(&config, "[decide]\nmin_history_s = 6.0\nwindow_s = 20.0\n").unwrap();
+    std::fs::write(
+        &config,
+        "[decide.forecast]\nkind = \"ar\"\nmin_history_s = 6.0\nwindow_s = 20.0\n",
+    )
+    .unwrap();
     let config_s = config.to_str().unwrap();
 
     let inproc_csv = dir.path().join("inproc.csv");

@@ -175,13 +175,13 @@ fn closed_loop_landings_touch_down_safely_in_one_process_and_through_the_process
     }
 }
 
-/// The first unsafe touchdown any trial met (a 480-approach campaign on fresh seeds; BENCHMARKS
-/// "The first clearance after the warm-up"): sea state 6, seed 26, waves from ahead, approach
-/// 16. It cleared 0.2 s after the warm-up, on heave-rate bands not yet checked against what
-/// followed, and touched down into 0.678 m/s of heave rate. Flown again alone (the last of 17
-/// shards is that approach): it must not touch down unsafely. The campaign's vehicle held 3 m
-/// over the deck's mean level; `--hold-height` with a clearance too small to matter flies that
-/// approach again.
+/// The first unsafe touchdown any trial met (a 480-approach campaign on fresh seeds;
+/// docs/history.md, "The first clearance after the warm-up"): sea state 6, seed 26, waves from
+/// ahead, approach 16. It cleared 0.2 s after the warm-up, on heave-rate bands not yet checked
+/// against what followed, and touched down into 0.678 m/s of heave rate. Flown again alone (the
+/// last of 17 shards is that approach): it must not touch down unsafely. The campaign's vehicle
+/// held 3 m over the deck's mean level; `--hold-height` with a clearance too small to matter
+/// flies that approach again.
 #[test]
 fn the_campaigns_unsafe_approach_waits_for_its_rate_bands_evidence() {
     let out = Command::new(workspace_binary("deckwatch"))
@@ -211,8 +211,8 @@ fn the_campaigns_unsafe_approach_waits_for_its_rate_bands_evidence() {
     assert_flown_safely(out, 16);
 }
 
-/// An unsafe touchdown in main on fresh held-out seas (BENCHMARKS "A rate's misses stand for
-/// its error once they span 8 s"): sea state 5, seed 84, waves at 160 deg, approach 2 (the
+/// An unsafe touchdown in main on fresh held-out seas (docs/history.md, "A rate's misses stand
+/// for its error once they span 8 s"): sea state 5, seed 84, waves at 160 deg, approach 2 (the
 /// third of six shards). It cleared 13.8 s after arrival on a heave-rate spread measured from
 /// misses within 3 s (0.086 m/s) and touched down at 15.8 s into -0.689 m/s. Flown again
 /// alone for as long: it must not touch down unsafely.
@@ -240,4 +240,56 @@ fn a_rates_misses_from_the_first_seconds_do_not_clear_a_crest() {
         .output()
         .unwrap();
     assert_flown_safely(out, 2);
+}
+
+/// Landings on ship motion that is not the forecaster's spectrum sea (issue 70): a motion file
+/// written by `deckwatch sim motion` for the nonlinear roll and for short-crested seas under way
+/// (sea state 5, beam and quartering waves), flown by `trials --motion-csv`. Nothing touches
+/// down unsafely.
+#[test]
+fn landings_on_other_ship_motion_models_touch_down_safely() {
+    let dir = tempfile::tempdir().unwrap();
+    for (model, heading) in [("nonlinear-roll", "90"), ("short-crested", "135")] {
+        let file = dir.path().join(format!("{model}.csv"));
+        let out = Command::new(workspace_binary("deckwatch"))
+            .args([
+                "sim",
+                "motion",
+                "--model",
+                model,
+                "--sea-state",
+                "5",
+                "--heading-deg",
+                heading,
+            ])
+            .args(["--seed", "11", "--minutes", "4", "--out"])
+            .arg(&file)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let out = Command::new(workspace_binary("deckwatch"))
+            .args(["trials", "--json", "--rules", "deckwatch", "--motion-csv"])
+            .arg(&file)
+            .args(["--seeds", "1", "--approaches", "2", "--max-approach-s", "60"])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{model}: {stderr}");
+        let lines = json_lines(out.stdout);
+        let approaches: Vec<_> = lines.iter().filter_map(|l| l.get("approach")).collect();
+        assert_eq!(approaches.len(), 2, "{model}: {lines:?}");
+        for approach in approaches {
+            if let Some(touchdown) = approach["outcome"]["touchdown"].as_object() {
+                assert_eq!(
+                    touchdown["violations"],
+                    serde_json::json!([]),
+                    "{model}: {approach}"
+                );
+            }
+        }
+        assert!(
+            lines.iter().all(|l| l.get("unsafe_touchdown").is_none()),
+            "{model}: {lines:?}"
+        );
+    }
 }

@@ -2,7 +2,7 @@
 //! the frame rates a flight uses (10 and 30 fps by default) on full-size frames: user and system
 //! CPU time, context switches, private resident memory and the shared memory it touches; and
 //! what that would be on a Raspberry Pi 5, scaled by factors measured against it
-//! (BENCHMARKS.md "CPU and memory budget").
+//! (BENCHMARKS.md, "Per-process resources: CPU, memory, a Raspberry Pi 5").
 //!
 //! CPU time is the scheduler's (nanoseconds, `/proc/<pid>/schedstat`), split into user and system
 //! time in the proportion of `/proc/<pid>/stat`'s clock ticks.

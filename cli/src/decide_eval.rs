@@ -50,7 +50,7 @@ pub struct DecideEvalArgs {
     #[arg(long, value_delimiter = ',', default_value = "60")]
     pub(crate) headings: Vec<f64>,
     /// The ship's motion from a file (CSV: `time_s,roll_deg,pitch_deg,heave_m`, optional
-    /// `yaw_deg`; README "Ship motion from a file") instead of a simulated sea: one series per
+    /// `yaw_deg`; docs/recording.md, "Ship motion from a file") instead of a simulated sea: one series per
     /// seed (the measurement's noise and faults), `--sea-states` and `--motion` unused.
     #[arg(long)]
     pub(crate) motion_csv: Option<std::path::PathBuf>,

@@ -2,13 +2,13 @@
 //! the deck height and their rates: the forecast error (RMS, 99th percentile) at several
 //! horizons, per sea state and predictor, and the calibration of each predictor's stated 95 %
 //! band (pointwise, and for the whole touchdown). The streams are `decide-eval`'s (the same
-//! options, seas and faults); the predictors are the decider itself, configured with each
-//! `[decide] predictor`, fed frame by frame as the decide stage feeds it, and persistence.
+//! options, seas and faults); the predictors are the decider itself, fed frame by frame as the
+//! decide stage feeds it, and persistence.
 
 use crate::decide_eval::{measure, minutes, series, series_name, stream_model, DecideEvalArgs, Sea};
-use deckwatch_decide::decision::{DecisionConfig, Predictor};
+use deckwatch_decide::decision::DecisionConfig;
 use deckwatch_decide::forecast_eval::{
-    judge_forecasts, ForecastReport, Forecaster, Persistence, QUANTITIES, TAIL_SHARE, TAIL_Z,
+    judge_forecasts, ForecastReport, Persistence, StreamForecaster, QUANTITIES, TAIL_SHARE, TAIL_Z,
 };
 use deckwatch_decide::LandingDecider;
 use deckwatch_runtime::config::ConfigError;
@@ -20,10 +20,9 @@ pub struct PredictEvalArgs {
     /// Forecast horizons (s).
     #[arg(long, value_delimiter = ',', default_value = "0.5,1,2,4,8")]
     horizons: Vec<f64>,
-    /// Predictors: `ar` (autoregressive, with its stated band), `sinusoids` (the dominant
-    /// sinusoids, with the held-out error bound; its own window, warm-up and margins unless the
-    /// configuration chose it), `persistence` (the last measurement).
-    #[arg(long, value_delimiter = ',', default_value = "persistence,sinusoids,ar")]
+    /// Predictors: `ar` (the decider's autoregressive forecast, with its calibrated band),
+    /// `persistence` (the last measurement).
+    #[arg(long, value_delimiter = ',', default_value = "persistence,ar")]
     predictors: Vec<String>,
     /// One forecast judged every this many seconds of each series.
     #[arg(long, default_value_t = 1.0)]
@@ -33,32 +32,13 @@ pub struct PredictEvalArgs {
     per_series: bool,
 }
 
-fn forecaster(name: &str, config: &DecisionConfig) -> Result<Box<dyn Forecaster>, String> {
-    let with = |predictor| -> Result<Box<dyn Forecaster>, String> {
-        let c = DecisionConfig {
-            predictor,
-            ..config.clone()
-        };
-        Ok(Box::new(LandingDecider::new(c).map_err(|e| {
-            ConfigError::in_section("the configuration", "decide", e).to_string()
-        })?))
-    };
-    let own = |c: DecisionConfig| -> Result<Box<dyn Forecaster>, String> {
-        Ok(Box::new(LandingDecider::new(c).map_err(|e| {
-            ConfigError::in_section("the configuration", "decide", e).to_string()
-        })?))
-    };
-    // Each predictor with the settings it was measured with, unless the configuration chose it
-    // (`DecisionConfig::ar_defaults`, `sinusoid_defaults`).
+fn forecaster(name: &str, config: &DecisionConfig) -> Result<Box<dyn StreamForecaster>, String> {
     match name {
-        "ar" if config.predictor == Predictor::Ar => with(Predictor::Ar),
-        "ar" => own(DecisionConfig::ar_defaults()),
-        "sinusoids" if config.predictor == Predictor::Ar => own(DecisionConfig::sinusoid_defaults()),
-        "sinusoids" => with(Predictor::Sinusoids),
-        "persistence" => Ok(Box::new(Persistence::new(config.window_s))),
-        other => Err(format!(
-            "--predictors: unknown `{other}` (persistence, sinusoids, ar)"
-        )),
+        "ar" => Ok(Box::new(LandingDecider::new(config.clone()).map_err(|e| {
+            ConfigError::in_section("the configuration", "decide", e).to_string()
+        })?)),
+        "persistence" => Ok(Box::new(Persistence::new(config.ar().window_s))),
+        other => Err(format!("--predictors: unknown `{other}` (persistence, ar)")),
     }
 }
 
@@ -121,7 +101,7 @@ pub fn run(a: PredictEvalArgs) -> Result<(), String> {
         "{} min at {} Hz per series, {} motion; noise {} deg, camera height noise {} m, autopilot height noise {} m, drift {} m/s, fused over {} s, dropout {}, outliers {}; window {} s, touchdown {} s, risk per touchdown {}",
         minutes, a.stream.rate, a.stream.motion_csv.as_ref().map_or(a.stream.motion.name().to_string(), |p| p.display().to_string()), a.stream.noise_deg, a.stream.heave_noise_m,
         a.stream.vehicle_height_noise_m, a.stream.vehicle_height_drift_mps, pipeline.vehicle.height_fusion_s,
-        a.stream.dropout, a.stream.outliers, config.window_s, config.touchdown_s, config.risk_per_touchdown
+        a.stream.dropout, a.stream.outliers, config.ar().window_s, config.touchdown_s, config.risk_per_touchdown
     );
     let horizons: Vec<String> = a
         .horizons

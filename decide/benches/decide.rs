@@ -70,9 +70,9 @@ fn main() {
     // (what it did before), in one run.
     let mut group = c.benchmark_group("ar_normal_equations");
     let x: Vec<f64> = (0..600).map(|k| deck_at(k as f64 * 0.2).roll_deg).collect();
-    let order = DecisionConfig::default().ar_order;
+    let order = DecisionConfig::default().ar().order;
     group.bench_function("lagged_products", |b| {
-        b.iter(|| deckwatch_decide::predict::normal_equations(black_box(&x), order))
+        b.iter(|| deckwatch_decide::forecast::normal_equations(black_box(&x), order))
     });
     group.bench_function("design_product", |b| {
         b.iter(|| {
@@ -94,7 +94,7 @@ fn main() {
     let y: Vec<f64> = t.iter().map(|&t| deck_at(t).roll_deg).collect();
     group.bench_function("whole_fit_one_channel", |b| {
         b.iter(|| {
-            deckwatch_decide::predict::ArModel::fit(black_box(&t), black_box(&y), order, 0.2, 25.0, 0.5)
+            deckwatch_decide::forecast::ArModel::fit(black_box(&t), black_box(&y), order, 0.2, 25.0, 0.5)
         })
     });
     // The same with a 2 s gap ending 1 s before the newest sample: the forecast starts from
@@ -107,7 +107,7 @@ fn main() {
         .unzip();
     group.bench_function("whole_fit_one_channel_across_a_gap", |b| {
         b.iter(|| {
-            deckwatch_decide::predict::ArModel::fit(
+            deckwatch_decide::forecast::ArModel::fit(
                 black_box(&t_gap),
                 black_box(&y_gap),
                 order,

@@ -23,14 +23,14 @@ pub const QUANTITIES: [&str; 6] = [
 ];
 
 /// Something that forecasts the deck from the measured stream.
-pub trait Forecaster {
+pub trait StreamForecaster {
     /// Takes one frame (in order).
     fn observe(&mut self, frame: &FrameInput);
     /// The forecast for time `t` as of the frames seen so far (None: it has none yet).
     fn forecast(&self, t: f64) -> Option<DeckForecast>;
 }
 
-impl Forecaster for LandingDecider {
+impl StreamForecaster for LandingDecider {
     fn observe(&mut self, frame: &FrameInput) {
         self.decide_frame(frame);
         self.refit_between_frames();
@@ -113,7 +113,7 @@ fn change_band(series: &[(f64, [f64; 3])], h: f64) -> [f64; 3] {
     sum.map(|s| 1.959_963_984_540_054 * (s / n as f64).sqrt())
 }
 
-impl Forecaster for Persistence {
+impl StreamForecaster for Persistence {
     fn observe(&mut self, frame: &FrameInput) {
         let Some(d) = frame.deck else { return };
         if frame.vehicle_missing || frame.frozen_image || !frame.t_s.is_finite() {
@@ -312,7 +312,7 @@ impl WindowVerdict {
 /// decider does not use it) are not counted.
 pub fn judge_forecasts(
     truth: TrueDeck,
-    forecaster: &mut dyn Forecaster,
+    forecaster: &mut dyn StreamForecaster,
     stream: &[FrameInput],
     horizons_s: &[f64],
     touchdown_s: f64,
@@ -370,7 +370,7 @@ pub fn decider(config: &DecisionConfig) -> Result<LandingDecider, deckwatch_comm
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::decision::{DeckObservation, Predictor};
+    use crate::decision::DeckObservation;
     use std::f64::consts::TAU;
 
     fn sea(t: f64) -> [f64; 3] {
@@ -407,10 +407,7 @@ mod tests {
     /// the truth; persistence errs by about the motion itself over the horizon.
     #[test]
     fn forecasts_of_a_regular_sea_are_judged() {
-        let config = DecisionConfig {
-            predictor: Predictor::Ar,
-            ..Default::default()
-        };
+        let config = DecisionConfig::default();
         let s = stream(0.02);
         let horizons = [0.5, 2.0];
         let mut ar = decider(&config).unwrap();
@@ -443,7 +440,7 @@ mod tests {
         deviations: f64,
     }
 
-    impl Forecaster for OffBy {
+    impl StreamForecaster for OffBy {
         fn observe(&mut self, _frame: &FrameInput) {}
         fn forecast(&self, t: f64) -> Option<DeckForecast> {
             let std = [0.1, 0.2, 0.01];

@@ -2,10 +2,11 @@
 //!
 //! The decide stage (on the pipeline's messages) and the evaluations (`decide-eval`, the
 //! closed-loop trials, on simulated streams) both build a [`FrameInput`] and call
-//! [`LandingDecider::decide_frame`] and then [`LandingDecider::refit_between_frames`], so what
+//! [`crate::LandingDecider::decide_frame`] and then [`crate::LandingDecider::refit_between_frames`], so what
 //! is measured is what flies: the same refusals in the same order, on the frames' own timeline.
 
-use crate::decision::{Decision, DeckObservation, LandingDecider};
+use crate::decision::{Decider, Decision, DeckObservation};
+use crate::forecast::Forecaster;
 use deckwatch_common::messages::{AttitudeFailure, AttitudeMessage, DecisionReason};
 use deckwatch_common::vehicle::Compensation;
 
@@ -62,7 +63,7 @@ impl FrameInput {
     }
 }
 
-impl LandingDecider {
+impl<F: Forecaster> Decider<F> {
     /// Decides on one frame, as of its capture time. The refusals that come from outside the
     /// attitude stream go first: a deck seen by an uncompensated camera (the deck relative to
     /// a tilted camera is not the deck; ridden through during a committed touchdown like any
@@ -98,6 +99,7 @@ impl LandingDecider {
 mod tests {
     use super::*;
     use crate::decision::DecisionConfig;
+    use crate::LandingDecider;
     use deckwatch_common::messages::DecisionState;
     use deckwatch_common::Rpy;
 

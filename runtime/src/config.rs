@@ -128,15 +128,22 @@ impl PipelineConfig {
             file: file.to_string(),
             message: e.to_string(),
         };
-        let mut config: Self = toml::from_str(text).map_err(parse_error)?;
-        // `[decide]` keys the file leaves out take its predictor's defaults, not the default
-        // predictor's.
+        // A key of `[decide]` that moved (the forecaster's tuning is `[decide.forecast]` now) is
+        // named with its new place, not as an unknown field.
         let table: toml::Table = toml::from_str(text).map_err(parse_error)?;
-        let decide = table.get("decide").and_then(toml::Value::as_table);
-        config.decide = config
-            .decide
-            .with_predictor_defaults(|key| decide.is_some_and(|d| d.contains_key(key)));
-        Ok(config)
+        if let Some(decide) = table.get("decide").and_then(toml::Value::as_table) {
+            if let Some((key, to)) = decide
+                .keys()
+                .find_map(|key| deckwatch_decide::decision::moved_key(key).map(|to| (key, to)))
+            {
+                return Err(ConfigError::Invalid {
+                    file: file.to_string(),
+                    key: format!("decide.{key}"),
+                    problem: to.to_string(),
+                });
+            }
+        }
+        toml::from_str(text).map_err(parse_error)
     }
 
     /// Reads and parses a file.
@@ -284,39 +291,65 @@ mod tests {
     use deckwatch_common::messages::{EstimatorKind, FrameSource};
 
     #[test]
-    fn a_predictor_named_alone_brings_its_own_settings() {
-        let sinusoids = |text: &str| PipelineConfig::from_toml("p.toml", text).unwrap().decide;
+    fn the_forecasters_tuning_has_its_own_table_and_old_keys_say_where_they_went() {
+        let decide = |text: &str| PipelineConfig::from_toml("p.toml", text).unwrap().decide;
+        assert_eq!(decide(""), DecisionConfig::default());
+        let tuned = decide("[decide.forecast]\nkind = \"ar\"\nwindow_s = 60.0\norder = 48\n");
+        assert_eq!((tuned.ar().window_s, tuned.ar().order), (60.0, 48));
         assert_eq!(
-            sinusoids("[decide]\npredictor = \"sinusoids\"\n"),
-            DecisionConfig::sinusoid_defaults()
+            tuned.ar().min_history_s,
+            DecisionConfig::default().ar().min_history_s
         );
-        // What the file says stays.
-        let own_window = sinusoids("[decide]\npredictor = \"sinusoids\"\nwindow_s = 60.0\n");
-        assert_eq!(own_window.window_s, 60.0);
-        assert_eq!(
-            own_window.margin_deg,
-            DecisionConfig::sinusoid_defaults().margin_deg
-        );
-        assert_eq!(sinusoids(""), DecisionConfig::ar_defaults());
-        assert_eq!(sinusoids("[decide]\nmin_history_s = 12.0\n").min_history_s, 12.0);
-        // The autoregressive band is its margin; the autopilot's vertical-speed error, which no
-        // band sees, is stated on its own, and an autopilot with a better one says so.
-        let ar = sinusoids("");
-        assert_eq!(
-            (ar.margin_deg, ar.rate_margin_dps, ar.heave_rate_margin_mps),
-            (0.0, 0.0, 0.0)
-        );
+        // The autopilot's errors, which no band sees, are stated on their own.
+        let ar = decide("");
         assert_eq!(ar.vertical_speed_error_mps, 0.05);
-        assert_eq!(
-            sinusoids("[decide]\nvertical_speed_error_mps = 0.01\n").vertical_speed_error_mps,
-            0.01
-        );
-        // So is its attitude error.
         assert_eq!(ar.vehicle_attitude_error_deg, 0.2);
         assert_eq!(
-            sinusoids("[decide]\nvehicle_attitude_error_deg = 0.05\n").vehicle_attitude_error_deg,
-            0.05
+            decide("[decide]\nvertical_speed_error_mps = 0.01\n").vertical_speed_error_mps,
+            0.01
         );
+        // A key that moved names its new place; one that was removed says why.
+        for (text, key, place) in [
+            (
+                "[decide]\nwindow_s = 60.0\n",
+                "decide.window_s",
+                "[decide.forecast] window_s",
+            ),
+            (
+                "[decide]\nar_order = 48\n",
+                "decide.ar_order",
+                "[decide.forecast] order",
+            ),
+            (
+                "[decide]\npredictor = \"ar\"\n",
+                "decide.predictor",
+                "[decide.forecast] kind",
+            ),
+            (
+                "[decide]\nmargin_deg = 0.5\n",
+                "decide.margin_deg",
+                "less the margin",
+            ),
+            (
+                "[decide]\nerror_memory_s = 6.0\n",
+                "decide.error_memory_s",
+                "sinusoid",
+            ),
+        ] {
+            let m = PipelineConfig::from_toml("p.toml", text).unwrap_err().to_string();
+            assert!(
+                m.contains("p.toml") && m.contains(key) && m.contains(place),
+                "{m}"
+            );
+        }
+        // An unknown kind, or a key of no kind, is an error naming it.
+        for (text, word) in [
+            ("[decide.forecast]\nkind = \"crystal-ball\"\n", "crystal-ball"),
+            ("[decide.forecast]\nkind = \"ar\"\ncomponents = 4\n", "components"),
+        ] {
+            let m = PipelineConfig::from_toml("p.toml", text).unwrap_err().to_string();
+            assert!(m.contains("p.toml") && m.contains(word), "{m}");
+        }
     }
 
     #[test]
@@ -335,7 +368,7 @@ mod tests {
         for (text, word) in [
             ("[source]\nkind = \"usb\"\n", "usb"),
             ("[estimate]\nestimator = \"magic\"\n", "magic"),
-            ("[decide]\npredictor = \"crystal-ball\"\n", "crystal-ball"),
+            ("[decide]\nheave = \"crystal-ball\"\n", "crystal-ball"),
             ("[rerun]\nsink = \"printer\"\n", "printer"),
             ("[sim]\nscenario = \"moon\"\n", "moon"),
             ("[image]\nlook = \"fancy\"\n", "fancy"),
@@ -383,12 +416,12 @@ mod tests {
     fn typed_choices_read_their_names_and_round_trip() {
         let text = "[source]\nkind = \"replay\"\n[replay]\nrecording = \"r\"\n\
                     [estimate]\nestimator = \"paper-fitted-major-axis\"\n\
-                    [decide]\npredictor = \"ar\"\n[rerun]\nsink = \"save\"\npath = \"x.rrd\"\n\
+                    [decide]\nheave = \"off\"\n[rerun]\nsink = \"save\"\npath = \"x.rrd\"\n\
                     [sim]\nscenario = \"nodeck\"\n";
         let c = PipelineConfig::from_toml("t", text).unwrap();
         assert_eq!(c.source.kind, FrameSource::Replay);
         assert_eq!(c.estimate.estimator, EstimatorKind::PaperFittedMajorAxis);
-        assert_eq!(c.decide.predictor, deckwatch_decide::Predictor::Ar);
+        assert_eq!(c.decide.heave, HeaveUse::Off);
         assert_eq!(c.rerun.sink, deckwatch_viz::RerunSink::Save);
         assert_eq!(c.sim.scenario, deckwatch_sim::Scenario::NoDeck);
         let again = PipelineConfig::from_toml("again", &c.to_toml()).unwrap();

@@ -30,7 +30,7 @@ pub fn rpy_errors_deg(estimate: &Attitude, truth: &Rpy) -> [f64; 3] {
 /// dependencies' features as `cargo test --workspace` did (dev-dependencies included), so it
 /// reuses every library the test build made and only compiles and links the binaries: without
 /// it, cargo resolved other features and rebuilt a large part of the workspace inside the
-/// first test (BENCHMARKS "The newcomer's path").
+/// first test (docs/history.md, "The newcomer's path").
 ///
 /// `DECKWATCH_TEST_BIN_DIR` names a folder of binaries built beforehand instead (a build with
 /// other features, as ci/libcamera.sh makes: a plain `cargo build` here would rebuild them).

@@ -451,8 +451,8 @@ mod tests {
     /// of no return (`no_return_ms = 0`), every touchdown is judged at `go_around_risk` to its
     /// end: its go-arounds come when they can no longer be flown. With the default, the last
     /// decision that can act judges the rest as a clearance. Sea states 5 and 6, seeds 201 and
-    /// 202, waves at 20 and 140 deg, 20 approaches each (160); figures in BENCHMARKS.md ("A
-    /// touchdown's point of no return"). `cargo test --release -p deckwatch-trials --
+    /// 202, waves at 20 and 140 deg, 20 approaches each (160); figures in BENCHMARKS.md
+    /// ("Closed-loop trials"). `cargo test --release -p deckwatch-trials --
     /// --ignored --nocapture`.
     #[test]
     #[ignore = "an evaluation: about a minute in release"]

@@ -81,8 +81,8 @@ wire_enum!(
 /// the repeats after it are bit-identical: in the closed-loop trials that first repeat, during
 /// a descent, moved the deck's height by 0.14 m and its roll by 0.3 deg, and a touchdown went
 /// around on it for `predicted-outside`; the next one, which passed too while the third set in
-/// a row was the first refused, is now refused (BENCHMARKS.md, "A rate's band cleared on only
-/// with misses of its own"). Catching the first repeat needs the image's own fingerprint.
+/// a row was the first refused, is now refused (docs/history.md, "A rate's band cleared on
+/// only with misses of its own"). Catching the first repeat needs the image's own fingerprint.
 pub const FROZEN_IMAGE_REPEATS: u32 = 1;
 
 /// Estimate's output for one frame.

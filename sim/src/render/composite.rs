@@ -172,8 +172,7 @@ impl Renderer {
         // and bilinear between, away from the markers; near them (each marker's patch and a
         // margin around it, where the detector measures the disc and the deck beside it) exact
         // on a finer lattice, every `chunk`-th pixel both ways, as everywhere before (mapping
-        // every pixel or two of the frame took half a trial frame's time; BENCHMARKS "Faster
-        // trials").
+        // every pixel or two of the frame took half a trial frame's time; docs/history.md, "Faster trials").
         let step_px = BACKGROUND_STEP;
         let grid_w = w.div_ceil(step_px) + 1;
         let grid_row = |gy: usize, out: &mut Vec<f32>| {

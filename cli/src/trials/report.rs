@@ -1,0 +1,159 @@
+//! The trials' report: the approach records of a run (or of merged shards) summed per sea state
+//! and rule, as a table or as JSON lines.
+
+use super::{ApproachRecord, MergeArgs, Rule};
+use deckwatch_trials::RuleSummary;
+use std::collections::BTreeMap;
+
+/// The report of `records` (in job order): with `json`, each record, every unsafe touchdown, one
+/// object per sea state and rule and the totals; otherwise the table (unsafe touchdowns on
+/// stderr). The totals per rule, back.
+pub(super) fn report(records: &[ApproachRecord], json: bool) -> Result<BTreeMap<Rule, RuleSummary>, String> {
+    let mut per_sea: BTreeMap<u32, BTreeMap<Rule, RuleSummary>> = Default::default();
+    for r in records {
+        let rule = Rule::of(&r.rule)?;
+        if json {
+            println!("{}", serde_json::json!({ "approach": r }));
+        }
+        // Every unsafe touchdown, with what it broke, to look into.
+        if let Some(v) = r.outcome.touchdown.as_ref().filter(|v| !v.safe()) {
+            let record = serde_json::json!({"unsafe_touchdown": {
+                "sea_state": r.sea_state, "seed": r.seed, "heading_deg": r.heading_deg,
+                "index": r.index, "rule": r.rule, "verdict": v}});
+            if json {
+                println!("{record}");
+            } else {
+                eprintln!("{record}");
+            }
+        }
+        per_sea
+            .entry(r.sea_state)
+            .or_default()
+            .entry(rule)
+            .or_default()
+            .add(&r.outcome);
+    }
+    let mut totals: BTreeMap<Rule, RuleSummary> = Default::default();
+    let summary_json = |sea: serde_json::Value, rule: Rule, s: &RuleSummary| {
+        serde_json::json!({"sea_state": sea, "rule": rule.name(), "summary": s,
+            "aborts_per_commit": s.aborts_per_commit(), "median_arrival_to_touchdown_s": s.median_arrival_to_touchdown_s(),
+            "safety_case": s.safety_case()})
+    };
+    for (ss, per_rule) in &per_sea {
+        for (rule, s) in per_rule {
+            if json {
+                println!("{}", summary_json((*ss).into(), *rule, s));
+            } else {
+                println!("{}", row(&ss.to_string(), *rule, s));
+            }
+            totals.entry(*rule).or_default().merge(s);
+        }
+    }
+    for (rule, s) in &totals {
+        if json {
+            println!("{}", summary_json("all".into(), *rule, s));
+            continue;
+        }
+        println!("{}", row("all", *rule, s));
+        let c = s.safety_case();
+        let descent = deckwatch_common::stats::Percentiles::of(&mut s.descent_mps.clone());
+        println!(
+            "     {:<10} unsafe {} of {} touchdowns (95 % upper bound {:.3} %); landed {:.1} % of approaches (95 %: {:.1}-{:.1} %); arrival to touchdown p50/p90/p99 {:.1}/{:.1}/{:.1} s{}",
+            rule.name(),
+            s.unsafe_touchdowns,
+            s.touchdowns,
+            100.0 * c.unsafe_rate_upper_95,
+            100.0 * c.landing_rate,
+            100.0 * c.landing_rate_95[0],
+            100.0 * c.landing_rate_95[1],
+            c.arrival_to_touchdown_s_p50_p90_p99[0],
+            c.arrival_to_touchdown_s_p50_p90_p99[1],
+            c.arrival_to_touchdown_s_p50_p90_p99[2],
+            // The oracle's touchdowns are judged without a flown descent.
+            descent.map_or(String::new(), |p| format!(
+                "; descent over the deck p50/max {:.2}/{:.2} m/s",
+                p.p50, p.max
+            ))
+        );
+        if !s.abort_reasons.is_empty() || !s.violations.is_empty() {
+            println!(
+                "     {:<10} go-arounds by reason: {:?}; unsafe by limit: {:?}",
+                rule.name(),
+                s.abort_reasons,
+                s.violations
+            );
+        }
+        if !s.too_late_reasons.is_empty() {
+            println!(
+                "     {:<10} go-arounds ordered past the point of no return (not flown) by reason: {:?}",
+                rule.name(),
+                s.too_late_reasons
+            );
+        }
+        if !s.decisions_by_reason.is_empty() {
+            println!("     {:<10} decisions: {:?}", rule.name(), s.decisions_by_reason);
+        }
+    }
+    Ok(totals)
+}
+
+/// `deckwatch trials merge`: the shards' approach records, in job order, reported as one run.
+pub fn merge(m: &MergeArgs) -> Result<(), String> {
+    let mut records: Vec<ApproachRecord> = Vec::new();
+    for path in &m.files {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        for (n, line) in text.lines().enumerate() {
+            let Ok(value) = serde_json::from_str::<serde_json::Value>(line) else {
+                continue;
+            };
+            if let Some(r) = value.get("approach") {
+                let r: ApproachRecord = serde_json::from_value(r.clone())
+                    .map_err(|e| format!("{}:{}: an approach record: {e}", path.display(), n + 1))?;
+                records.push(r);
+            }
+        }
+    }
+    if records.is_empty() {
+        return Err("trials merge: no approach records (run the shards with --json)".into());
+    }
+    records.sort_by(|x, y| {
+        x.job
+            .cmp(&y.job)
+            .then_with(|| rule_order(&x.rule).cmp(&rule_order(&y.rule)))
+    });
+    // The same job and rule twice: a shard given twice, or two runs of different lists.
+    if let Some(w) = records
+        .windows(2)
+        .find(|w| w[0].job == w[1].job && w[0].rule == w[1].rule)
+    {
+        return Err(format!(
+            "trials merge: job {} ({}) appears twice: the same shard given twice?",
+            w[0].job, w[0].rule
+        ));
+    }
+    report(&records, m.json).map(|_| ())
+}
+
+/// The order of the rules' records within a job, in a run's report and a merge's alike.
+pub(super) fn rule_order(name: &str) -> usize {
+    ["deckwatch", "naive", "oracle"]
+        .iter()
+        .position(|r| *r == name)
+        .unwrap_or(usize::MAX)
+}
+
+fn row(sea: &str, rule: Rule, s: &RuleSummary) -> String {
+    format!(
+        "{:<4} {:<10} {:>10} {:>8} {:>10} {:>7} {:>7} {:>8.1}% {:>9} {:>9.1}",
+        sea,
+        rule.name(),
+        s.approaches,
+        s.commits,
+        s.touchdowns,
+        s.unsafe_touchdowns,
+        s.aborts,
+        100.0 * s.aborts_per_commit(),
+        s.timeouts,
+        s.median_arrival_to_touchdown_s()
+    )
+}

@@ -7,7 +7,7 @@ how well the motion can be forecast at all. This script forecasts with the best 
 there is for the sea: the exact Gaussian conditional of the next touchdown given the last
 `--lags-s` of noisy samples, from the sea's true covariance (its spectrum: known here, learnt
 from the samples by deckwatch). Its bands are honest by construction. It clears by the decider's own rule
-(`decide/src/decision/envelope.rs`): per limit, the largest two-sided normal tail over the
+(`decide/src/decision/risk.rs`): per limit, the largest two-sided normal tail over the
 touchdown; summed over the limits; at most `--risk`. It never waits for a warm-up, never loses a
 frame and may clear at every decision. The share it uses is therefore what no per-channel (or,
 with `--joint`, multichannel) linear forecast from that span can beat on these seas.
@@ -167,7 +167,7 @@ def forecast(sea, group, t_meas, z, decisions, lags, horizons, noise):
 
 
 def outside(mean, std, limit):
-    """P(|N(mean, std)| > limit), as `outside_probability` in envelope.rs."""
+    """P(|N(mean, std)| > limit), as `outside_probability` in decide/src/decision/risk.rs."""
     if std <= 0:
         return 0.0 if abs(mean) <= limit else 1.0
     if abs(mean) + 9 * std <= limit:
@@ -177,7 +177,7 @@ def outside(mean, std, limit):
 
 
 def tilt_outside(roll, pitch, limit):
-    """The least over 13 splits of the tilt limit between roll and pitch (envelope.rs)."""
+    """The least over 13 splits of the tilt limit between roll and pitch (decide/src/decision/risk.rs)."""
     cos_limit = math.cos(math.radians(limit))
     best = 1.0
     for i in range(13):
@@ -278,7 +278,7 @@ def run(sea_state, seed, heading, args):
 def fit_forecast(grid, order, steps, cutoff=1e-5):
     """Least-squares autoregression of `order` (each row: every channel's `order` newest values
     and an intercept; singular values below `cutoff` of the largest left out, as AR_CUTOFF in
-    decide/src/predict.rs) on `grid` (rows oldest first, one column per channel), run `steps`
+    decide/src/forecast/ar_numerics.rs) on `grid` (rows oldest first, one column per channel), run `steps`
     ahead from its newest row. Returns the grid values from one step before the newest on."""
     n, channels = grid.shape
     design = np.ones((n - order, channels * order + 1))

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# Fails when a non-test Rust source file reaches 800 lines (ARCHITECTURE.md, "Where things
-# go"): a file that long holds more than one job. Counted: the lines before a file's unit-test
-# module (`#[cfg(test)]` followed by `mod ...`); not counted: integration tests (`tests/`) and
-# test-only modules (`tests.rs`).
+# Fails when a non-test Rust source file reaches 800 lines (CODE_STYLE.md): a file that long
+# holds more than one job. Counted: the lines before a file's unit-test module (`#[cfg(test)]`
+# followed by `mod ...`); not counted: integration tests (`tests/`) and test-only modules
+# (`tests.rs`).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 limit=800

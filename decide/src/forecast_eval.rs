@@ -362,7 +362,7 @@ pub fn judge_forecasts(
     report
 }
 
-/// The decider configured as `config` (its predictor), as a forecaster.
+/// The decider configured as `config`, as a forecaster.
 pub fn decider(config: &DecisionConfig) -> Result<LandingDecider, deckwatch_common::InvalidField> {
     LandingDecider::new(config.clone())
 }

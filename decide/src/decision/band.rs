@@ -10,7 +10,7 @@ use deckwatch_common::stats::normal_quantile;
 use std::collections::VecDeque;
 
 /// The band's scale makes its 95 % band hold this share of the recent held-out misses: more
-/// than 95 %, because the scale is measured on the last `error_memory_s` and a sea's wave
+/// than 95 %, because the scale is measured on the last `BAND_MEMORY_S` and a sea's wave
 /// groups change faster (at 0.95 the band held 92-95 % 2 s ahead on the development seas).
 pub(super) const BAND_EVIDENCE_QUANTILE: f64 = 0.975;
 /// The held-out misses the band's scale is measured on are this recent (s): long enough for
@@ -35,18 +35,18 @@ pub(super) const WARMUP_BACKTEST_STEP_S: f64 = 0.5;
 pub(super) const WARMUP_BACKTEST_MIN_HISTORY_S: f64 = 4.0;
 /// The band scale (value or rate) beyond which a channel's forecast is taken to be unreliable:
 /// its rate is given at least the spread of its own misses, and until that is measured also
-/// judged by the history's spread (`Models::rate_std`, `risk::exceedance`).
+/// judged by the history's spread (`Models::rate_std`, `risk::exceedance_risk`).
 pub(super) const MAX_BAND_SCALE: f64 = 3.0;
 /// A band scale beyond which, short of `MAX_BAND_SCALE`, a channel whose rate has no misses of
 /// its own is suspect (`Models::band_suspect`): a new clearance must also hold with it judged
-/// as an unreliable one (`Margins::commit`). The touchdown's own frames add
+/// as an unreliable one (`Judgement::commit`). The touchdown's own frames add
 /// misses, and at its last chance the band is then often judged unreliable: 4 of 10 blind
 /// go-arounds on the development trials were that (docs/history.md, "A suspect band judged as an unreliable one by a new commitment").
 pub(super) const SUSPECT_BAND_SCALE: f64 = 2.0;
 /// What a new commitment widens the deviation of an angle whose band is unreliable by, on top
-/// of its measured scale (`Margins::unreliable_angle_factor`): such a band has missed by more
+/// of its measured scale (`Judgement::unreliable_angle_factor`): such a band has missed by more
 /// than `MAX_BAND_SCALE` of its own deviations, and may again by as much. (A rate has its own
-/// judges, and a new commitment takes it as far off as its value: `Margins::rate_as_value`.)
+/// judges, and a new commitment takes it as far off as its value: `Judgement::rate_as_value`.)
 pub(super) const UNRELIABLE_ANGLE_FACTOR: f64 = MAX_BAND_SCALE;
 /// The band's scale before there is evidence (forecasts shown, never a clearance): the
 /// autoregressive predictor's raw 95 % band held about 87 % of the truths 2 s ahead on the

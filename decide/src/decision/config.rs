@@ -44,8 +44,8 @@ pub struct DecisionConfig {
     /// attitude to compensate with, no deck height, the gap they leave) for this long in a
     /// row (ms; 0: abort on the first), on the prediction the last good attitude confirmed,
     /// while that prediction keeps the deck within the capacity to the touchdown's end: at
-    /// `go_around_risk` while more of the touchdown is left than of this budget, at
-    /// `risk_per_touchdown` once the budget left reaches the touchdown's end (`ride-through`).
+    /// `go_around_risk` while a frame, or the budget's end, comes before the point of no return,
+    /// at `risk_per_touchdown` once the budget left reaches that point (`ride-through`).
     /// The final metres of a descent are blind: the ring leaves a camera's view about 1 m over
     /// the deck. Never entered on such data, and never through a stale, frozen, jumping or
     /// unpredictable input.
@@ -160,30 +160,54 @@ pub const MOVED_KEYS: &[(&str, &str)] = &[
         "predictor",
         "is now [decide.forecast] kind (\"ar\"; the sinusoid fit was removed)",
     ),
-    ("ar_order", "is now [decide.forecast] order"),
-    ("window_s", "is now [decide.forecast] window_s"),
-    ("min_history_s", "is now [decide.forecast] min_history_s"),
-    ("refit_interval_s", "is now [decide.forecast] refit_interval_s"),
-    ("holdout_s", "is now [decide.forecast] holdout_s"),
-    ("horizon_s", "is now [decide.forecast] horizon_s"),
-    ("gap_recovery_s", "is now [decide.forecast] gap_recovery_s"),
+    (
+        "ar_order",
+        "is now [decide.forecast] order (the table starts with kind = \"ar\")",
+    ),
+    (
+        "window_s",
+        "is now [decide.forecast] window_s (the table starts with kind = \"ar\")",
+    ),
+    (
+        "min_history_s",
+        "is now [decide.forecast] min_history_s (the table starts with kind = \"ar\")",
+    ),
+    (
+        "refit_interval_s",
+        "is now [decide.forecast] refit_interval_s (the table starts with kind = \"ar\")",
+    ),
+    (
+        "holdout_s",
+        "is now [decide.forecast] holdout_s (the table starts with kind = \"ar\")",
+    ),
+    (
+        "horizon_s",
+        "is now [decide.forecast] horizon_s (the table starts with kind = \"ar\")",
+    ),
+    (
+        "gap_recovery_s",
+        "is now [decide.forecast] gap_recovery_s (the table starts with kind = \"ar\")",
+    ),
     (
         "max_innovation_deg",
-        "is now [decide.forecast] max_innovation_deg",
+        "is now [decide.forecast] max_innovation_deg (the table starts with kind = \"ar\")",
     ),
     (
         "max_heave_innovation_m",
-        "is now [decide.forecast] max_heave_innovation_m",
+        "is now [decide.forecast] max_heave_innovation_m (the table starts with kind = \"ar\")",
     ),
     (
         "max_rate_innovation_dps",
-        "is now [decide.forecast] max_rate_innovation_dps",
+        "is now [decide.forecast] max_rate_innovation_dps (the table starts with kind = \"ar\")",
     ),
     (
         "early_risk_per_touchdown",
-        "is now [decide.forecast] early_risk_per_touchdown",
+        "is now [decide.forecast] early_risk_per_touchdown (the table starts with kind = \"ar\")",
     ),
-    ("early_window_s", "is now [decide.forecast] early_window_s"),
+    (
+        "early_window_s",
+        "is now [decide.forecast] early_window_s (the table starts with kind = \"ar\")",
+    ),
     (
         "margin_deg",
         "was removed: state the capacity (max_abs_*_deg, max_tilt_deg) less the margin",
@@ -217,7 +241,7 @@ impl DecisionConfig {
         roll_deg.abs() <= self.max_abs_roll_deg && pitch_deg.abs() <= self.max_abs_pitch_deg
     }
 
-    /// The capacity's six limits in the order the risk judge takes them (`risk::exceedance`):
+    /// The capacity's six limits in the order the risk judge takes them (`risk::exceedance_risk`):
     /// roll, pitch, tilt (deg), roll rate, pitch rate (deg/s), heave rate (m/s).
     pub(crate) fn capacity_limits(&self) -> [f64; 6] {
         [

@@ -34,14 +34,14 @@ pub(super) struct InputGate {
 /// How a sample follows the newest one of the history.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) enum Continuity {
-    /// It follows (or is the first); `gap_after`: the newest sample's time, when a gap lies
-    /// between them.
-    Follows { gap_after: Option<f64> },
+    /// It follows (or is the first); `gap_from`: the newest sample's time, where a gap between
+    /// them starts.
+    Follows { gap_from: Option<f64> },
     /// Its time does not advance: out of order or repeated; `restart` for the third in a row
     /// (the clock jumped back, or an earlier time was in the future).
     Backwards { restart: bool },
     /// It moved faster than a deck can (a bad estimate); `restart` for the third in a row.
-    Jump { gap_after: Option<f64>, restart: bool },
+    Jump { gap_from: Option<f64>, restart: bool },
 }
 
 impl InputGate {
@@ -80,8 +80,9 @@ impl InputGate {
         }
     }
 
-    /// Whether no input came for longer than `max_age_ms` by `now`; the clock is then reset.
-    pub(super) fn silent_since(&mut self, now: f64, max_age_ms: f64) -> Option<bool> {
+    /// Whether the newest input is older than `max_age_ms` at `now` (None: no input yet, or the
+    /// stale one was already reported); a stale one is forgotten, so it is reported once.
+    pub(super) fn input_stale_at(&mut self, now: f64, max_age_ms: f64) -> Option<bool> {
         let last = self.last_input?;
         let stale = now - last > max_age_ms / 1e3;
         if stale {
@@ -147,7 +148,7 @@ impl InputGate {
         heave: bool,
         c: &DecisionConfig,
     ) -> Continuity {
-        let mut gap_after = None;
+        let mut gap_from = None;
         if let Some((tp, prev)) = newest {
             let dt = t - tp;
             if !(dt > 0.0) {
@@ -157,7 +158,7 @@ impl InputGate {
                 };
             }
             if dt > c.max_gap_ms / 1e3 {
-                gap_after = Some(tp);
+                gap_from = Some(tp);
             }
             let rate = (sample[ROLL] - prev[ROLL])
                 .abs()
@@ -175,12 +176,12 @@ impl InputGate {
                     self.jump_run = 0;
                     self.backwards_run = 0;
                 }
-                return Continuity::Jump { gap_after, restart };
+                return Continuity::Jump { gap_from, restart };
             }
         }
         self.jump_run = 0;
         self.backwards_run = 0;
-        Continuity::Follows { gap_after }
+        Continuity::Follows { gap_from }
     }
 
     /// The history restarts: runs counted against it end.
@@ -251,17 +252,15 @@ mod tests {
         let newest = Some((10.0, s));
         assert_eq!(
             gate.continuity(10.0, &s, None, true, &c),
-            Continuity::Follows { gap_after: None }
+            Continuity::Follows { gap_from: None }
         );
         assert_eq!(
             gate.continuity(10.1, &s, newest, true, &c),
-            Continuity::Follows { gap_after: None }
+            Continuity::Follows { gap_from: None }
         );
         assert_eq!(
             gate.continuity(11.0, &s, newest, true, &c),
-            Continuity::Follows {
-                gap_after: Some(10.0)
-            }
+            Continuity::Follows { gap_from: Some(10.0) }
         );
         for k in 1..=3 {
             assert_eq!(
@@ -275,41 +274,41 @@ mod tests {
         assert_eq!(
             gate.continuity(10.1, &jumped, newest, true, &c),
             Continuity::Jump {
-                gap_after: None,
+                gap_from: None,
                 restart: false
             }
         );
         assert_eq!(
             gate.continuity(10.1, &heaved, newest, true, &c),
             Continuity::Jump {
-                gap_after: None,
+                gap_from: None,
                 restart: false
             }
         );
         // A deck height is not judged without the heave.
         assert_eq!(
             gate.continuity(10.1, &heaved, newest, false, &c),
-            Continuity::Follows { gap_after: None }
+            Continuity::Follows { gap_from: None }
         );
         let far = [1.0 + 60.0, 1.0, 0.0];
         assert_eq!(
             gate.continuity(11.0, &far, newest, true, &c),
             Continuity::Jump {
-                gap_after: Some(10.0),
+                gap_from: Some(10.0),
                 restart: false
             }
         );
         assert_eq!(
             gate.continuity(10.1, &jumped, newest, true, &c),
             Continuity::Jump {
-                gap_after: None,
+                gap_from: None,
                 restart: false
             }
         );
         assert_eq!(
             gate.continuity(10.1, &jumped, newest, true, &c),
             Continuity::Jump {
-                gap_after: None,
+                gap_from: None,
                 restart: true
             }
         );
@@ -329,8 +328,8 @@ mod tests {
         assert_eq!(gate.clock(f64::NAN), f64::NEG_INFINITY);
         assert_eq!(gate.clock(5.0), 5.0);
         assert_eq!(gate.clock(f64::NAN), 5.0);
-        assert_eq!(gate.silent_since(5.2, 300.0), Some(false));
-        assert_eq!(gate.silent_since(5.4, 300.0), Some(true));
-        assert_eq!(gate.silent_since(5.5, 300.0), None);
+        assert_eq!(gate.input_stale_at(5.2, 300.0), Some(false));
+        assert_eq!(gate.input_stale_at(5.4, 300.0), Some(true));
+        assert_eq!(gate.input_stale_at(5.5, 300.0), None);
     }
 }

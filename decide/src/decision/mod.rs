@@ -12,10 +12,11 @@
 //! Time is the frames' capture time (seconds of one monotonic clock); `now` is when the
 //! decision is made. Pure: no clock, no IPC; the stage and the evaluation harness drive it.
 //!
-//! [`LandingDecider`] composes the parts, each in its own module: the input gate (`gate`), the
+//! [`Decider`] composes the parts, each in its own module: the input gate (`gate`), the
 //! history of accepted samples (`history`), the forecaster ([`crate::forecast`]) and its upkeep
 //! (`models`), the band's calibration (`band`, `rate_history`), the risk judge (`risk`) and the
-//! commitment (`commitment`). The configuration is in `config` and `forecast_config`.
+//! commitment (`commitment`); [`LandingDecider`] is the one over the configured forecaster. The
+//! configuration is in `config` and `forecast_config`.
 
 use crate::forecast::{ChannelForecast, Forecaster};
 use deckwatch_common::messages::{DecisionReason, DecisionState};
@@ -46,7 +47,7 @@ use commitment::{missing_data, Commitment};
 use gate::{Continuity, InputGate};
 use history::History;
 use models::{Models, Tracking};
-use risk::{calm_window, predicted_within, Margins};
+use risk::{calm_window, predicted_within, Judgement};
 
 /// The predicted channels, in this order: roll (deg), pitch (deg), and the deck's height (m)
 /// when `[decide] heave = "required"`.
@@ -166,7 +167,7 @@ impl<F: Forecaster> Decider<F> {
             band95: [f64::NAN; 3],
             rate_band95: [f64::NAN; 3],
         };
-        for (k, track) in m.tracks.iter().enumerate() {
+        for (k, track) in m.forecasts.iter().enumerate() {
             f.value[k] = track.value(t);
             f.rate[k] = track.rate(t);
             f.band95[k] = Z95 * m.band_scale[k] * track.std(t);
@@ -191,7 +192,7 @@ impl<F: Forecaster> Decider<F> {
     /// a touchdown past the point on decisions judged at `go_around_risk` only, with an abort
     /// that comes too late to fly.
     pub fn timeout(&mut self, now: f64) -> Option<Decision> {
-        if self.gate.silent_since(now, self.config.max_age_ms)? {
+        if self.gate.input_stale_at(now, self.config.max_age_ms)? {
             return Some(self.transition(Err(DecisionReason::StaleData), now));
         }
         self.silent_before_no_return(now)
@@ -247,13 +248,13 @@ impl<F: Forecaster> Decider<F> {
                 }
                 return Err(DecisionReason::ClockJump);
             }
-            Continuity::Follows { gap_after } => {
-                if let Some(before) = gap_after {
+            Continuity::Follows { gap_from } => {
+                if let Some(before) = gap_from {
                     self.tracking.gap(c, before, t);
                 }
             }
-            Continuity::Jump { gap_after, restart } => {
-                if let Some(before) = gap_after {
+            Continuity::Jump { gap_from, restart } => {
+                if let Some(before) = gap_from {
                     self.tracking.gap(c, before, t);
                 }
                 if !restart {
@@ -312,12 +313,12 @@ impl<F: Forecaster> Decider<F> {
         self.commitment.take_last_chance(last_chance);
         let c = &self.config;
         let bounded = self.tracking.models.as_ref().is_some_and(|m| {
-            let margins = if last_chance {
-                Margins::last_chance(c)
+            let judgement = if last_chance {
+                Judgement::last_chance(c)
             } else {
-                Margins::stay(c)
+                Judgement::stay(c)
             };
-            predicted_within(c, m, now, self.commitment.commit_end, margins)
+            predicted_within(c, m, now, self.commitment.commit_end, judgement)
         });
         missing_data(reason) && within_budget && bounded
     }
@@ -327,7 +328,7 @@ impl<F: Forecaster> Decider<F> {
         &mut self,
         m: &Models<F::Channel>,
         now: f64,
-        margins: Margins,
+        judgement: Judgement,
     ) -> Option<(f64, f64)> {
         let last_fit = self.tracking.last_fit;
         let fresh = match self.calm_cache {
@@ -338,7 +339,7 @@ impl<F: Forecaster> Decider<F> {
             None => false,
         };
         if !fresh {
-            let w = calm_window(&self.config, m, now, margins).map(|(s, l)| (now + s, l));
+            let w = calm_window(&self.config, m, now, judgement).map(|(s, l)| (now + s, l));
             self.calm_cache = Some((last_fit, w));
         }
         let (start, len) = self.calm_cache?.1?;
@@ -396,7 +397,7 @@ impl<F: Forecaster> Decider<F> {
             .tracking
             .models
             .as_ref()
-            .and_then(|m| m.tracks.get(HEAVE))
+            .and_then(|m| m.forecasts.get(HEAVE))
             .map_or(f64::NAN, |h| h.rate(now));
         self.commitment
             .settle(&self.config, decision.state, decision.reason, now);
@@ -414,18 +415,18 @@ impl<F: Forecaster> Decider<F> {
         decision: &mut Decision,
     ) {
         let c = self.config.clone();
-        decision.calm_window = self.cached_calm_window(m, now, Margins::entry(&c));
+        decision.calm_window = self.cached_calm_window(m, now, Judgement::entry(&c));
         if committed {
             // Staying needs only `go_around_risk`, until the last decision that can send the
             // touchdown around: that one is its clearance.
             let last_chance = self.commitment.last_chance(&c, now, self.next_frame_s(), None);
             self.commitment.take_last_chance(last_chance);
-            let margins = if last_chance {
-                Margins::last_chance(&c)
+            let judgement = if last_chance {
+                Judgement::last_chance(&c)
             } else {
-                Margins::stay(&c)
+                Judgement::stay(&c)
             };
-            if predicted_within(&c, m, now, self.commitment.commit_end, margins) {
+            if predicted_within(&c, m, now, self.commitment.commit_end, judgement) {
                 decision.state = DecisionState::ClearToLand;
             } else {
                 decision.state = DecisionState::Abort;
@@ -456,7 +457,7 @@ impl<F: Forecaster> Decider<F> {
             decision.new_commit = true;
             self.commitment.begin(&c, now);
         } else {
-            decision.reason = if predicted_within(&c, m, now, now, Margins::NONE) {
+            decision.reason = if predicted_within(&c, m, now, now, Judgement::MEAN) {
                 DecisionReason::PredictedOutside
             } else {
                 DecisionReason::OutsideCapacity
@@ -470,8 +471,8 @@ impl<F: Forecaster> Decider<F> {
     fn clears(&mut self, m: &Models<F::Channel>, now: f64) -> bool {
         self.commitment.could_clear(now);
         let c = &self.config;
-        let margins = Margins::commit(c, self.commitment.early(c, now));
-        predicted_within(c, m, now, now + c.touchdown_s, margins)
+        let judgement = Judgement::commit(c, self.commitment.early(c, now));
+        predicted_within(c, m, now, now + c.touchdown_s, judgement)
     }
 }
 

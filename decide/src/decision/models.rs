@@ -35,7 +35,7 @@ const RATE_CHECK_WINDOW_S: f64 = 0.9;
 #[derive(Debug, Clone)]
 pub(super) struct Models<C> {
     /// One per channel in use.
-    pub(super) tracks: Vec<C>,
+    pub(super) forecasts: Vec<C>,
     /// Per channel: what the forecaster's stated standard deviation is multiplied by so that
     /// its band held what happened (1 or more; see [`BandCalibration::scale`]).
     pub(super) band_scale: [f64; 3],
@@ -78,9 +78,9 @@ impl<C: ChannelForecast> Models<C> {
     }
 
     /// The same with the band taken as unreliable beyond `unreliable_scale` (a clearance's
-    /// judgement of a suspect band, `Margins::unreliable_band_scale`).
+    /// judgement of a suspect band, `Judgement::unreliable_band_scale`).
     pub(super) fn judged_by_history_above(&self, k: usize, unreliable_scale: f64) -> bool {
-        k < self.tracks.len()
+        k < self.forecasts.len()
             && self.widest_band_scale(k) > unreliable_scale
             && !self.rate_miss_std[k].is_finite()
     }
@@ -95,7 +95,7 @@ impl<C: ChannelForecast> Models<C> {
         self.rate_std_judging(k, t, false)
     }
 
-    /// [`Self::rate_std`], with `as_value` (a new commitment's `Margins::rate_as_value`) the
+    /// [`Self::rate_std`], with `as_value` (a new commitment's `Judgement::rate_as_value`) the
     /// rate of a channel whose band is unreliable scaled at least as much as its value's band:
     /// one model states both, from one innovation, and a value that missed by 15 of its
     /// deviations says its rate may too. The spread of its misses stays the floor.
@@ -105,7 +105,7 @@ impl<C: ChannelForecast> Models<C> {
             true => self.rate_band_scale[k].max(self.band_scale[k]),
             false => self.rate_band_scale[k],
         };
-        let scaled = scale * self.tracks[k].rate_std(t);
+        let scaled = scale * self.forecasts[k].rate_std(t);
         if unreliable {
             scaled.max(self.rate_miss_std[k])
         } else {
@@ -118,12 +118,12 @@ impl<C: ChannelForecast> Models<C> {
     pub(super) fn misses(&self, c: &DecisionConfig, t: f64, sample: &[f64; 3]) -> bool {
         let f = c.ar();
         let outside = |k: usize, limit: f64| {
-            let track = &self.tracks[k];
+            let track = &self.forecasts[k];
             (track.value(t) - sample[k]).abs() > limit.max(INNOVATION_Z * self.band_scale[k] * track.std(t))
         };
         outside(ROLL, f.max_innovation_deg)
             || outside(PITCH, f.max_innovation_deg)
-            || (self.tracks.len() > HEAVE && outside(HEAVE, f.max_heave_innovation_m))
+            || (self.forecasts.len() > HEAVE && outside(HEAVE, f.max_heave_innovation_m))
     }
 }
 
@@ -208,13 +208,13 @@ impl<F: Forecaster> Tracking<F> {
         };
         self.rate_checked_at = t;
         let outside = |k: usize, limit: f64| {
-            let track = &m.tracks[k];
+            let track = &m.forecasts[k];
             (track.rate(t) - rates[k]).abs() > limit.max(INNOVATION_Z * m.band_scale[k] * track.rate_std(t))
         };
         let max_rate_innovation_dps = c.ar().max_rate_innovation_dps;
         outside(ROLL, max_rate_innovation_dps)
             || outside(PITCH, max_rate_innovation_dps)
-            || (m.tracks.len() > HEAVE && outside(HEAVE, MAX_HEAVE_RATE_INNOVATION_MPS))
+            || (m.forecasts.len() > HEAVE && outside(HEAVE, MAX_HEAVE_RATE_INNOVATION_MPS))
     }
 
     /// The forecast's verdict on the newest sample (`t`, `sample`, already in `history`): Err
@@ -294,7 +294,7 @@ impl<F: Forecaster> Tracking<F> {
 
     /// One forecast per channel on the thinned samples `t`, `y` (the first `t.len()` of each),
     /// forecasting `horizon_s`; None when a channel cannot be fitted.
-    fn fit_tracks(&self, t: &[f64], y: &[Vec<f64>], horizon_s: f64) -> Option<Vec<F::Channel>> {
+    fn fit_channels(&self, t: &[f64], y: &[Vec<f64>], horizon_s: f64) -> Option<Vec<F::Channel>> {
         y.iter()
             .map(|yk| self.forecaster.fit(t, &yk[..t.len()], horizon_s))
             .collect()
@@ -305,7 +305,7 @@ impl<F: Forecaster> Tracking<F> {
         let thinned = history.thinned(channels);
         let (t, y) = (&thinned.t, &thinned.y);
         let end = *t.last()?;
-        let tracks = self.fit_tracks(t, y, f.horizon_s + c.touchdown_s + f.holdout_s)?;
+        let forecasts = self.fit_channels(t, y, f.horizon_s + c.touchdown_s + f.holdout_s)?;
         // How the fits of `holdout_s` ago fared on the samples since, in their own stated
         // standard deviations: how honest their band has been. Checked once the rates of the
         // whole held-out span are measured too (a second of samples centred on each): checked
@@ -321,7 +321,7 @@ impl<F: Forecaster> Tracking<F> {
             // No fit old enough to have been checked yet (the first `holdout_s` after a
             // warm-up): the band is checked on fits the decider would have made earlier.
             let mut band = std::mem::take(&mut self.band);
-            let fits_until = |n: usize, horizon_s: f64| self.fit_tracks(&t[..n], y, horizon_s);
+            let fits_until = |n: usize, horizon_s: f64| self.fit_channels(&t[..n], y, horizon_s);
             band.backtest(fits_until, t, end, history, f.holdout_s, c.touchdown_s);
             self.band = band;
         }
@@ -332,7 +332,7 @@ impl<F: Forecaster> Tracking<F> {
             rate_miss_std,
             checked: band_checked,
         } = self.band.scale(channels);
-        self.past.push_back(tracks.clone());
+        self.past.push_back(forecasts.clone());
         // Kept until checked: the band's check wants them `banded_span_s` old.
         while self
             .past
@@ -342,7 +342,7 @@ impl<F: Forecaster> Tracking<F> {
             self.past.pop_front();
         }
         let mut models = Models {
-            tracks,
+            forecasts,
             band_scale,
             rate_band_scale,
             rate_miss_std,
@@ -380,7 +380,7 @@ impl<F: Forecaster> Tracking<F> {
             .count();
         let start = samples.len() - recent;
         let t: Vec<f64> = samples.range(start..).map(|h| h.0).collect();
-        for (k, track) in m.tracks.iter_mut().enumerate() {
+        for (k, track) in m.forecasts.iter_mut().enumerate() {
             let y: Vec<f64> = samples.range(start..).map(|h| h.1[k]).collect();
             if let Some(next) = track.advanced(&t, &y) {
                 *track = next;

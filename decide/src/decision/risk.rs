@@ -1,6 +1,6 @@
 //! The risk judge: whether the forecast keeps the deck within the capacity over a touchdown at
 //! the accepted risk (a union bound of normal tails per limit, with the band's calibration),
-//! the margins each judgement is made with, and the next calm window.
+//! how each judgement treats the forecast ([`Judgement`]), and the next calm window.
 
 use super::band::{MAX_BAND_SCALE, SUSPECT_BAND_SCALE, UNRELIABLE_ANGLE_FACTOR};
 use super::models::Models;
@@ -13,7 +13,7 @@ pub(super) const STEP_S: f64 = 0.05;
 /// How a judgement treats the forecast: the accepted risk (None: the forecast's mean is judged
 /// as it is), and how far a band that proved too narrow is trusted.
 #[derive(Debug, Clone, Copy)]
-pub(super) struct Margins {
+pub(super) struct Judgement {
     /// The accepted probability of leaving the capacity (see [`exceedance_risk`]); None: the
     /// forecast's mean is judged as it is.
     pub(super) risk: Option<f64>,
@@ -29,9 +29,9 @@ pub(super) struct Margins {
     pub(super) rate_as_value: bool,
 }
 
-impl Margins {
+impl Judgement {
     /// The forecast's mean as it is, bands as measured.
-    pub(super) const NONE: Self = Self {
+    pub(super) const MEAN: Self = Self {
         risk: None,
         unreliable_band_scale: MAX_BAND_SCALE,
         unreliable_angle_factor: 1.0,
@@ -43,7 +43,7 @@ impl Margins {
     pub(super) fn entry(c: &DecisionConfig) -> Self {
         Self {
             risk: Some(c.risk_per_touchdown),
-            ..Self::NONE
+            ..Self::MEAN
         }
     }
 
@@ -75,7 +75,7 @@ impl Margins {
     pub(super) fn stay(c: &DecisionConfig) -> Self {
         Self {
             risk: Some(c.go_around_risk),
-            ..Self::NONE
+            ..Self::MEAN
         }
     }
 
@@ -83,7 +83,7 @@ impl Margins {
     /// clearance's. A committed touchdown goes on up to `go_around_risk` because the frames
     /// still to come can call a go-around; past the point of no return none can, so the last
     /// decision before it judges the rest of the touchdown as a new clearance would be. On a
-    /// seeing touchdown's margins, three held-out approaches at sea state 6 rode through their
+    /// seeing touchdown's judgement (`stay`), three held-out approaches at sea state 6 rode through their
     /// last 0.5 s on forecasts at a risk of 0.1 or less and met the deck falling at 0.606, 0.635
     /// and 0.90 m/s against 0.6 (docs/history.md).
     pub(super) fn last_chance(c: &DecisionConfig) -> Self {
@@ -91,22 +91,22 @@ impl Margins {
     }
 }
 
-/// Whether the model keeps the deck within capacity (less the margins) over [from, to]:
+/// Whether the model keeps the deck within the capacity over [from, to]:
 /// with a stated uncertainty, at the accepted risk; else its mean.
 pub(super) fn predicted_within<C: ChannelForecast>(
     c: &DecisionConfig,
     m: &Models<C>,
     from: f64,
     to: f64,
-    margins: Margins,
+    judgement: Judgement,
 ) -> bool {
     let steps = ((to - from) / STEP_S).ceil().max(0.0) as usize;
-    let (roll, pitch) = (&m.tracks[ROLL], &m.tracks[PITCH]);
-    let heave = m.tracks.get(HEAVE);
+    let (roll, pitch) = (&m.forecasts[ROLL], &m.forecasts[PITCH]);
+    let heave = m.forecasts.get(HEAVE);
     let limits = c.capacity_limits();
     let times = (0..=steps).map(|k| (from + k as f64 * STEP_S).min(to));
-    if let Some(risk) = margins.risk {
-        return exceedance_risk(c, m, times, &limits, margins) <= risk;
+    if let Some(risk) = judgement.risk {
+        return exceedance_risk(c, m, times, &limits, judgement) <= risk;
     }
     times.into_iter().all(|t| {
         let (r, p) = (roll.value(t).abs(), pitch.value(t).abs());
@@ -130,21 +130,21 @@ pub(super) fn predicted_within<C: ChannelForecast>(
 /// (BENCHMARKS.md, "The landing decision: decide-eval"). The
 /// measured share of clearances into a broken limit stays below the risk: the band's scale
 /// is read at the 97.5th percentile and the limits' risks are summed. A band measured more
-/// than `margins.unreliable_band_scale` times too narrow has its rate judged by its history too
-/// (`MAX_BAND_SCALE`; a new commitment's `SUSPECT_BAND_SCALE`: `commit_margins`); an angle
-/// whose band is unreliable has its deviation widened by `margins.unreliable_angle_factor`,
-/// and with `margins.rate_as_value` an unreliable channel's rate is scaled at least as much
+/// than `judgement.unreliable_band_scale` times too narrow has its rate judged by its history too
+/// (`MAX_BAND_SCALE`; a new commitment's `SUSPECT_BAND_SCALE`: `Judgement::commit`); an angle
+/// whose band is unreliable has its deviation widened by `judgement.unreliable_angle_factor`,
+/// and with `judgement.rate_as_value` an unreliable channel's rate is scaled at least as much
 /// as its value's band.
 pub(super) fn exceedance_risk<C: ChannelForecast>(
     c: &DecisionConfig,
     m: &Models<C>,
     times: impl Iterator<Item = f64>,
     limits: &[f64; 6],
-    margins: Margins,
+    judgement: Judgement,
 ) -> f64 {
-    let unreliable_scale = margins.unreliable_band_scale;
-    let (roll, pitch) = (&m.tracks[ROLL], &m.tracks[PITCH]);
-    let heave = m.tracks.get(HEAVE);
+    let unreliable_scale = judgement.unreliable_band_scale;
+    let (roll, pitch) = (&m.forecasts[ROLL], &m.forecasts[PITCH]);
+    let heave = m.forecasts.get(HEAVE);
     // An unreliable rate has a second judge (its misses in its own unit, its history); an
     // unreliable angle has none, and its band scaled by the past's misses is no bound on a
     // sea that is changing: scaled 5.96 and 7.27 times, roll and pitch bands cleared into
@@ -152,7 +152,7 @@ pub(super) fn exceedance_risk<C: ChannelForecast>(
     let angle_scale = |k: usize| {
         let s = m.band_scale[k];
         if s > MAX_BAND_SCALE {
-            s * margins.unreliable_angle_factor
+            s * judgement.unreliable_angle_factor
         } else {
             s
         }
@@ -194,7 +194,7 @@ pub(super) fn exceedance_risk<C: ChannelForecast>(
     // A new commitment takes an unreliable channel's rate as far off as its value: a heave
     // value band measured 15.5 times too narrow had its rate cleared on a band measured
     // 2.2 times, 0.053 m/s, and met a heave rate 0.6 m/s beyond its forecast (docs/history.md, "An unreliable channel's rate as far off as its value").
-    let rate_std = |k: usize, t: f64| m.rate_std_judging(k, t, margins.rate_as_value);
+    let rate_std = |k: usize, t: f64| m.rate_std_judging(k, t, judgement.rate_as_value);
     let mut worst = [0.0f64; 6];
     for t in times {
         let (rm, rs) = (roll.value(t), with_attitude_error(sr * roll.std(t)));
@@ -230,14 +230,14 @@ pub(super) fn calm_window<C: ChannelForecast>(
     c: &DecisionConfig,
     m: &Models<C>,
     now: f64,
-    margins: Margins,
+    judgement: Judgement,
 ) -> Option<(f64, f64)> {
     let horizon_s = c.ar().horizon_s;
     let steps = (horizon_s / STEP_S) as usize;
     let ok: Vec<bool> = (0..=steps)
         .map(|k| {
             let t = now + k as f64 * STEP_S;
-            predicted_within(c, m, t, t, margins)
+            predicted_within(c, m, t, t, judgement)
         })
         .collect();
     let need = (c.touchdown_s / STEP_S).ceil() as usize;
@@ -316,15 +316,15 @@ mod tests {
     #[test]
     fn each_judgement_takes_its_own_risk() {
         let c = DecisionConfig::default();
-        assert_eq!(Margins::entry(&c).risk, Some(c.risk_per_touchdown));
-        assert_eq!(Margins::last_chance(&c).risk, Some(c.risk_per_touchdown));
-        assert_eq!(Margins::stay(&c).risk, Some(c.go_around_risk));
-        assert_eq!(Margins::NONE.risk, None);
-        let early = Margins::commit(&c, true);
+        assert_eq!(Judgement::entry(&c).risk, Some(c.risk_per_touchdown));
+        assert_eq!(Judgement::last_chance(&c).risk, Some(c.risk_per_touchdown));
+        assert_eq!(Judgement::stay(&c).risk, Some(c.go_around_risk));
+        assert_eq!(Judgement::MEAN.risk, None);
+        let early = Judgement::commit(&c, true);
         assert_eq!(early.risk, Some(c.ar().early_risk_per_touchdown));
-        assert_eq!(Margins::commit(&c, false).risk, Some(c.risk_per_touchdown));
+        assert_eq!(Judgement::commit(&c, false).risk, Some(c.risk_per_touchdown));
         assert!(early.rate_as_value && early.unreliable_band_scale == SUSPECT_BAND_SCALE);
-        assert_eq!(Margins::stay(&c).unreliable_band_scale, MAX_BAND_SCALE);
+        assert_eq!(Judgement::stay(&c).unreliable_band_scale, MAX_BAND_SCALE);
     }
 
     #[test]

@@ -3,7 +3,7 @@ use super::history::{fit_line, parabola_rate_at, FIT_SPACING_S};
 use super::models::Models;
 use super::rate_history::{rate_histories, upper_bound_factor, RateHistory};
 use super::risk::{
-    exceedance_risk, outside_probability, predicted_within, tilt_outside_probability, Margins, STEP_S,
+    exceedance_risk, outside_probability, predicted_within, tilt_outside_probability, Judgement, STEP_S,
 };
 use super::*;
 use crate::forecast::ArModel;
@@ -744,7 +744,7 @@ fn a_gap_widens_the_band_and_no_longer_waits_out_the_lags() {
     assert_ne!(resumed.reason, DecisionReason::Gap);
     steady.update(83.1, observe(83.1), 83.105);
     let stated = |d: &LandingDecider, k: usize, t: f64| {
-        let m = &d.tracking.models.as_ref().unwrap().tracks[k];
+        let m = &d.tracking.models.as_ref().unwrap().forecasts[k];
         (m.value(t), m.std(t), m.rate_std(t))
     };
     // From 1 s ahead: the newest value itself is measured, its deviation each fit's
@@ -1040,22 +1040,22 @@ fn the_first_clearances_look_for_a_deeper_calm() {
     assert!(c.ar().early_risk_per_touchdown < c.risk_per_touchdown);
     d.commitment.early_since = None;
     assert_eq!(
-        Margins::commit(&d.config, d.commitment.early(&d.config, 60.0)).risk,
+        Judgement::commit(&d.config, d.commitment.early(&d.config, 60.0)).risk,
         Some(c.ar().early_risk_per_touchdown)
     );
     d.commitment.early_since = Some(40.0);
     let just_before = 40.0 + c.ar().early_window_s - 0.1;
     assert_eq!(
-        Margins::commit(&d.config, d.commitment.early(&d.config, just_before)).risk,
+        Judgement::commit(&d.config, d.commitment.early(&d.config, just_before)).risk,
         Some(c.ar().early_risk_per_touchdown)
     );
     let after = 40.0 + c.ar().early_window_s + 0.1;
     assert_eq!(
-        Margins::commit(&d.config, d.commitment.early(&d.config, after)).risk,
+        Judgement::commit(&d.config, d.commitment.early(&d.config, after)).risk,
         Some(c.risk_per_touchdown)
     );
-    assert_eq!(Margins::entry(&d.config).risk, Some(c.risk_per_touchdown));
-    assert_eq!(Margins::last_chance(&d.config).risk, Some(c.risk_per_touchdown));
+    assert_eq!(Judgement::entry(&d.config).risk, Some(c.risk_per_touchdown));
+    assert_eq!(Judgement::last_chance(&d.config).risk, Some(c.risk_per_touchdown));
     // A go-around starts the early window again.
     d.commitment.state = DecisionState::ClearToLand;
     d.commitment.commit_end = after + 1.0;
@@ -1066,7 +1066,7 @@ fn the_first_clearances_look_for_a_deeper_calm() {
     let mut off = LandingDecider::new(tuned(|f| f.early_window_s = 0.0)).unwrap();
     off.commitment.early_since = Some(60.0);
     assert_eq!(
-        Margins::commit(&off.config, off.commitment.early(&off.config, 60.0)).risk,
+        Judgement::commit(&off.config, off.commitment.early(&off.config, 60.0)).risk,
         Some(c.risk_per_touchdown)
     );
     // On a stream, the decision first could clear before its first clearance, and the
@@ -1106,20 +1106,20 @@ fn a_band_within_reach_of_unreliable_is_suspect() {
     // history's spread (0.5 m/s) too, and does not clear on it.
     let times = || (0..=40).map(|k| 60.0 + 0.05 * k as f64);
     let risk = d.config().risk_per_touchdown;
-    let judging = |unreliable_band_scale: f64| Margins {
+    let judging = |unreliable_band_scale: f64| Judgement {
         unreliable_band_scale,
-        ..Margins::NONE
+        ..Judgement::MEAN
     };
     assert!(exceedance_risk(&d.config, &m, times(), &limits, judging(MAX_BAND_SCALE)) < risk);
     assert!(exceedance_risk(&d.config, &m, times(), &limits, judging(SUSPECT_BAND_SCALE)) > risk);
-    let commit = Margins::commit(&d.config, d.commitment.early(&d.config, 60.0));
+    let commit = Judgement::commit(&d.config, d.commitment.early(&d.config, 60.0));
     assert!(!predicted_within(&d.config, &m, 60.0, 62.0, commit));
     assert!(predicted_within(
         &d.config,
         &m,
         60.0,
         62.0,
-        Margins::entry(&d.config)
+        Judgement::entry(&d.config)
     ));
     m.band_scale[HEAVE] = MAX_BAND_SCALE + 0.1;
     assert!(!m.band_suspect(HEAVE) && m.judged_by_history(HEAVE));
@@ -1131,13 +1131,13 @@ fn a_band_within_reach_of_unreliable_is_suspect() {
     assert!(!m.band_suspect(HEAVE));
 }
 
-/// A new commitment's margins at 60 s with a band taken as unreliable where every other
+/// A new commitment's judgement at 60 s with a band taken as unreliable where every other
 /// judgement takes it (beyond `MAX_BAND_SCALE`, not `SUSPECT_BAND_SCALE`): what differs from
-/// `Margins::NONE` on an unreliable band is then only how a commitment widens it.
-fn widening_commit_margins(d: &LandingDecider) -> Margins {
-    Margins {
+/// `Judgement::MEAN` on an unreliable band is then only how a commitment widens it.
+fn widening_commit_judgement(d: &LandingDecider) -> Judgement {
+    Judgement {
         unreliable_band_scale: MAX_BAND_SCALE,
-        ..Margins::commit(&d.config, d.commitment.early(&d.config, 60.0))
+        ..Judgement::commit(&d.config, d.commitment.early(&d.config, 60.0))
     }
 }
 
@@ -1149,20 +1149,20 @@ fn widening_commit_margins(d: &LandingDecider) -> Margins {
 fn a_new_commitment_widens_an_unreliable_angle_band() {
     let (d, mut m, limits) = calm_sea_models();
     let times = || (0..=40).map(|k| 60.0 + 0.05 * k as f64);
-    let commit = widening_commit_margins(&d);
-    let as_measured = Margins::NONE;
+    let commit = widening_commit_judgement(&d);
+    let as_measured = Judgement::MEAN;
     // Each angle's limit four unreliable deviations beyond its forecast's largest value:
     // near enough that a wider band costs risk.
     let unreliable = MAX_BAND_SCALE + 0.5;
     let mut tight = limits;
     for k in [ROLL, PITCH] {
-        let track = &m.tracks[k];
+        let track = &m.forecasts[k];
         let largest = times().map(|t| track.value(t).abs()).fold(0.0, f64::max);
         let widest = times().map(|t| track.std(t)).fold(0.0, f64::max);
         tight[k] = largest + 4.0 * unreliable * widest;
     }
     let risk =
-        |m: &Models<ArModel>, margins: Margins| exceedance_risk(&d.config, m, times(), &tight, margins);
+        |m: &Models<ArModel>, judgement: Judgement| exceedance_risk(&d.config, m, times(), &tight, judgement);
     for k in [ROLL, PITCH] {
         m.band_scale = [1.0; 3];
         m.band_scale[k] = MAX_BAND_SCALE;
@@ -1191,12 +1191,12 @@ fn a_new_commitment_takes_an_unreliable_channels_rate_as_far_off_as_its_value() 
     })
     .unwrap();
     let times = || (0..=40).map(|k| 60.0 + 0.05 * k as f64);
-    let commit = widening_commit_margins(&d);
-    let as_measured = Margins::NONE;
+    let commit = widening_commit_judgement(&d);
+    let as_measured = Judgement::MEAN;
     let unreliable = MAX_BAND_SCALE + 0.5;
     for k in [ROLL, PITCH, HEAVE] {
         let mut m = m.clone();
-        let track = &m.tracks[k];
+        let track = &m.forecasts[k];
         let largest = times().map(|t| track.rate(t).abs()).fold(0.0, f64::max);
         let widest = times().map(|t| track.rate_std(t)).fold(0.0, f64::max);
         // The angles out of reach, the rate's limit four of its stated deviations beyond
@@ -1205,8 +1205,9 @@ fn a_new_commitment_takes_an_unreliable_channels_rate_as_far_off_as_its_value() 
         tight[..3].fill(1e3);
         tight[3 + k] = largest + 4.0 * widest;
         m.rate_miss_std[k] = 0.0;
-        let risk =
-            |m: &Models<ArModel>, margins: Margins| exceedance_risk(&d.config, m, times(), &tight, margins);
+        let risk = |m: &Models<ArModel>, judgement: Judgement| {
+            exceedance_risk(&d.config, m, times(), &tight, judgement)
+        };
         m.band_scale[k] = MAX_BAND_SCALE;
         assert_eq!(
             risk(&m, commit),
@@ -1238,7 +1239,7 @@ fn an_unreliable_rate_is_given_at_least_the_spread_of_its_own_misses() {
     let (d, mut m, limits) = calm_sea_models();
     let c = d.config().clone();
     let times = || (0..=40).map(|k| 60.0 + 0.05 * k as f64);
-    let stated = m.tracks[HEAVE].rate_std(60.5);
+    let stated = m.forecasts[HEAVE].rate_std(60.5);
     m.rate_miss_std = [10.0 * stated + 0.01; 3];
     assert_eq!(m.rate_std(HEAVE, 60.5), stated, "an honest band: as stated");
     // The heave's value band measured 20 times too narrow, its rate's misses 0.02 m/s: a
@@ -1277,7 +1278,7 @@ fn the_autopilots_vertical_speed_error_widens_the_heave_rate_band() {
         })
         .unwrap()
     };
-    let heave = &m.tracks[HEAVE];
+    let heave = &m.forecasts[HEAVE];
     limits[5] = times()
         .map(|t| heave.rate(t).abs() + 4.0 * m.rate_std(HEAVE, t))
         .fold(0.0, f64::max);
@@ -1315,7 +1316,7 @@ fn the_autopilots_attitude_error_widens_the_angle_bands() {
     };
     let risk = d.config().risk_per_touchdown;
     for k in [ROLL, PITCH] {
-        let track = &m.tracks[k];
+        let track = &m.forecasts[k];
         let mut tight = limits;
         tight[k] = times()
             .map(|t| track.value(t).abs() + 4.0 * m.band_scale[k] * track.std(t))
@@ -1333,7 +1334,7 @@ fn the_autopilots_attitude_error_widens_the_angle_bands() {
     let mut tilted = limits;
     tilted[2] = 1.0
         + times()
-            .map(|t| tilt_deg(m.tracks[ROLL].value(t), m.tracks[PITCH].value(t)))
+            .map(|t| tilt_deg(m.forecasts[ROLL].value(t), m.forecasts[PITCH].value(t)))
             .fold(0.0, f64::max);
     let exact = exceedance_risk_as_measured(&stating(0.0).config, &m, times(), &tilted);
     let biased = exceedance_risk_as_measured(&stating(0.5).config, &m, times(), &tilted);
@@ -1792,7 +1793,7 @@ fn exceedance_risk_as_measured(
     times: impl Iterator<Item = f64>,
     limits: &[f64; 6],
 ) -> f64 {
-    exceedance_risk(c, m, times, limits, Margins::NONE)
+    exceedance_risk(c, m, times, limits, Judgement::MEAN)
 }
 
 /// The default configuration with the forecaster's tuning changed by `change`.

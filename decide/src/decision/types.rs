@@ -26,7 +26,7 @@ impl DeckObservation {
     }
 }
 
-/// A forecast of the deck at one instant ([`LandingDecider::forecast`]): roll, pitch (deg) and
+/// A forecast of the deck at one instant ([`super::LandingDecider::forecast`]): roll, pitch (deg) and
 /// the deck height (m), their rates, and the half-widths of the stated 95 % bands.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DeckForecast {

@@ -13,7 +13,7 @@ use nalgebra::{DMatrix, DVector};
 /// around as 48 lags did (105 against 53 on the development seeds); with four, 66 (docs/history.md, "Forecasts from 19.2 s of lags").
 const GAPPED_ROWS_PER_COEF: usize = 4;
 
-/// An autoregressive predictor of one angle: the history resampled on a uniform grid, `x_k` as a
+/// An autoregressive predictor of one channel (an angle or the deck height): the history resampled on a uniform grid, `x_k` as a
 /// linear combination of the `order` values before it (least squares over the window), run
 /// forward to give the prediction. Narrow-band motion whose amplitudes drift (an irregular sea)
 /// is followed locally, without resolving its frequencies.

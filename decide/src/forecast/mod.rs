@@ -22,8 +22,10 @@ pub trait ChannelForecast: Clone + std::fmt::Debug {
     fn value(&self, t: f64) -> f64;
     /// The predicted rate at `t` (deg/s or m/s).
     fn rate(&self, t: f64) -> f64;
-    /// The stated standard deviation of [`Self::value`]'s error at `t` (0: it states none, and
-    /// no clearance can be had on it).
+    /// The stated standard deviation of [`Self::value`]'s error at `t`. It must be positive at
+    /// [`Self::t0`] (the newest value's own uncertainty, say one innovation): a forecast that
+    /// states 0 there is taken to state none, is never calibrated (the band's misses are counted
+    /// in stated deviations) and never cleared on.
     fn std(&self, t: f64) -> f64;
     /// The stated standard deviation of [`Self::rate`]'s error at `t`.
     fn rate_std(&self, t: f64) -> f64;

@@ -279,7 +279,7 @@ pub struct ImageArgs {
     #[cfg_attr(feature = "cli", arg(long))]
     pub halo: Option<f64>,
     /// Lens distortion k1,k2,p1,p2,k3 (OpenCV order).
-    #[cfg_attr(feature = "cli", arg(long, value_delimiter = ',', num_args = 5))]
+    #[cfg_attr(feature = "cli", arg(long, value_delimiter = ',', allow_hyphen_values = true))]
     pub distortion: Option<Vec<f64>>,
     /// Rolling shutter: the time to read the rows out, top to bottom (ms; 0 = a global
     /// shutter). The Pi cameras take about 20-30 ms at full resolution.

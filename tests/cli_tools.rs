@@ -298,3 +298,37 @@ fn doctor_says_what_to_fix() {
     }
     assert!(text.contains("3 to fix"), "{text}");
 }
+
+/// `sim record --distortion` takes the five coefficients as README writes them, a negative k1
+/// first; four are refused by name.
+#[test]
+fn a_lens_distortion_is_given_as_five_comma_separated_coefficients() {
+    let dir = tempfile::tempdir().unwrap();
+    let record = |distortion: &str| {
+        Command::new(workspace_binary("deckwatch"))
+            .args([
+                "sim",
+                "record",
+                "--scenario",
+                "case1",
+                "--width",
+                "640",
+                "--height",
+                "480",
+            ])
+            .args(["--frames", "1", "--distortion", distortion, "--out"])
+            .arg(dir.path().join("r"))
+            .output()
+            .unwrap()
+    };
+    let out = record("-0.2,0.05,0,0,0");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let camera = std::fs::read_to_string(dir.path().join("r/camera.json")).unwrap();
+    assert!(camera.contains("-0.2"), "{camera}");
+    let out = record("-0.2,0.05,0,0");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("--distortion"),
+        "{stderr}"
+    );
+}

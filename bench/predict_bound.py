@@ -1,28 +1,60 @@
-"""What any linear deck-motion forecast could clear on (issue 33): an upper bound on the share of
-the oracle's calm windows a decision can use, for `decide-eval --motion jonswap` seas and noise.
+"""What any linear deck-motion forecast could clear on: an upper bound on the share of the calm
+windows a decision can use, on the spectrum seas of `decide-eval --motion jonswap` (issue 33) or
+on any motion file (`--motion-csv`, issue 70).
 
 The decision clears when its forecast of roll, pitch, heave and their rates over the touchdown
 keeps the deck within the capacity at the accepted risk. How often that can happen is limited by
-how well the motion can be forecast at all. This script forecasts with the best linear predictor
-there is for the sea: the exact Gaussian conditional of the next touchdown given the last
-`--lags-s` of noisy samples, from the sea's true covariance (its spectrum: known here, learnt
-from the samples by deckwatch). Its bands are honest by construction. It clears by the decider's own rule
-(`decide/src/decision/risk.rs`): per limit, the largest two-sided normal tail over the
-touchdown; summed over the limits; at most `--risk`. It never waits for a warm-up, never loses a
-frame and may clear at every decision. The share it uses is therefore what no per-channel (or,
-with `--joint`, multichannel) linear forecast from that span can beat on these seas.
+how well the motion can be forecast at all. Both modes clear by the decider's own rule
+(`decide/src/decision/risk.rs` `exceedance_risk`): per limit, the largest two-sided normal tail
+over the touchdown's instants; the tilt's the least over its splits between roll and pitch;
+summed over the limits; at most `--risk`. Neither waits for a warm-up, loses a frame or keeps a
+stricter early risk: each may clear at every decision. Calm windows and safe touchdowns are
+judged as `decide/src/eval.rs` judges them (the truth every 0.02 s; a window is a span at least a
+touchdown long in which the truth stays within the capacity; it is used when a clearance whose
+touchdown truly stays within the capacity falls in it).
 
-The sea is a replica of deckwatch-sim's `SpectrumShipMotion` (sim/src/motion.rs: the JONSWAP
-spectrum of 300 components over 0.5-3 times the peak frequency, encounter frequencies at 5 m/s,
-roll a resonance at 11 s with damping 0.1, pitch and heave low-passed at 6 and 8 s, the heading
-wandering +-25 deg over 10 min) with its own random frequencies and phases: the same sea model,
-not the same seas as `decide-eval --seeds`. Calm windows and safe touchdowns are judged as
-`decide/src/eval.rs` judges them (truth every 0.02 s, windows at least a touchdown long).
+The spectrum seas: the best linear predictor there is for the sea, the exact Gaussian
+conditional of the next touchdown given the last `--lags-s` of noisy samples, from the sea's true
+covariance (its spectrum: known here, learnt from the samples by deckwatch); its bands are honest
+by construction, and the share it uses is what no per-channel (or, with `--joint`, multichannel)
+linear forecast from that span can beat. The sea is a replica of deckwatch-sim's
+`SpectrumShipMotion` (sim/src/motion.rs: the JONSWAP spectrum of 300 components over 0.5-3 times
+the peak frequency, encounter frequencies at 5 m/s, roll a resonance at 11 s with damping 0.1,
+pitch and heave low-passed at 6 and 8 s, the heading wandering +-25 deg over 10 min) with its own
+random frequencies and phases: the same sea model, not the same seas as `decide-eval --seeds`.
+
+A motion file (`--motion-csv`, docs/recording.md "Ship motion from a file"; bench/motion_bound_lib.py):
+no covariance is known, so an ideal linear forecaster is fitted on the whole file. The file is
+read as decide-eval reads it (cubic Hermite between samples, rates by central differences) and
+measured at decide-eval's 10 Hz with its noise (`--noise-deg` on the angles, `--heave-noise-m`
+on the height; a fixed seed, the first of `--seeds`). For each instant of the touchdown
+(`--step-s` apart, 0-2 s after the decision) a least-squares regression on the newest
+`--lags-s` of noisy samples on the decider's 0.2 s grid (each channel's own, or with `--joint`
+all three channels') forecasts the true roll, pitch, their rates and the heave rate there; its
+band is Gaussian, the residuals' standard deviation per quantity and instant. It assumes the
+motion is forecast linearly from those lags with one set of coefficients for the whole file,
+and that the errors are normal. The global band is the residuals' over the whole file: the fit and
+the band both saw the file, so it is optimistic, and it is one band for a sea that grows and
+calms. With `--local-band-s S`, each decision also gets a locally honest band: its own past
+residuals over the trailing S seconds (those whose truth has come by then), at least
+`--local-floor` of the global band. The bound is the larger of the two shares whose
+clearances stayed safe (the local one on the development files, by a little). The
+decider's stated reserves are added (`[decide]` defaults: 0.2 deg on the angles, 0.05 m/s on the
+heave rate). Decisions and arrivals start at `--start-s` (after the lags and the local span);
+windows are counted from there to the last decision's touchdown, each commitment judged from its
+capture plus `--latency-ms` as decide-eval's. Per file and band it reports the clearances, the
+unsafe ones (whose true touchdown broke the capacity), the calm windows and those used, and the
+share of arrival instants (every 10 s) with a safe clearance within `--within-s`, beside an
+oracle that commits on any safe touchdown; then a summary per sea state (`ssN` in the file names).
 
 Usage: python3 bench/predict_bound.py [--lags-s 9.6] [--joint] [--sea-states 3,4,5,6]
        [--seeds 1,2] [--headings 0,110,160] [--minutes 10] [--risk 1e-3] [--band-scale 1]
        [--noise-deg 0.05] [--heave-noise-m 0.02] [--coherence 1] [--fitted]
        [--vertical-speed-error-mps 0] [--attitude-error-deg 0]
+       python3 bench/predict_bound.py --motion-csv FILE[,FILE...] [--joint] [--lags-s 19.2]
+       [--local-band-s 60] [--local-floor 0.2] [--within-s 120] [--start-s 80] [--step-s 0.1]
+       [--latency-ms 5] [--json] (and --risk, --band-scale, --noise-deg, --heave-noise-m, the
+       reserves: 0.05 m/s and 0.2 deg by default on files)
 `--fitted`: instead of the bound, the rate forecast errors of autoregressions fitted on the noisy
 samples as the decider fits them, one per channel (what the decider does) and one of the three
 channels together.
@@ -30,9 +62,16 @@ Needs numpy (in the environment ci/peers.sh makes, as OpenCV's dependency). Set
 OPENBLAS_NUM_THREADS=1 when running several at once: threaded BLAS on small matrices only contends.
 """
 import argparse
+import json
 import math
+import os
+import sys
+import time
 
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(__file__))
+import motion_bound_lib  # noqa: E402
 
 TAU = 2 * math.pi
 GRAVITY = 9.81
@@ -326,10 +365,76 @@ def fitted_rate_errors(sea_state, seed, heading, args):
         print(f"| {sea_state}/{seed}@{heading:.0f} | {model} | " + " | ".join(cells) + " |", flush=True)
 
 
+def motion_files(args):
+    """The bound on each of `--motion-csv`'s files, one line per file and band variant, then a
+    summary per sea state (from `ssN` in the names) and over all."""
+    forecast_name = "joint" if args.joint else "per channel"
+    if not args.json:
+        print(
+            f"{forecast_name}, {args.lags_s:g} s of lags, risk {args.risk:g}, reserves "
+            f"{args.attitude_error_deg:g} deg / {args.vertical_speed_error_mps:g} m/s, noise {args.noise_deg:g} deg / "
+            f"{args.heave_noise_m:g} m, decisions from {args.start_s:g} s, instants {args.step_s:g} s apart, "
+            f"latency {args.latency_ms:g} ms; s: the file's time (the fit and every band)"
+        )
+        print(
+            f"| file | forecast | band | clears | unsafe | calm windows | used | arrivals served within "
+            f"{args.within_s:g} s | median wait (s) | oracle served | tail beyond 3.09 (worst quantity) | s |"
+        )
+        print("| --- " * 12 + "|")
+    summary = {}
+    keys = ("clears", "unsafe", "calm_windows", "used", "arrivals", "served", "oracle_served")
+
+    def share(a, b):
+        return f"{100 * a / max(b, 1):.1f} %"
+
+    def cells(r):
+        """The columns from clears to oracle served."""
+        return (
+            f"{r['clears']} | {r['unsafe']} | {r['calm_windows']} | {r['used']} ({share(r['used'], r['calm_windows'])}) "
+            f"| {r['served']} of {r['arrivals']} ({share(r['served'], r['arrivals'])}) "
+            f"| {'-' if r.get('median_wait_s') is None else format(r['median_wait_s'], '.1f')} "
+            f"| {share(r['oracle_served'], r['arrivals'])}"
+        )
+
+    for path in args.motion_csv:
+        clock = time.perf_counter()
+        # The same noise on every file, whatever the order they come in.
+        results = motion_bound_lib.run_file(path, args, args.joint, np.random.default_rng(args.seeds[0] + 1000))
+        elapsed_s = time.perf_counter() - clock
+        sea_state = motion_bound_lib.sea_state_of(path)
+        for r in results:
+            for group in (sea_state, "all"):
+                if group is not None:
+                    total = summary.setdefault((r["band"], group), dict.fromkeys(keys, 0))
+                    for k in keys:
+                        total[k] += r[k]
+            if args.json:
+                extra = dict(file=path, forecast=forecast_name, sea_state=sea_state, seconds=round(elapsed_s, 2))
+                print(json.dumps(dict(r, **extra)), flush=True)
+                continue
+            worst, tail = max(r["tail_beyond_3_09"].items(), key=lambda kv: kv[1])
+            print(
+                f"| {os.path.basename(path)} | {forecast_name} | {r['band']} | {cells(r)} "
+                f"| {worst} {100 * tail:.2f} % | {elapsed_s:.1f} |",
+                flush=True,
+            )
+    for band, group in sorted(summary, key=lambda k: (k[0], k[1] == "all", 0 if k[1] == "all" else k[1])):
+        t = summary[band, group]
+        name = "all" if group == "all" else f"sea state {group}"
+        if args.json:
+            print(json.dumps(dict(t, summary=name, band=band, forecast=forecast_name)))
+        else:
+            print(f"| {name} | {forecast_name} | {band} | {cells(t)} | | |")
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ints = lambda s: [int(v) for v in s.split(",")]  # noqa: E731
-    p.add_argument("--lags-s", type=float, default=9.6, help="span of past samples (s); the decider's: 48 x 0.2 s")
+    p.add_argument(
+        "--lags-s",
+        type=float,
+        help="span of past samples (s): 9.6 on the spectrum seas (48 x 0.2 s), 19.2 on motion files (the decider's 96 x 0.2 s)",
+    )
     p.add_argument("--joint", action="store_true", help="one forecast from all three channels' lags")
     p.add_argument("--sea-states", type=ints, default=[3, 4, 5, 6])
     p.add_argument("--seeds", type=ints, default=[1, 2])
@@ -340,14 +445,14 @@ def main():
     p.add_argument(
         "--vertical-speed-error-mps",
         type=float,
-        default=0.0,
-        help="[decide] vertical_speed_error_mps: added to the heave rate's deviation in quadrature, as the decider adds it",
+        help="[decide] vertical_speed_error_mps: added to the heave rate's deviation in quadrature, as the decider adds it "
+        "(0 on the spectrum seas, as measured there; the default 0.05 on motion files)",
     )
     p.add_argument(
         "--attitude-error-deg",
         type=float,
-        default=0.0,
-        help="[decide] vehicle_attitude_error_deg: added to roll's and pitch's deviations in quadrature",
+        help="[decide] vehicle_attitude_error_deg: added to roll's and pitch's deviations in quadrature "
+        "(0 on the spectrum seas; the default 0.2 on motion files)",
     )
     p.add_argument("--noise-deg", type=float, default=0.05)
     p.add_argument("--heave-noise-m", type=float, default=0.02)
@@ -358,11 +463,49 @@ def main():
         help="share of each channel's energy from waves all channels answer (the simulator: 1)",
     )
     p.add_argument(
+        "--motion-csv",
+        type=lambda s: s.split(","),
+        default=[],
+        help="motion files (decide-eval --motion-csv's format) instead of the spectrum seas: a regression fitted on each",
+    )
+    p.add_argument("--within-s", type=float, default=120.0, help="an arrival is served by a safe clearance this soon (s)")
+    p.add_argument(
+        "--local-band-s",
+        type=float,
+        default=0.0,
+        help="motion files: also judge with each decision's band from its own trailing residuals over this span (s)",
+    )
+    p.add_argument("--local-floor", type=float, default=0.2, help="the local band is at least this share of the global one")
+    p.add_argument(
+        "--start-s", type=float, default=80.0, help="motion files: the first decision and arrival (s; after the lags and local band)"
+    )
+    p.add_argument("--latency-ms", type=float, default=5.0, help="motion files: capture to decision, as decide-eval's")
+    p.add_argument("--step-s", type=float, default=0.1, help="motion files: the touchdown's judged instants this far apart (s)")
+    p.add_argument("--json", action="store_true", help="motion files: one JSON object per line")
+    p.add_argument(
         "--fitted",
         action="store_true",
         help="instead: rate forecast errors of fitted autoregressions, per channel and joint",
     )
     args = p.parse_args()
+    on_files = bool(args.motion_csv)
+    for name, spectrum_sea, motion_file in (
+        ("lags_s", 9.6, 19.2),
+        ("vertical_speed_error_mps", 0.0, 0.05),
+        ("attitude_error_deg", 0.0, 0.2),
+    ):
+        if getattr(args, name) is None:
+            setattr(args, name, motion_file if on_files else spectrum_sea)
+    if on_files:
+        lags = args.lags_s / motion_bound_lib.LAG_STEP_S
+        if round(lags) < 2 or abs(lags - round(lags)) > 1e-6:
+            p.error(f"--lags-s: {args.lags_s} is not a multiple of {motion_bound_lib.LAG_STEP_S} s of at least 2")
+        if not 0 < args.step_s <= motion_bound_lib.TOUCHDOWN_S or args.local_band_s < 0 or not 0 < args.local_floor <= 1:
+            p.error("--step-s in (0, 2], --local-band-s not negative, --local-floor in (0, 1]")
+        if args.fitted:
+            p.error("--fitted is for the spectrum seas")
+        motion_files(args)
+        return
     if not 2 <= round(args.lags_s * RATE_HZ) <= START_S * RATE_HZ:
         p.error(f"--lags-s: {args.lags_s} is outside [{2 / RATE_HZ}, {START_S}] s")
     if not 0 <= args.coherence <= 1:

@@ -159,7 +159,7 @@ enum SimCommand {
     /// Write a scenario's exact (or noisy) marker pixels with ground truth as a marker table.
     Markers(Box<tables::MarkersArgs>),
     /// Write a ship-motion model's deck motion as a motion file (`--motion-csv` of decide-eval,
-    /// predict-eval and trials): `spectrum`, `nonlinear-roll`, `short-crested`.
+    /// predict-eval and trials): `spectrum`, `nonlinear-roll`, `short-crested`, `hull-rao`.
     Motion(Box<sim_motion::MotionArgs>),
 }
 

@@ -3,16 +3,17 @@
 
 use deckwatch_sim::motion_file::{write_motion_csv, MotionRow};
 use deckwatch_sim::ship::{
-    motion_rows, SeaSpec, ShipMotionModel, ShipSea, ShortCrestedMotion, ShortCrestedParams, MAX_DURATION_S,
-    MOTION_FILE_RATES_HZ,
+    motion_rows, HullRaoMotion, HullRaoParams, SeaSpec, ShipMotionModel, ShipSea, ShortCrestedMotion,
+    ShortCrestedParams, MAX_DURATION_S, MOTION_FILE_RATES_HZ,
 };
 
 #[derive(clap::Args)]
 pub struct MotionArgs {
     /// The model: `spectrum` (today's long-crested JONSWAP sea), `nonlinear-roll` (its waves,
     /// pitch and heave; roll from a nonlinear equation of motion), `short-crested`
-    /// (directionally spread waves, the ship under way on a wandering course, the pad aft);
-    /// docs/ship-motion.md.
+    /// (directionally spread waves, the ship under way on a wandering course, the pad aft),
+    /// `hull-rao` (the spectrum sea's waves through a frigate's response table computed by
+    /// Capytaine, under way); docs/ship-motion.md.
     #[arg(long, value_parser = ShipMotionModel::parse)]
     model: ShipMotionModel,
     /// Sea state (3-6: its significant wave height and peak period).
@@ -30,7 +31,7 @@ pub struct MotionArgs {
     /// Samples per second (10-1000 Hz).
     #[arg(long, default_value_t = 10.0)]
     rate_hz: f64,
-    /// With `short-crested`: the ship's speed (kn; default 10).
+    /// With `short-crested` and `hull-rao`: the ship's speed (kn; default 10).
     #[arg(long)]
     speed_kn: Option<f64>,
     /// With `short-crested`: the cos-2s spreading's s (default 10, a wind sea; 25 and 75 are
@@ -70,10 +71,17 @@ pub fn run(a: MotionArgs) -> Result<(), String> {
             };
             ShortCrestedMotion::new(&spec, &params).map(ShipSea::ShortCrested)
         }
+        (ShipMotionModel::HullRao, Some(speed_kn), None) => {
+            let params = HullRaoParams {
+                speed_kn,
+                ..HullRaoParams::FRIGATE
+            };
+            HullRaoMotion::new(&spec, &params).map(ShipSea::HullRao)
+        }
         (model, None, None) => model.build(&spec),
         (model, _, _) => {
             return Err(format!(
-                "--speed-kn and --spreading-s are the short-crested sea's; `{}` has its own",
+                "--speed-kn is the short-crested sea's and the hull's, --spreading-s the short-crested sea's; `{}` has its own",
                 model.name()
             ))
         }

@@ -24,6 +24,7 @@ use deckwatch_common::messages::{DecisionReason, DecisionState};
 mod band;
 mod commitment;
 mod config;
+mod coverage;
 mod forecast_config;
 mod gate;
 mod history;
@@ -160,20 +161,7 @@ impl<F: Forecaster> Decider<F> {
     /// roll, pitch (deg, deg/s) and the deck height (m, m/s; NaN without heave), and the
     /// half-width of the band it states for 95 % of outcomes, calibrated by its misses.
     pub fn forecast(&self, t: f64) -> Option<DeckForecast> {
-        let m = self.tracking.models.as_ref()?;
-        let mut f = DeckForecast {
-            value: [f64::NAN; 3],
-            rate: [f64::NAN; 3],
-            band95: [f64::NAN; 3],
-            rate_band95: [f64::NAN; 3],
-        };
-        for (k, track) in m.forecasts.iter().enumerate() {
-            f.value[k] = track.value(t);
-            f.rate[k] = track.rate(t);
-            f.band95[k] = Z95 * m.band_scale[k] * track.std(t);
-            f.rate_band95[k] = Z95 * m.rate_std(k, t);
-        }
-        Some(f)
+        Some(self.tracking.models.as_ref()?.deck_forecast(t))
     }
 
     /// The time between the newest two frames (s), when it is a frame rate.

@@ -4,9 +4,10 @@
 //! it, and the holds after a gap or a measurement it did not explain.
 
 use super::band::{BandCalibration, BandScale, MAX_BAND_SCALE, RATE_CHECK_HALF_WINDOW_S, SUSPECT_BAND_SCALE};
+use super::coverage::BandCoverage;
 use super::history::{History, FIT_SPACING_S};
 use super::rate_history::{rate_histories, RateHistory};
-use super::{DecisionConfig, HEAVE, PITCH, ROLL};
+use super::{DecisionConfig, DeckForecast, HEAVE, PITCH, ROLL, Z95};
 use crate::forecast::{ChannelForecast, Forecaster};
 use deckwatch_common::messages::DecisionReason;
 use std::collections::VecDeque;
@@ -48,6 +49,9 @@ pub(super) struct Models<C> {
     pub(super) band_checked: bool,
     /// Per channel, what its history alone says of its rate to come (no model).
     pub(super) rate_history: [RateHistory; 3],
+    /// Per quantity (roll, pitch, heave, their rates), what the touchdowns judged so far say the
+    /// band is further to be widened by ([`BandCoverage`]; 1 or more).
+    pub(super) widening: [f64; 6],
 }
 
 impl<C: ChannelForecast> Models<C> {
@@ -101,9 +105,11 @@ impl<C: ChannelForecast> Models<C> {
     /// deviations says its rate may too. The spread of its misses stays the floor.
     pub(super) fn rate_std_judging(&self, k: usize, t: f64, as_value: bool) -> f64 {
         let unreliable = self.band_unreliable(k);
+        // Each band widened by its own touchdowns' coverage, then compared.
+        let rate_scale = self.widening[3 + k] * self.rate_band_scale[k];
         let scale = match unreliable && as_value {
-            true => self.rate_band_scale[k].max(self.band_scale[k]),
-            false => self.rate_band_scale[k],
+            true => rate_scale.max(self.widening[k] * self.band_scale[k]),
+            false => rate_scale,
         };
         let scaled = scale * self.forecasts[k].rate_std(t);
         if unreliable {
@@ -125,6 +131,31 @@ impl<C: ChannelForecast> Models<C> {
             || outside(PITCH, f.max_innovation_deg)
             || (self.forecasts.len() > HEAVE && outside(HEAVE, f.max_heave_innovation_m))
     }
+
+    /// The standard deviation the decision gives channel `k`'s value at `t` (before the
+    /// autopilot's errors): the stated one, scaled by the held-out misses and widened by the
+    /// touchdowns judged.
+    pub(super) fn value_std(&self, k: usize, t: f64) -> f64 {
+        self.widening[k] * self.band_scale[k] * self.forecasts[k].std(t)
+    }
+
+    /// The forecast at `t` as the decision judges it: values, rates and their 95 % bands (NaN
+    /// for a channel not predicted).
+    pub(super) fn deck_forecast(&self, t: f64) -> DeckForecast {
+        let mut f = DeckForecast {
+            value: [f64::NAN; 3],
+            rate: [f64::NAN; 3],
+            band95: [f64::NAN; 3],
+            rate_band95: [f64::NAN; 3],
+        };
+        for (k, track) in self.forecasts.iter().enumerate() {
+            f.value[k] = track.value(t);
+            f.rate[k] = track.rate(t);
+            f.band95[k] = Z95 * self.value_std(k, t);
+            f.rate_band95[k] = Z95 * self.rate_std(k, t);
+        }
+        f
+    }
 }
 
 /// The forecast's upkeep: the fitted models, the fits kept to be judged on what came after
@@ -136,6 +167,7 @@ pub(super) struct Tracking<F: Forecaster> {
     /// Earlier fits (newest last), to measure how well they predicted what came after.
     pub(super) past: VecDeque<Vec<F::Channel>>,
     pub(super) band: BandCalibration,
+    pub(super) coverage: BandCoverage,
     /// When the forecast was last fitted (s).
     pub(super) last_fit: f64,
     /// No clearance before this (s): the recovery after a gap.
@@ -153,6 +185,7 @@ impl<F: Forecaster> Tracking<F> {
             models: None,
             past: VecDeque::new(),
             band: BandCalibration::default(),
+            coverage: BandCoverage::default(),
             last_fit: f64::NEG_INFINITY,
             gap_until: f64::NEG_INFINITY,
             unexplained_at: f64::NEG_INFINITY,
@@ -165,6 +198,7 @@ impl<F: Forecaster> Tracking<F> {
         self.models = None;
         self.past.clear();
         self.band.clear();
+        self.coverage.forget_pending();
         self.unexplained_at = f64::NEG_INFINITY;
         self.rate_checked_at = f64::NEG_INFINITY;
         // A gap on the old timeline (say, to a time in the future) means nothing on the new one.
@@ -231,6 +265,11 @@ impl<F: Forecaster> Tracking<F> {
         committed: bool,
     ) -> Result<(), DecisionReason> {
         let f = c.ar();
+        self.coverage
+            .judge(history, c.touchdown_s, RATE_CHECK_HALF_WINDOW_S);
+        if let Some(m) = self.models.as_mut() {
+            m.widening = self.coverage.widening();
+        }
         if t < self.gap_until {
             // Still a measurement: one the model misses is not a gap to ride through.
             if self.models.as_ref().is_some_and(|m| m.misses(c, t, sample)) {
@@ -251,7 +290,16 @@ impl<F: Forecaster> Tracking<F> {
             return self.unexplained(c, history, channels, t, committed);
         }
         self.advance(history);
+        self.state_touchdown(c, t);
         Ok(())
+    }
+
+    /// States the touchdown from `t` as the forecast now sees it, for [`BandCoverage`] to judge
+    /// once it has come.
+    fn state_touchdown(&mut self, c: &DecisionConfig, t: f64) {
+        if let Some(m) = self.models.as_ref() {
+            self.coverage.state(t, c.touchdown_s, |tk| m.deck_forecast(tk));
+        }
     }
 
     /// A measurement the model does not explain. Not committed: the prediction is unreliable
@@ -348,6 +396,7 @@ impl<F: Forecaster> Tracking<F> {
             rate_miss_std,
             band_checked,
             rate_history: std::array::from_fn(|_| RateHistory::unknown()),
+            widening: self.coverage.widening(),
         };
         // Regressed only where it is used, as far ahead as a model is used for: its age at most
         // (a refit interval) and a touchdown. Every channel's regressed cost the slowest

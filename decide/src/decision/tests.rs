@@ -1,4 +1,5 @@
 use super::band::*;
+use super::coverage::BandCoverage;
 use super::history::{fit_line, parabola_rate_at, FIT_SPACING_S};
 use super::models::Models;
 use super::rate_history::{rate_histories, upper_bound_factor, RateHistory};
@@ -729,6 +730,9 @@ fn a_gap_widens_the_band_and_no_longer_waits_out_the_lags() {
     let config = gap_test_config(tuned(|f| f.early_window_s = 0.0));
     let mut gapped = LandingDecider::new(config.clone()).unwrap();
     let mut steady = LandingDecider::new(config).unwrap();
+    // Compared fit for fit: the touchdowns the gap leaves unstated must not widen one of them.
+    gapped.tracking.coverage = BandCoverage::held_at_one();
+    steady.tracking.coverage = BandCoverage::held_at_one();
     let before = run(&mut gapped, 0.0, 80.0, observe);
     assert!(before.iter().any(|(_, r)| r.state == DecisionState::ClearToLand));
     run(&mut steady, 0.0, 82.0, observe);
@@ -1027,6 +1031,8 @@ fn calm_sea_models() -> (LandingDecider, Models<ArModel>, [f64; 6]) {
     m.band_scale = [1.0; 3];
     m.rate_band_scale = [1.0; 3];
     m.rate_history = [0.1, 0.1, 0.5].map(RateHistory::spread_only);
+    // The rules on the band are tested on the band as the held-out misses scale it.
+    m.widening = [1.0; 6];
     (d, m, limits)
 }
 

@@ -11,14 +11,20 @@
 //! - [`ShipMotionModel::ShortCrested`]: waves from a spread of directions, the ship under way
 //!   with its course wandering and its autopilot's yaw, each wave met at its own encounter
 //!   frequency, the pad aft of the centre of gravity ([`ShortCrestedMotion`]).
+//! - [`ShipMotionModel::HullRao`]: the spectrum sea's waves met under way, the frigate's heave,
+//!   roll and pitch from a hydrodynamics code's response amplitude operators
+//!   (`sim/data/frigate_rao.csv`, made by `bench/hull_rao.py` with Capytaine;
+//!   [`HullRaoMotion`]).
 
 mod course;
 pub mod hull;
+pub mod hull_rao;
 pub mod nonlinear_roll;
 pub mod short_crested;
 
 pub use course::CourseKeeping;
 pub use hull::Hull;
+pub use hull_rao::{HullRaoMotion, HullRaoParams, RaoTable, RaoTableError, Responses};
 pub use nonlinear_roll::{NonlinearRollMotion, NonlinearRollParams, RollEquation};
 pub use short_crested::{ShortCrestedMotion, ShortCrestedParams};
 
@@ -31,11 +37,13 @@ pub enum ShipMotionModel {
     Spectrum,
     NonlinearRoll,
     ShortCrested,
+    HullRao,
 }
 deckwatch_common::named_enum!(ShipMotionModel, [
     Spectrum => "spectrum",
     NonlinearRoll => "nonlinear-roll",
     ShortCrested => "short-crested",
+    HullRao => "hull-rao",
 ]);
 
 impl ShipMotionModel {
@@ -48,6 +56,9 @@ impl ShipMotionModel {
             }
             Self::ShortCrested => {
                 "directionally spread waves, the ship under way on a wandering course, pad aft of G"
+            }
+            Self::HullRao => {
+                "the spectrum sea's waves met under way, the frigate's responses from a BEM code (Capytaine)"
             }
         }
     }
@@ -66,6 +77,7 @@ impl ShipMotionModel {
             Self::ShortCrested => {
                 ShortCrestedMotion::new(spec, &ShortCrestedParams::FRIGATE).map(ShipSea::ShortCrested)
             }
+            Self::HullRao => HullRaoMotion::new(spec, &HullRaoParams::FRIGATE).map(ShipSea::HullRao),
         }
     }
 }
@@ -121,6 +133,8 @@ pub enum ShipMotionError {
         value: f64,
         expected: &'static str,
     },
+    #[error("the table of responses: {0}")]
+    RaoTable(#[from] RaoTableError),
 }
 
 /// One model's sea, ready to sample.
@@ -129,6 +143,7 @@ pub enum ShipSea {
     Spectrum(SpectrumShipMotion),
     NonlinearRoll(NonlinearRollMotion),
     ShortCrested(ShortCrestedMotion),
+    HullRao(HullRaoMotion),
 }
 
 impl MotionProfile for ShipSea {
@@ -137,6 +152,7 @@ impl MotionProfile for ShipSea {
             Self::Spectrum(s) => s.sample(t_s),
             Self::NonlinearRoll(s) => s.sample(t_s),
             Self::ShortCrested(s) => s.sample(t_s),
+            Self::HullRao(s) => s.sample(t_s),
         }
     }
 }

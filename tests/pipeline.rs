@@ -214,6 +214,79 @@ fn configuration_errors_name_the_key() {
     assert!(e.contains("decide.max_abs_roll_deg"), "{e}");
 }
 
+/// What an attacker (or a careless operator) could configure to make the flying pipeline unsafe
+/// is refused when the configuration is loaded, `--print-config` included, naming the key: an
+/// unsigned link to another host, a go-around made unreachable, no reserve for the autopilot's
+/// errors, a capacity beyond what ships allow a helicopter, a weak signing key.
+#[test]
+fn unsafe_settings_are_refused_when_the_configuration_is_loaded() {
+    let dir = tempfile::tempdir().unwrap();
+    let weak_key = dir.path().join("zero.key");
+    deckwatch_tests::write_private_key(&weak_key, &[0u8; 32]);
+    let passphrase_key = dir.path().join("words.key");
+    deckwatch_tests::write_private_key(&passphrase_key, b"correct horse battery staple 123");
+    let cases = [
+        ("[link]\naddress = \"udpout:192.0.2.1:14550\"\n", "link.signing"),
+        (
+            "[decide]\ngo_around_risk = 0.5\nno_return_ms = 0\n",
+            "decide.go_around_risk",
+        ),
+        ("[decide]\nno_return_ms = 0\n", "decide.no_return_ms"),
+        (
+            "[decide]\nvehicle_attitude_error_deg = 0\nvertical_speed_error_mps = 0\n",
+            "decide.vehicle_attitude_error_deg",
+        ),
+        (
+            "[decide]\nvertical_speed_error_mps = 0\n",
+            "decide.vertical_speed_error_mps",
+        ),
+        (
+            "[decide]\nmax_abs_heave_rate_mps = 3\n",
+            "decide.max_abs_heave_rate_mps",
+        ),
+        (
+            &format!(
+                "[link]\nsigning = \"required\"\nsigning_key_file = \"{}\"\n",
+                weak_key.display()
+            ),
+            "every byte is the same",
+        ),
+        (
+            &format!(
+                "[link]\nsigning = \"required\"\nsigning_key_file = \"{}\"\n",
+                passphrase_key.display()
+            ),
+            "passphrase",
+        ),
+    ];
+    let cfg = dir.path().join("p.toml");
+    for (text, named) in cases {
+        std::fs::write(&cfg, text).unwrap();
+        let out = Command::new(workspace_binary("deckwatch"))
+            .args(["run", "--print-config", "--config"])
+            .arg(&cfg)
+            .output()
+            .unwrap();
+        let e = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && e.contains(named) && e.contains("p.toml"),
+            "{text}: {e}"
+        );
+    }
+    // A bench may still send unsigned to another host, saying so.
+    std::fs::write(
+        &cfg,
+        "[link]\naddress = \"udpout:192.0.2.1:14550\"\nunsigned_beyond_loopback = true\n",
+    )
+    .unwrap();
+    let out = Command::new(workspace_binary("deckwatch"))
+        .args(["run", "--print-config", "--config"])
+        .arg(&cfg)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
 /// Waits for a line matching `f` from the launcher's stderr.
 fn wait_line(lines: &mpsc::Receiver<String>, seen: &mut Vec<String>, f: impl Fn(&str) -> bool) -> String {
     let deadline = Instant::now() + Duration::from_secs(60);

@@ -42,7 +42,10 @@ fn closed_loop_landings_touch_down_safely_in_one_process_and_through_the_process
     // The link through the processes requires MAVLink 2 signing; the trial's autopilot signs with
     // the same key (the mavlink crate's signing; tests/mavlink_link.rs has pymavlink's).
     let key_file = dir.path().join("mavlink.key");
-    deckwatch_tests::write_private_key(&key_file, &[0x5a; 32]);
+    deckwatch_tests::write_private_key(
+        &key_file,
+        &std::array::from_fn::<u8, 32, _>(|k| (k as u8).wrapping_mul(53).wrapping_add(0x8b)),
+    );
     let config = dir.path().join("signed.toml");
     std::fs::write(
         &config,

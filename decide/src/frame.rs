@@ -69,14 +69,23 @@ impl<F: Forecaster> Decider<F> {
     /// a tilted camera is not the deck; ridden through during a committed touchdown like any
     /// missing attitude), then a frozen image (a broken camera: nothing rides through it). Then
     /// the decider's own checks (stale, clock, frozen input, jumps, gaps, warm-up, the
-    /// prediction).
+    /// prediction). A refused frame's time is judged first: one that is stale (or from a clock
+    /// that jumped) is refused as such, so that stale data is never ridden through whatever
+    /// else it lacks.
     pub fn decide_frame(&mut self, frame: &FrameInput) -> Decision {
-        if frame.deck.is_some() && frame.vehicle_missing {
-            self.refuse(frame.t_s, DecisionReason::NoVehicleAttitude)
+        let outside = if frame.deck.is_some() && frame.vehicle_missing {
+            Some(DecisionReason::NoVehicleAttitude)
         } else if frame.frozen_image {
-            self.refuse(frame.t_s, DecisionReason::FrozenInput)
+            Some(DecisionReason::FrozenInput)
         } else {
-            self.update_at_capture(frame.t_s, frame.deck, frame.age_s)
+            None
+        };
+        match outside {
+            Some(reason) => {
+                let reason = self.untimely(frame.t_s, frame.age_s).unwrap_or(reason);
+                self.refuse(frame.t_s, reason)
+            }
+            None => self.update_at_capture(frame.t_s, frame.deck, frame.age_s),
         }
     }
 

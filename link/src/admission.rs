@@ -120,6 +120,8 @@ pub enum KeyError {
     NotOurs { path: PathBuf, owner: u32, us: u32 },
     #[error("link.signing_key_file `{path}`: {what}; it must hold the 32-byte key, raw or as 64 hexadecimal digits")]
     Format { path: PathBuf, what: String },
+    #[error("link.signing_key_file `{path}`: a weak key: {what}; make a random one (`openssl rand -hex 32 > FILE`) and give the autopilot the same")]
+    Weak { path: PathBuf, what: String },
 }
 
 /// The 32-byte signing key from `path`: owner-only (mode 0600 or stricter, owned by this user),
@@ -152,10 +154,42 @@ pub fn load_key(path: &Path) -> Result<[u8; 32], KeyError> {
     // A key file is 64 bytes at most (hex and a newline); more is not a key.
     let mut bytes = Vec::with_capacity(80);
     file.by_ref().take(4096).read_to_end(&mut bytes).map_err(read)?;
-    parse_key(&bytes).map_err(|what| KeyError::Format {
+    let key = parse_key(&bytes).map_err(|what| KeyError::Format {
         path: path.into(),
         what,
-    })
+    })?;
+    match weakness(&key) {
+        Some(what) => Err(KeyError::Weak {
+            path: path.into(),
+            what: what.into(),
+        }),
+        None => Ok(key),
+    }
+}
+
+/// Fewer distinct bytes than this in 32 is no random key: 32 random bytes have about 30, and
+/// fewer than 12 comes once in more than 10^20 keys.
+const MIN_DISTINCT_KEY_BYTES: usize = 12;
+
+/// Why `key` is guessable, if it is: one byte repeated (the all-zero key among them), a few
+/// bytes repeated, or 32 printable characters (a passphrase written as the raw key: its
+/// strength is the passphrase's, and PX4's and ArduPilot's tools hash a passphrase instead).
+/// A random key is printable throughout once in 10^13.
+pub fn weakness(key: &[u8; 32]) -> Option<&'static str> {
+    let mut seen = [false; 256];
+    for &b in key {
+        seen[usize::from(b)] = true;
+    }
+    let distinct = seen.iter().filter(|&&s| s).count();
+    if distinct == 1 {
+        Some("every byte is the same (an all-zero key is the best known of these)")
+    } else if distinct < MIN_DISTINCT_KEY_BYTES {
+        Some("a few bytes repeated")
+    } else if key.iter().all(|b| (0x20..0x7f).contains(b)) {
+        Some("32 printable characters: a passphrase used as the raw key")
+    } else {
+        None
+    }
 }
 
 fn parse_key(bytes: &[u8]) -> Result<[u8; 32], String> {
@@ -630,7 +664,11 @@ mod tests {
     use super::*;
     use mavlink::dialects::common::{ATTITUDE_QUATERNION_DATA, HEARTBEAT_DATA};
 
-    const KEY: [u8; 32] = [7; 32];
+    /// A key as random as any (`weakness` finds nothing in it).
+    const KEY: [u8; 32] = [
+        0x3c, 0x91, 0x5e, 0x07, 0xd2, 0x48, 0xaf, 0x16, 0x8b, 0xe4, 0x2d, 0x70, 0xc9, 0x35, 0x5a, 0xf1, 0x0e,
+        0x67, 0xb8, 0x23, 0x9d, 0x44, 0xea, 0x1f, 0x86, 0x52, 0xcb, 0x39, 0x7e, 0xa0, 0x14, 0xdd,
+    ];
 
     fn header(system_id: u32, component_id: u8) -> MavHeader {
         MavHeader {
@@ -871,5 +909,40 @@ mod tests {
             load_key(&dir.path().join("missing")),
             Err(KeyError::Read { .. })
         ));
+    }
+
+    /// Keys anyone could guess are refused with why: the all-zero key, one byte repeated, a
+    /// pattern of a few bytes, a 32-character passphrase written as the raw key (raw or hex).
+    #[test]
+    fn a_weak_key_is_refused() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("key");
+        let pattern: [u8; 32] = std::array::from_fn(|k| [0xde, 0xad, 0xbe, 0xef][k % 4]);
+        let passphrase = *b"correct horse battery staple 123";
+        for (key, why) in [
+            ([0u8; 32], "every byte is the same"),
+            ([0x5a; 32], "every byte is the same"),
+            (pattern, "a few bytes repeated"),
+            (passphrase, "passphrase"),
+        ] {
+            for text in [
+                key.to_vec(),
+                key.iter()
+                    .map(|b| format!("{b:02x}"))
+                    .collect::<String>()
+                    .into_bytes(),
+            ] {
+                std::fs::write(&path, &text).unwrap();
+                std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o600)).unwrap();
+                let e = load_key(&path).unwrap_err();
+                assert!(
+                    matches!(e, KeyError::Weak { .. }) && e.to_string().contains(why),
+                    "{e}"
+                );
+                assert!(e.to_string().contains("link.signing_key_file"), "{e}");
+            }
+        }
+        assert_eq!(weakness(&KEY), None);
     }
 }

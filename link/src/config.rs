@@ -18,6 +18,9 @@ pub struct LinkConfig {
     /// `udpin` on an address other than the loopback: anyone on that network can then reach the
     /// link; say so here, and require signing.
     pub listen_beyond_loopback: bool,
+    /// `udpout` or `tcpout` to another host without signing: frames to and from that network
+    /// unauthenticated. For a bench only; refused otherwise, logged as a warning at every start.
+    pub unsigned_beyond_loopback: bool,
     /// With `udpin`: the only address replies go to (`HOST:PORT`); empty: the autopilot's.
     pub peer: String,
     /// The autopilot's MAVLink system id: attitude, position, height and TIMESYNC are taken from
@@ -60,6 +63,7 @@ impl Default for LinkConfig {
             enabled: false,
             address: "udpin:127.0.0.1:14540".into(),
             listen_beyond_loopback: false,
+            unsigned_beyond_loopback: false,
             peer: String::new(),
             autopilot_system_id: 1,
             autopilot_component_id: 1,
@@ -171,6 +175,21 @@ impl LinkConfig {
                 ));
             }
         }
+        if let Endpoint::UdpOut(to) | Endpoint::TcpOut(to) = &endpoint {
+            let unsigned = self.signing == SigningMode::Off;
+            if unsigned && !is_loopback(to) && !self.unsigned_beyond_loopback {
+                return Err(InvalidField::new(
+                    "signing",
+                    format!("must be \"required\" for `{}`: frames to and from another host unsigned can be forged by anyone on that network; for a bench, set unsigned_beyond_loopback = true", self.address),
+                ));
+            }
+        }
+        if self.unsigned_beyond_loopback && self.signing == SigningMode::Required {
+            return Err(InvalidField::new(
+                "unsigned_beyond_loopback",
+                "contradicts signing = \"required\"",
+            ));
+        }
         if !self.peer.is_empty() {
             if !matches!(endpoint, Endpoint::UdpIn(_)) {
                 return Err(InvalidField::new(
@@ -275,6 +294,53 @@ mod tests {
         assert_eq!(bad.validate().unwrap_err().field, "attitude_timeout_ms");
     }
 
+    /// Sending to another host is as open as listening beyond the loopback: unsigned, refused
+    /// unless a bench says so; the loopback and a serial wire need no signing.
+    #[test]
+    fn an_unsigned_link_to_another_host_is_refused() {
+        let field = |c: LinkConfig| c.validate().map_or_else(|e| e.field, |_| "ok".to_string());
+        for address in [
+            "udpout:192.0.2.1:14550",
+            "tcpout:[2001:db8::1]:5760",
+            "udpout:fc.local:14550",
+        ] {
+            let out = LinkConfig {
+                address: address.into(),
+                ..LinkConfig::default()
+            };
+            assert_eq!(field(out.clone()), "signing", "{address}");
+            let e = out.validate().unwrap_err();
+            assert!(e.to_string().contains("unsigned_beyond_loopback"), "{e}");
+            let bench = LinkConfig {
+                unsigned_beyond_loopback: true,
+                ..out.clone()
+            };
+            assert_eq!(field(bench.clone()), "ok", "{address}: a bench's opt-in");
+            let signed = LinkConfig {
+                signing: SigningMode::Required,
+                signing_key_file: "/etc/deckwatch/mavlink.key".into(),
+                ..out
+            };
+            assert_eq!(field(signed.clone()), "ok", "{address}");
+            let both = LinkConfig {
+                unsigned_beyond_loopback: true,
+                ..signed
+            };
+            assert_eq!(field(both), "unsigned_beyond_loopback");
+        }
+        for address in [
+            "udpout:127.0.0.1:14550",
+            "tcpout:localhost:5760",
+            "serial:/dev/ttyAMA0:921600",
+        ] {
+            let near = LinkConfig {
+                address: address.into(),
+                ..LinkConfig::default()
+            };
+            assert_eq!(field(near), "ok", "{address}");
+        }
+    }
+
     #[test]
     fn a_link_open_to_anyone_must_be_said_and_signed() {
         let field = |c: LinkConfig| c.validate().map_or_else(|e| e.field, |_| "ok".to_string());
@@ -324,8 +390,8 @@ mod tests {
         }
         assert_eq!(
             field(LinkConfig {
-                address: "udpout:10.0.0.2:14550".into(),
-                peer: "10.0.0.2:14550".into(),
+                address: "udpout:127.0.0.1:14550".into(),
+                peer: "127.0.0.1:14550".into(),
                 ..LinkConfig::default()
             }),
             "peer"

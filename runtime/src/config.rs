@@ -216,8 +216,35 @@ impl PipelineConfig {
             source,
         })?;
         self.decide.validate().map_err(in_section("decide"))?;
+        // The flying pipeline reserves for the autopilot's own errors: they pass one for one
+        // into the deck's angles and heave rate, where the forecast's band cannot see them, and
+        // stated as 0 they cleared unsafe touchdowns (`DecisionConfig::vehicle_attitude_error_deg`).
+        // The evaluations (`decide-eval`, `trials`) may state an exact simulated autopilot.
+        for (key, value) in [
+            (
+                "decide.vehicle_attitude_error_deg",
+                self.decide.vehicle_attitude_error_deg,
+            ),
+            (
+                "decide.vertical_speed_error_mps",
+                self.decide.vertical_speed_error_mps,
+            ),
+        ] {
+            if !(value > 0.0) {
+                return Err(invalid(
+                    key.into(),
+                    format!("must be above 0 in the flying pipeline: no autopilot knows its attitude and vertical speed exactly, and the decision must reserve for their errors (the defaults: {} deg, {} m/s); got {value}", deckwatch_decide::decision::AUTOPILOT_ATTITUDE_ERROR_DEG, deckwatch_decide::decision::AUTOPILOT_VERTICAL_SPEED_ERROR_MPS),
+                ));
+            }
+        }
         self.vehicle.validate().map_err(in_section("vehicle"))?;
         self.link.validate().map_err(in_section("link"))?;
+        if self.link.signing == deckwatch_link::config::SigningMode::Required {
+            // The key itself, now (`--print-config` too), not first when the link starts: a weak
+            // or readable key is refused with the configuration that names it.
+            deckwatch_link::admission::load_key(Path::new(&self.link.signing_key_file))
+                .map_err(|e| invalid("link.signing_key_file".into(), e.to_string()))?;
+        }
         if self.source.kind == FrameSource::Libcamera
             && self.vehicle.attitude == VehicleAttitudeSource::Frames
         {

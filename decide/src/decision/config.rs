@@ -331,12 +331,21 @@ impl DecisionConfig {
                 format!("must be above 1e-9, got {}", self.risk_per_touchdown),
             ));
         }
-        if !(self.go_around_risk >= self.risk_per_touchdown && self.go_around_risk <= 0.5) {
+        if !(self.go_around_risk >= self.risk_per_touchdown && self.go_around_risk <= MAX_GO_AROUND_RISK) {
             return Err(invalid(
                 "go_around_risk",
                 format!(
-                    "must be in [risk_per_touchdown, 0.5] ([{}, 0.5]), got {}",
+                    "must be in [risk_per_touchdown, {MAX_GO_AROUND_RISK}] ([{}, {MAX_GO_AROUND_RISK}]): a touchdown carried on while its forecast puts the deck outside the capacity more often than that is a go-around made unreachable, got {}",
                     self.risk_per_touchdown, self.go_around_risk
+                ),
+            ));
+        }
+        if !(self.no_return_ms >= MIN_NO_RETURN_MS) {
+            return Err(invalid(
+                "no_return_ms",
+                format!(
+                    "must be at least {MIN_NO_RETURN_MS} ms: no vehicle reverses a descent faster than it reacts (0.1 s), and a decision that believes it can go around at contact orders go-arounds that cannot be flown; got {}",
+                    self.no_return_ms
                 ),
             ));
         }
@@ -385,15 +394,34 @@ impl DecisionConfig {
     }
 }
 
+/// The most `go_around_risk` may be: a committed touchdown goes on while its newest forecast
+/// leaves the capacity with at most this probability. The default is 0.1; 0.25 gives a
+/// go-around only when the forecast says one in four.
+pub const MAX_GO_AROUND_RISK: f64 = 0.25;
+/// The least `no_return_ms` may be (ms): a multirotor's reaction to a climb order (the trials'
+/// vehicle model and the default's first term, `trials::fly`).
+pub const MIN_NO_RETURN_MS: f64 = 100.0;
+
 /// The largest value each `[decide]` key may take, and why: no configuration may switch a
-/// safety check off by making it unreachable. Capacities: what a small quadrotor's gear could
-/// take at most (a ship helicopter's deck limits are 3-8 deg and about 1 m/s); check
-/// thresholds: a few times their defaults, far beyond which they no longer catch what they are
-/// for. The forecaster's keys have theirs (`forecast_config::FORECAST_SAFETY_BOUNDS`).
+/// safety check off by making it unreachable. Capacities: twice what ships allow a helicopter
+/// (a small quadrotor's wide gear may take more than a helicopter's, not more than that): the
+/// standard design limits for helicopter operations are 5 deg of roll, 3 deg of pitch and 2 m/s
+/// of vertical velocity at the pad (significant amplitudes; NPS Total Ship Systems Engineering
+/// studies), and the UK CAA's CAP 437 helideck limits 3-4 deg and a heave rate of about 1.3 m/s.
+/// Check thresholds: a few times their defaults, far beyond which they no longer catch what
+/// they are for. The forecaster's keys have theirs (`forecast_config::FORECAST_SAFETY_BOUNDS`).
 pub const SAFETY_BOUNDS: &[(&str, f64, &str)] = &[
-    ("max_abs_roll_deg", 15.0, "no landing gear takes a steeper deck"),
-    ("max_abs_pitch_deg", 15.0, "no landing gear takes a steeper deck"),
-    ("max_tilt_deg", 20.0, "no landing gear takes a steeper deck"),
+    (
+        "max_abs_roll_deg",
+        10.0,
+        "twice a helicopter's 5 deg deck-roll limit (helicopter operations' standard design limits)",
+    ),
+    (
+        "max_abs_pitch_deg",
+        10.0,
+        "more than three times a helicopter's 3 deg deck-pitch limit",
+    ),
+    ("max_tilt_deg", 12.0, "the roll and pitch bounds together"),
     (
         "max_abs_roll_rate_dps",
         30.0,
@@ -406,8 +434,8 @@ pub const SAFETY_BOUNDS: &[(&str, f64, &str)] = &[
     ),
     (
         "max_abs_heave_rate_mps",
-        3.0,
-        "a deck rising faster strikes the gear",
+        2.0,
+        "helicopter operations' design limit of the pad's vertical speed (CAP 437's helideck limit is about 1.3 m/s); a deck rising faster strikes the gear",
     ),
     ("touchdown_s", 30.0, "a touchdown is seconds long"),
     ("max_age_ms", 1000.0, "older attitudes are stale"),

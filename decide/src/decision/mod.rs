@@ -126,6 +126,12 @@ impl<F: Forecaster> Decider<F> {
         self.transition(Err(reason), now)
     }
 
+    /// Why a frame captured at `t` that was `age_s` old on arrival cannot be decided on by its
+    /// time alone (stale, or a clock that is no number or runs ahead), if it cannot.
+    pub(crate) fn untimely(&self, t: f64, age_s: f64) -> Option<DecisionReason> {
+        InputGate::untimely(t, age_s, &self.config)
+    }
+
     fn decide(&mut self, t: f64, deck: Option<DeckObservation>, age_s: f64, now: f64) -> Decision {
         self.gate.note_frame_time(t);
         let now = self.gate.clock(now);

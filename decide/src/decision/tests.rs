@@ -8,6 +8,7 @@ use super::risk::{
 };
 use super::*;
 use crate::forecast::ArModel;
+use crate::frame::FrameInput;
 use std::f64::consts::TAU;
 
 /// Roll, pitch (deg) and the deck's height (m): heave up to 0.33 m/s at scale 1.
@@ -370,6 +371,22 @@ fn a_committed_touchdown_rides_through_a_short_blind_spell_only() {
     let r = d.update_at_capture(t0 + 0.2, Some(sea(t0 + 0.2, 0.8)), 0.01);
     assert_eq!(r.state, DecisionState::ClearToLand);
     assert_ne!(r.reason, DecisionReason::RideThrough);
+    // A stale frame is never ridden through, whatever else it lacks: a deck without the
+    // vehicle's attitude captured longer ago than `max_age_ms` aborts as stale data.
+    let (mut d, t0) = committed(DecisionConfig::default());
+    let c = d.config().clone();
+    let mut stale = FrameInput::measured(t0 + 0.1, Some(sea(t0 + 0.1, 0.8)), 2.0 * c.max_age_ms / 1e3);
+    stale.vehicle_missing = true;
+    let r = d.decide_frame(&stale);
+    assert_eq!(
+        (r.state, r.reason),
+        (DecisionState::Abort, DecisionReason::StaleData)
+    );
+    // ... and a frozen image that is also stale, the same.
+    let (mut d, t0) = committed(DecisionConfig::default());
+    let mut stale = FrameInput::measured(t0 + 0.1, Some(sea(t0 + 0.1, 0.8)), 2.0 * c.max_age_ms / 1e3);
+    stale.frozen_image = true;
+    assert_eq!(d.decide_frame(&stale).reason, DecisionReason::StaleData);
     // One implausible sample is refused and ridden through; three that agree with each
     // other (the history was wrong, or the estimate changed) restart it and abort.
     let jumped = |d: &mut LandingDecider, t: f64| {
@@ -535,15 +552,20 @@ fn the_last_decision_that_can_act_is_judged_as_a_clearance() {
         at_risk_after(config.clone(), 0.01, no_return_s - 0.1, no_return_s + 0.2),
         (DecisionState::Abort, DecisionReason::PredictedOutside)
     );
-    // A vehicle that could go around up to contact (`no_return_ms = 0`) goes on there.
+    // A vehicle said to go around up to contact (`no_return_ms = 0`) is refused: it would carry
+    // every touchdown to contact at `go_around_risk`, ordering go-arounds no vehicle can fly.
     let no_return_0 = DecisionConfig {
         no_return_ms: 0.0,
         ..config.clone()
     };
-    assert_eq!(
-        at_risk(no_return_0, 0.01, last_s),
-        (DecisionState::ClearToLand, DecisionReason::WithinCapacity)
-    );
+    assert_eq!(no_return_0.validate().unwrap_err().field, "no_return_ms");
+    // Nor may staying need a risk beyond `MAX_GO_AROUND_RISK` (0.5 made the go-around
+    // practically unreachable).
+    let reckless = DecisionConfig {
+        go_around_risk: 0.5,
+        ..config.clone()
+    };
+    assert_eq!(reckless.validate().unwrap_err().field, "go_around_risk");
     // A point of no return as long as the touchdown is refused: nothing could be given up.
     let too_long = DecisionConfig {
         no_return_ms: 1e3 * config.touchdown_s,

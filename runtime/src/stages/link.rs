@@ -311,6 +311,12 @@ fn receive(
 fn run(config: PipelineConfig) -> Result<String, RunError> {
     let lc: LinkConfig = config.link.clone();
     let signing = Signing::configured(&lc).map_err(|e| RunError::Link(e.to_string()))?;
+    if lc.unsigned_beyond_loopback {
+        deckwatch_common::say!(
+            "deckwatch-{NAME}: WARNING: unsigned_beyond_loopback = true: `{}` is another host and its frames are not authenticated; a bench only, never a flight",
+            lc.address
+        );
+    }
     let (logger, bus) = setup(NAME, &config, 1)?;
     let link = Arc::new(Sender {
         transport: Transport::open(&lc)?,

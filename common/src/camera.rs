@@ -118,6 +118,28 @@ pub const CAMERA_PRESETS: [&str; 3] = ["paper", "rpi-v2", "rpi-v3-wide"];
 /// The largest image side accepted (px): beyond any sensor, and small enough that a frame's
 /// size in bytes cannot overflow.
 pub const MAX_SIDE_PX: u32 = 32_768;
+/// The most pixels an image read from a file may have: four times the largest sensor a drone
+/// here carries (the Pi HQ camera's 4056 x 3040, 12.3 MP), and 64 MB of grayscale at most. A
+/// file's header is checked against it before any pixel is decoded or allocated.
+pub const MAX_IMAGE_PIXELS: u64 = 1 << 26;
+
+/// Whether an image of `width` x `height` may be read: each side within [`MAX_SIDE_PX`], the
+/// whole within [`MAX_IMAGE_PIXELS`]; the error says which bound it passes.
+pub fn check_image_size(width: u32, height: u32) -> Result<(), String> {
+    let pixels = u64::from(width) * u64::from(height);
+    if width == 0 || height == 0 || width > MAX_SIDE_PX || height > MAX_SIDE_PX {
+        Err(format!(
+            "an image of {width}x{height}: each side must be 1..={MAX_SIDE_PX} px"
+        ))
+    } else if pixels > MAX_IMAGE_PIXELS {
+        Err(format!(
+            "an image of {width}x{height} ({pixels} pixels): deckwatch reads at most {MAX_IMAGE_PIXELS}"
+        ))
+    } else {
+        Ok(())
+    }
+}
+
 /// The longest focal length accepted, in image sides (a 0.3 deg field of view).
 pub const MAX_FOCAL_SIDES: f64 = 200.0;
 /// The longest rolling-shutter readout accepted (s): a frame's rows are read within a frame

@@ -21,8 +21,14 @@ pub fn encode_gray(packed: &[u8], width: usize, height: usize, quality: u8) -> R
 }
 
 /// A grayscale JPEG's width, height and packed rows; any other pixel format is refused.
+/// The header's size is checked (`camera::check_image_size`) before anything is decoded, and
+/// the decoder's own buffer limit set to it.
 pub fn decode_gray(data: &[u8]) -> Result<(u32, u32, Vec<u8>), JpegError> {
     let mut decoder = jpeg_decoder::Decoder::new(data);
+    decoder.read_info().map_err(|e| JpegError(e.to_string()))?;
+    let header = decoder.info().ok_or_else(|| JpegError("no header".into()))?;
+    crate::camera::check_image_size(u32::from(header.width), u32::from(header.height)).map_err(JpegError)?;
+    decoder.set_max_decoding_buffer_size(crate::camera::MAX_IMAGE_PIXELS as usize);
     let pixels = decoder.decode().map_err(|e| JpegError(e.to_string()))?;
     let info = decoder.info().ok_or_else(|| JpegError("no header".into()))?;
     if info.pixel_format != jpeg_decoder::PixelFormat::L8 {
@@ -46,5 +52,18 @@ mod tests {
         assert!(packed.iter().zip(&back).all(|(a, b)| a.abs_diff(*b) <= 8));
         assert!(encode_gray(&packed, 70_000, 1, 90).is_err());
         assert!(decode_gray(b"not a jpeg").is_err());
+    }
+
+    /// A small file whose header claims 30 000 x 30 000 (900 MP, 900 MB of pixels) is refused
+    /// from its header, before any pixel is decoded.
+    #[test]
+    fn a_huge_header_is_refused_before_decoding() {
+        let packed = vec![128u8; 16 * 16];
+        let mut jpeg = encode_gray(&packed, 16, 16, 90).unwrap();
+        // SOF0: FF C0, length (2), precision (1), height (2), width (2).
+        let sof = jpeg.windows(2).position(|w| w == [0xff, 0xc0]).unwrap();
+        jpeg[sof + 5..sof + 9].copy_from_slice(&[0x75, 0x30, 0x75, 0x30]);
+        let e = decode_gray(&jpeg).unwrap_err();
+        assert!(e.0.contains("30000x30000"), "{e}");
     }
 }

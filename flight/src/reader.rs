@@ -237,6 +237,8 @@ impl RecordedMessage {
                         format!("image encoding {} (deckwatch reads mono8)", img.encoding),
                     ));
                 }
+                deckwatch_common::camera::check_image_size(img.width, img.height)
+                    .map_err(|e| self.error(path, e))?;
                 let (w, h, step) = (img.width as usize, img.height as usize, img.step as usize);
                 if step < w || img.data.len() < step.saturating_mul(h) {
                     return Err(self.error(
@@ -275,6 +277,8 @@ fn decode_png(data: &[u8]) -> Result<(u32, u32, Vec<u8>), ImageCodecError> {
     decoder.set_transformations(png::Transformations::STRIP_16);
     let mut reader = decoder.read_info().map_err(|e| ImageCodecError::new("png", e))?;
     let (w, h) = (reader.info().width, reader.info().height);
+    // The header's size before the buffer: a few bytes can claim gigabytes.
+    deckwatch_common::camera::check_image_size(w, h).map_err(|e| ImageCodecError::new("png", e))?;
     let size = reader
         .output_buffer_size()
         .ok_or_else(|| ImageCodecError::new("png", "the image is too large"))?;
@@ -396,4 +400,49 @@ pub fn read_frames(path: &Path, max_bytes: u64) -> Result<(Vec<RecordedFrame>, O
         }
     }
     Ok((frames, reader.ended_early.take()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// CRC-32 (IEEE) as PNG chunks carry it, bit by bit.
+    fn crc32(bytes: &[u8]) -> u32 {
+        let mut crc = !0u32;
+        for &b in bytes {
+            crc ^= u32::from(b);
+            for _ in 0..8 {
+                crc = if crc & 1 == 1 {
+                    (crc >> 1) ^ 0xedb8_8320
+                } else {
+                    crc >> 1
+                };
+            }
+        }
+        !crc
+    }
+
+    /// A small PNG whose header claims 30 000 x 30 000 (900 MB of pixels) is refused from its
+    /// header, before the buffer is allocated; a true one is read.
+    #[test]
+    fn a_huge_png_header_is_refused_before_its_buffer() {
+        let mut png = Vec::new();
+        {
+            let mut encoder = png::Encoder::new(&mut png, 4, 4);
+            encoder.set_color(png::ColorType::Grayscale);
+            encoder.set_depth(png::BitDepth::Eight);
+            encoder
+                .write_header()
+                .unwrap()
+                .write_image_data(&[7; 16])
+                .unwrap();
+        }
+        assert_eq!(decode_png(&png).unwrap(), (4, 4, vec![7; 16]));
+        // IHDR: length (4) at 8, "IHDR" at 12, width and height at 16..24, its CRC at 29..33.
+        png[16..24].copy_from_slice(&[0, 0, 0x75, 0x30, 0, 0, 0x75, 0x30]);
+        let crc = crc32(&png[12..29]);
+        png[29..33].copy_from_slice(&crc.to_be_bytes());
+        let e = decode_png(&png).unwrap_err().to_string();
+        assert!(e.contains("30000x30000"), "{e}");
+    }
 }

@@ -193,11 +193,7 @@ fn configuration_errors_name_the_key() {
         "[sim]\nscenario = \"ship\"\n\n[decide]\nmax_abs_rol_deg = 4\n",
     )
     .unwrap();
-    let out = Command::new(workspace_binary("deckwatch"))
-        .args(["run", "--print-config", "--config"])
-        .arg(&cfg)
-        .output()
-        .unwrap();
+    let out = print_config(&cfg);
     assert!(!out.status.success());
     let e = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -205,11 +201,7 @@ fn configuration_errors_name_the_key() {
         "{e}"
     );
     std::fs::write(&cfg, "[decide]\nmax_abs_roll_deg = 95\n").unwrap();
-    let out = Command::new(workspace_binary("deckwatch"))
-        .args(["run", "--print-config", "--config"])
-        .arg(&cfg)
-        .output()
-        .unwrap();
+    let out = print_config(&cfg);
     let e = String::from_utf8_lossy(&out.stderr);
     assert!(e.contains("decide.max_abs_roll_deg"), "{e}");
 }
@@ -262,11 +254,7 @@ fn unsafe_settings_are_refused_when_the_configuration_is_loaded() {
     let cfg = dir.path().join("p.toml");
     for (text, named) in cases {
         std::fs::write(&cfg, text).unwrap();
-        let out = Command::new(workspace_binary("deckwatch"))
-            .args(["run", "--print-config", "--config"])
-            .arg(&cfg)
-            .output()
-            .unwrap();
+        let out = print_config(&cfg);
         let e = String::from_utf8_lossy(&out.stderr);
         assert!(
             !out.status.success() && e.contains(named) && e.contains("p.toml"),
@@ -279,12 +267,17 @@ fn unsafe_settings_are_refused_when_the_configuration_is_loaded() {
         "[link]\naddress = \"udpout:192.0.2.1:14550\"\nunsigned_beyond_loopback = true\n",
     )
     .unwrap();
-    let out = Command::new(workspace_binary("deckwatch"))
-        .args(["run", "--print-config", "--config"])
-        .arg(&cfg)
-        .output()
-        .unwrap();
+    let out = print_config(&cfg);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
+/// `deckwatch run --print-config --config cfg`, its output.
+fn print_config(cfg: &Path) -> std::process::Output {
+    Command::new(workspace_binary("deckwatch"))
+        .args(["run", "--print-config", "--config"])
+        .arg(cfg)
+        .output()
+        .unwrap()
 }
 
 /// Waits for a line matching `f` from the launcher's stderr.

@@ -1,6 +1,7 @@
 //! The ship's course as its autopilot keeps it: a slow wander of the course and the yaw the
 //! autopilot leaves in waves, and the track they sail.
 
+use super::ShipMotionError;
 use crate::motion::Sinusoid;
 use crate::rng::SplitMix64;
 use std::f64::consts::TAU;
@@ -29,6 +30,41 @@ const AUTOPILOT_COMPONENTS: usize = 6;
 const TRACK_STEP_S: f64 = 0.25;
 
 impl CourseKeeping {
+    /// The course keeping's parameters within their bounds (as a model's parameters name them):
+    /// the wander's and the autopilot's standard deviations 0-30 deg, the wander's correlation
+    /// time and the autopilot's period 1-3600 s.
+    pub fn check_parameters(
+        course_wander_deg: f64,
+        course_wander_time_s: f64,
+        autopilot_yaw_deg: f64,
+        autopilot_yaw_period_s: f64,
+    ) -> Result<(), ShipMotionError> {
+        let bad = |name, value, expected| {
+            Err(ShipMotionError::BadParameter {
+                name,
+                value,
+                expected,
+            })
+        };
+        for (name, value) in [
+            ("course_wander_deg", course_wander_deg),
+            ("autopilot_yaw_deg", autopilot_yaw_deg),
+        ] {
+            if !(0.0..=30.0).contains(&value) {
+                return bad(name, value, "within 0-30 deg");
+            }
+        }
+        for (name, value) in [
+            ("course_wander_time_s", course_wander_time_s),
+            ("autopilot_yaw_period_s", autopilot_yaw_period_s),
+        ] {
+            if !(1.0..=3600.0).contains(&value) {
+                return bad(name, value, "within 1-3600 s");
+            }
+        }
+        Ok(())
+    }
+
     /// A course wandering by `wander_deg` (standard deviation) over `wander_time_s`, an
     /// autopilot's yaw of `autopilot_deg` (standard deviation) at about `autopilot_period_s`,
     /// sailed at `speed_mps`; the track precomputed over `duration_s`. Phases and frequencies

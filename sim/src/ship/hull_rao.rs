@@ -348,23 +348,12 @@ impl HullRaoParams {
                 "within half the frigate's length (60 m)",
             );
         }
-        for (name, value) in [
-            ("course_wander_deg", self.course_wander_deg),
-            ("autopilot_yaw_deg", self.autopilot_yaw_deg),
-        ] {
-            if !(0.0..=30.0).contains(&value) {
-                return bad(name, value, "within 0-30 deg");
-            }
-        }
-        for (name, value) in [
-            ("course_wander_time_s", self.course_wander_time_s),
-            ("autopilot_yaw_period_s", self.autopilot_yaw_period_s),
-        ] {
-            if !(1.0..=3600.0).contains(&value) {
-                return bad(name, value, "within 1-3600 s");
-            }
-        }
-        Ok(())
+        CourseKeeping::check_parameters(
+            self.course_wander_deg,
+            self.course_wander_time_s,
+            self.autopilot_yaw_deg,
+            self.autopilot_yaw_period_s,
+        )
     }
 }
 

@@ -74,23 +74,12 @@ impl ShortCrestedParams {
         if !(self.roll_damping_ratio > 0.0 && self.roll_damping_ratio < 1.0) {
             return bad("roll_damping_ratio", self.roll_damping_ratio, "within (0, 1)");
         }
-        for (name, value) in [
-            ("course_wander_deg", self.course_wander_deg),
-            ("autopilot_yaw_deg", self.autopilot_yaw_deg),
-        ] {
-            if !(0.0..=30.0).contains(&value) {
-                return bad(name, value, "within 0-30 deg");
-            }
-        }
-        for (name, value) in [
-            ("course_wander_time_s", self.course_wander_time_s),
-            ("autopilot_yaw_period_s", self.autopilot_yaw_period_s),
-        ] {
-            if !(1.0..=3600.0).contains(&value) {
-                return bad(name, value, "within 1-3600 s");
-            }
-        }
-        Ok(())
+        CourseKeeping::check_parameters(
+            self.course_wander_deg,
+            self.course_wander_time_s,
+            self.autopilot_yaw_deg,
+            self.autopilot_yaw_period_s,
+        )
     }
 }
 

@@ -325,8 +325,8 @@ pub struct Admission {
     /// A byte stream's bytes not yet a whole frame.
     pending: Vec<u8>,
     /// Where replies go on a listening UDP socket: the autopilot's address, taken from its first
-    /// admitted frame; it moves with a signed frame of the autopilot (signing required), or once
-    /// it has been silent for the heartbeat timeout.
+    /// admitted frame; it moves only once it has been silent for the heartbeat timeout (a
+    /// restarted router's new port), never with a frame from elsewhere while it is heard.
     peer: Option<SocketAddr>,
     /// When the reply address last sent an admitted frame, and how long its silence may last
     /// before another address of the autopilot takes its place (`heartbeat_timeout_ms`).
@@ -334,6 +334,10 @@ pub struct Admission {
     peer_timeout_ns: u64,
     pub refused: RefusalCounts,
     pub admitted: u64,
+    /// Admitted frames that came from another address than the reply address while it was
+    /// heard: authentic (signed and fresh, or unsigned on a trusted network) but relayed or
+    /// sent from elsewhere. Their data is the autopilot's; the replies stay where they were.
+    pub from_other_address: u64,
     /// The autopilot's frames that never arrived, from the gaps in its sequence numbers (one
     /// counter per sender in MAVLink): lost on the way, or in a full receive buffer.
     pub autopilot_lost: u64,
@@ -356,6 +360,7 @@ impl Admission {
             peer_timeout_ns: (config.heartbeat_timeout_ms * 1e6) as u64,
             refused: RefusalCounts::default(),
             admitted: 0,
+            from_other_address: 0,
             autopilot_lost: 0,
             last_sequence: None,
         }
@@ -494,16 +499,19 @@ impl Admission {
         }
         match verdict.result {
             Ok(admitted) => {
-                // The reply address: the autopilot's first frame. Later, a signed frame (with
-                // signing required) moves it, or any of its frames once the address in use has
-                // been silent for the heartbeat timeout (a restarted router's new port).
+                // The reply address: the autopilot's first frame; later, any of its frames once
+                // the address in use has been silent for the heartbeat timeout (a restarted
+                // router's new port). A signed frame from elsewhere while it is heard does not
+                // move it: replayed or relayed through another host, it would take the replies.
                 if let Some(s) = sender {
                     let silent = self
                         .peer_heard_ns
                         .is_none_or(|t| now_ns.saturating_sub(t) > self.peer_timeout_ns);
-                    if self.peer.is_none() || self.signing.is_some() || silent || self.peer == Some(s) {
+                    if self.peer.is_none() || silent || self.peer == Some(s) {
                         self.peer = Some(s);
                         self.peer_heard_ns = Some(now_ns);
+                    } else {
+                        self.from_other_address += 1;
                     }
                 }
                 self.admitted += 1;
@@ -745,9 +753,16 @@ mod tests {
         }
         // None of them moved the reply address.
         assert_eq!(a.reply_address(), Some(addr(5000)));
-        // A newer signed frame of the autopilot passes, from wherever it now comes.
+        // A newer signed frame of the autopilot relayed through another host passes (its data
+        // is authentic and fresh) but is counted and does not take the replies while the
+        // autopilot's own address is heard.
         let next = frame(header(1, 1), &attitude(), Some(&autopilot));
         assert_eq!(a.datagram(&next, addr(5001), 2_000).len(), 1);
+        assert_eq!(a.reply_address(), Some(addr(5000)));
+        assert_eq!(a.from_other_address, 1);
+        // Silent past the heartbeat timeout: the autopilot's new address takes the replies.
+        let later = frame(header(1, 1), &attitude(), Some(&autopilot));
+        assert_eq!(a.datagram(&later, addr(5001), 4_000_000_000).len(), 1);
         assert_eq!(a.reply_address(), Some(addr(5001)));
     }
 

@@ -494,12 +494,12 @@ fn run(config: PipelineConfig) -> Result<String, RunError> {
         pct(&mut first_ns),
         pct(&mut all_ns)
     );
-    let (admitted, refused, lost) = {
+    let (admitted, refused, lost, elsewhere) = {
         let a = lock(&link.admission);
-        (a.admitted, a.refused, a.autopilot_lost)
+        (a.admitted, a.refused, a.autopilot_lost, a.from_other_address)
     };
     Ok(format!(
-        "{admitted} frames admitted, {} refused ({}), {lost} of the autopilot's lost (sequence gaps); {} heartbeats, {} attitudes ({} refused), {} timesyncs, {} ranges, {} local positions in; {sent_decisions} decisions ({} bad ones skipped), {} landing targets out ({} sends failed); {latency}; {clock}",
+        "{admitted} frames admitted ({elsewhere} from another address than the replies'), {} refused ({}), {lost} of the autopilot's lost (sequence gaps); {} heartbeats, {} attitudes ({} refused), {} timesyncs, {} ranges, {} local positions in; {sent_decisions} decisions ({} bad ones skipped), {} landing targets out ({} sends failed); {latency}; {clock}",
         refused.total(),
         refused.describe(),
         c.heartbeats,

@@ -29,16 +29,33 @@ const AUTOPILOT_COMPONENTS: usize = 6;
 /// a quarter second to far better than a millimetre.
 const TRACK_STEP_S: f64 = 0.25;
 
-impl CourseKeeping {
-    /// The course keeping's parameters within their bounds (as a model's parameters name them):
-    /// the wander's and the autopilot's standard deviations 0-30 deg, the wander's correlation
-    /// time and the autopilot's period 1-3600 s.
-    pub fn check_parameters(
-        course_wander_deg: f64,
-        course_wander_time_s: f64,
-        autopilot_yaw_deg: f64,
-        autopilot_yaw_period_s: f64,
-    ) -> Result<(), ShipMotionError> {
+/// How a ship keeps its course, as a model's parameters state it: the course's wander, a
+/// first-order Gauss-Markov process (a helmsman's or autopilot's slow drift off the ordered
+/// course), and the yaw an autopilot leaves in waves.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CourseKeepingParams {
+    /// The wander's standard deviation (deg) and correlation time (s).
+    pub wander_deg: f64,
+    pub wander_time_s: f64,
+    /// The autopilot's yaw: its standard deviation (deg) at sea state 6 (it scales with the
+    /// significant wave height) and its period (s).
+    pub autopilot_yaw_deg: f64,
+    pub autopilot_yaw_period_s: f64,
+}
+
+impl CourseKeepingParams {
+    /// A frigate's: the course wandering 2 deg over 2 min, the autopilot's yaw 1 deg at 25 s
+    /// in sea state 6.
+    pub const FRIGATE: Self = Self {
+        wander_deg: 2.0,
+        wander_time_s: 120.0,
+        autopilot_yaw_deg: 1.0,
+        autopilot_yaw_period_s: 25.0,
+    };
+
+    /// Every parameter within its bounds: the standard deviations 0-30 deg, the wander's
+    /// correlation time and the autopilot's period 1-3600 s.
+    pub fn validate(&self) -> Result<(), ShipMotionError> {
         let bad = |name, value, expected| {
             Err(ShipMotionError::BadParameter {
                 name,
@@ -47,16 +64,16 @@ impl CourseKeeping {
             })
         };
         for (name, value) in [
-            ("course_wander_deg", course_wander_deg),
-            ("autopilot_yaw_deg", autopilot_yaw_deg),
+            ("course_wander_deg", self.wander_deg),
+            ("autopilot_yaw_deg", self.autopilot_yaw_deg),
         ] {
             if !(0.0..=30.0).contains(&value) {
                 return bad(name, value, "within 0-30 deg");
             }
         }
         for (name, value) in [
-            ("course_wander_time_s", course_wander_time_s),
-            ("autopilot_yaw_period_s", autopilot_yaw_period_s),
+            ("course_wander_time_s", self.wander_time_s),
+            ("autopilot_yaw_period_s", self.autopilot_yaw_period_s),
         ] {
             if !(1.0..=3600.0).contains(&value) {
                 return bad(name, value, "within 1-3600 s");
@@ -65,6 +82,22 @@ impl CourseKeeping {
         Ok(())
     }
 
+    /// The course kept in a sea of significant wave height `hs_m`, sailed at `speed_mps`, its
+    /// track precomputed over `duration_s`; phases and frequencies from `seed`.
+    pub fn build(&self, hs_m: f64, speed_mps: f64, duration_s: f64, seed: u64) -> CourseKeeping {
+        CourseKeeping::new(
+            self.wander_deg,
+            self.wander_time_s,
+            self.autopilot_yaw_deg * hs_m / 5.0,
+            self.autopilot_yaw_period_s,
+            speed_mps,
+            duration_s,
+            seed,
+        )
+    }
+}
+
+impl CourseKeeping {
     /// A course wandering by `wander_deg` (standard deviation) over `wander_time_s`, an
     /// autopilot's yaw of `autopilot_deg` (standard deviation) at about `autopilot_period_s`,
     /// sailed at `speed_mps`; the track precomputed over `duration_s`. Phases and frequencies

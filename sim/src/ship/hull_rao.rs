@@ -3,7 +3,7 @@
 //! properties (`bench/hull_rao.py`, which wrote `sim/data/frigate_rao.csv`), driven by the
 //! spectrum sea's waves met by a ship under way.
 
-use super::course::CourseKeeping;
+use super::course::{CourseKeeping, CourseKeepingParams};
 use super::hull::{encounter_rad_s, knots_to_mps, Hull};
 use super::{SeaSpec, ShipMotionError};
 use crate::motion::{MotionProfile, MotionSample, SpectrumShipMotion, TrackingError};
@@ -309,13 +309,8 @@ pub struct HullRaoParams {
     pub speed_kn: f64,
     /// How far aft of the centre of gravity the pad is (m; the table's heave is G's).
     pub pad_aft_m: f64,
-    /// The course's wander and the autopilot's yaw (`ship::CourseKeeping`): standard
-    /// deviations (deg; the autopilot's at sea state 6, scaled with the wave height), the
-    /// wander's correlation time and the autopilot's period (s).
-    pub course_wander_deg: f64,
-    pub course_wander_time_s: f64,
-    pub autopilot_yaw_deg: f64,
-    pub autopilot_yaw_period_s: f64,
+    /// How the ship keeps its course (the wander, the autopilot's yaw).
+    pub course: CourseKeepingParams,
 }
 
 impl HullRaoParams {
@@ -323,10 +318,7 @@ impl HullRaoParams {
     pub const FRIGATE: Self = Self {
         speed_kn: 10.0,
         pad_aft_m: Hull::FRIGATE.pad_aft_m,
-        course_wander_deg: 2.0,
-        course_wander_time_s: 120.0,
-        autopilot_yaw_deg: 1.0,
-        autopilot_yaw_period_s: 25.0,
+        course: CourseKeepingParams::FRIGATE,
     };
 
     /// Checks every parameter.
@@ -348,12 +340,7 @@ impl HullRaoParams {
                 "within half the frigate's length (60 m)",
             );
         }
-        CourseKeeping::check_parameters(
-            self.course_wander_deg,
-            self.course_wander_time_s,
-            self.autopilot_yaw_deg,
-            self.autopilot_yaw_period_s,
-        )
+        self.course.validate()
     }
 }
 
@@ -416,15 +403,7 @@ impl HullRaoMotion {
                 MetWave::new(rate, w.phase_rad, w.amplitude_m, r)
             })
             .collect();
-        let course = CourseKeeping::new(
-            params.course_wander_deg,
-            params.course_wander_time_s,
-            params.autopilot_yaw_deg * hs_m / 5.0,
-            params.autopilot_yaw_period_s,
-            speed_mps,
-            spec.duration_s,
-            spec.seed,
-        );
+        let course = params.course.build(hs_m, speed_mps, spec.duration_s, spec.seed);
         Ok(Self {
             waves,
             course,
@@ -713,7 +692,10 @@ mod tests {
                 ..HullRaoParams::FRIGATE
             },
             HullRaoParams {
-                course_wander_time_s: 0.0,
+                course: CourseKeepingParams {
+                    wander_time_s: 0.0,
+                    ..CourseKeepingParams::FRIGATE
+                },
                 ..HullRaoParams::FRIGATE
             },
         ] {

@@ -22,7 +22,7 @@ pub mod hull_rao;
 pub mod nonlinear_roll;
 pub mod short_crested;
 
-pub use course::CourseKeeping;
+pub use course::{CourseKeeping, CourseKeepingParams};
 pub use hull::Hull;
 pub use hull_rao::{HullRaoMotion, HullRaoParams, RaoTable, RaoTableError, Responses};
 pub use nonlinear_roll::{NonlinearRollMotion, NonlinearRollParams, RollEquation};

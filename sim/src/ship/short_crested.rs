@@ -1,7 +1,7 @@
 //! Short-crested seas: waves from a spread of directions, met by a ship under way whose course
 //! wanders, each wave at its own encounter frequency; the pad aft of the centre of gravity.
 
-use super::course::CourseKeeping;
+use super::course::{CourseKeeping, CourseKeepingParams};
 use super::hull::{encounter_rad_s, knots_to_mps, low_pass, resonance, wavenumber_rad_m, Hull};
 use super::{SeaSpec, ShipMotionError};
 use crate::motion::{MotionProfile, MotionSample, TrackingError};
@@ -27,14 +27,8 @@ pub struct ShortCrestedParams {
     pub components: usize,
     /// The roll's damping ratio (linear, equivalent: a frigate with bilge keels at speed).
     pub roll_damping_ratio: f64,
-    /// The course's wander: standard deviation (deg) and correlation time (s) of a first-order
-    /// Gauss-Markov process (a helmsman's or autopilot's slow drift off the ordered course).
-    pub course_wander_deg: f64,
-    pub course_wander_time_s: f64,
-    /// The yaw an autopilot leaves in waves: standard deviation (deg) at sea state 6 (it scales
-    /// with the significant wave height) and its period (s).
-    pub autopilot_yaw_deg: f64,
-    pub autopilot_yaw_period_s: f64,
+    /// How the ship keeps its course (the wander, the autopilot's yaw).
+    pub course: CourseKeepingParams,
 }
 
 impl ShortCrestedParams {
@@ -46,10 +40,7 @@ impl ShortCrestedParams {
         spreading_s: 10.0,
         components: 800,
         roll_damping_ratio: 0.1,
-        course_wander_deg: 2.0,
-        course_wander_time_s: 120.0,
-        autopilot_yaw_deg: 1.0,
-        autopilot_yaw_period_s: 25.0,
+        course: CourseKeepingParams::FRIGATE,
     };
 
     /// Checks every parameter.
@@ -74,12 +65,7 @@ impl ShortCrestedParams {
         if !(self.roll_damping_ratio > 0.0 && self.roll_damping_ratio < 1.0) {
             return bad("roll_damping_ratio", self.roll_damping_ratio, "within (0, 1)");
         }
-        CourseKeeping::check_parameters(
-            self.course_wander_deg,
-            self.course_wander_time_s,
-            self.autopilot_yaw_deg,
-            self.autopilot_yaw_period_s,
-        )
+        self.course.validate()
     }
 }
 
@@ -181,15 +167,7 @@ impl ShortCrestedMotion {
             w.amplitude_m *= scale;
         }
         let speed_mps = knots_to_mps(params.speed_kn);
-        let course = CourseKeeping::new(
-            params.course_wander_deg,
-            params.course_wander_time_s,
-            params.autopilot_yaw_deg * hs_m / 5.0,
-            params.autopilot_yaw_period_s,
-            speed_mps,
-            spec.duration_s,
-            spec.seed,
-        );
+        let course = params.course.build(hs_m, speed_mps, spec.duration_s, spec.seed);
         Ok(Self {
             waves,
             course,
@@ -333,8 +311,11 @@ mod tests {
         let params = ShortCrestedParams {
             components: 1,
             spreading_s: 10_000.0,
-            course_wander_deg: 0.0,
-            autopilot_yaw_deg: 0.0,
+            course: CourseKeepingParams {
+                wander_deg: 0.0,
+                autopilot_yaw_deg: 0.0,
+                ..CourseKeepingParams::FRIGATE
+            },
             hull: Hull {
                 pad_aft_m: 0.0,
                 ..Hull::FRIGATE
@@ -482,7 +463,10 @@ mod tests {
                 ..ShortCrestedParams::FRIGATE
             },
             ShortCrestedParams {
-                course_wander_time_s: f64::NAN,
+                course: CourseKeepingParams {
+                    wander_time_s: f64::NAN,
+                    ..CourseKeepingParams::FRIGATE
+                },
                 ..ShortCrestedParams::FRIGATE
             },
         ] {

@@ -123,7 +123,7 @@ def run(deckwatch, flood_hz, flood_s, python):
             f'[sim]\nvehicle = "tilted"\nvehicle_tilt_deg = [{r}, {p}, {y}]\nframes = {frames}\nrate = {RATE_HZ}\n'
             f'[vehicle]\nattitude = "autopilot"\n'
             f'[link]\nenabled = true\naddress = "udpin:127.0.0.1:{port}"\nsigning = "required"\n'
-            f'signing_key_file = "{key_file}"\n'
+            f'signing_key_file = "{key_file}"\nsigning_state_file = "{os.path.join(d, 'signing.state')}"\n'
             f'[rerun]\nsink = "off"\n'
         )
     decisions = os.path.join(d, "decisions.csv")

@@ -4,7 +4,7 @@
 use deckwatch_tests::guard::{children, running, walk};
 use deckwatch_tests::{pipeline_output, workspace_binary, PipelineGuard};
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// (state, reason) -> count, from a decisions CSV.
@@ -172,9 +172,10 @@ fn a_killed_launcher_leaves_nothing_after_clean() {
     assert!(text.contains(&run_dir.display().to_string()), "{text}");
     assert!(!run_dir.exists());
     let prefix = deckwatch_runtime::bus::domain_prefix(&domain);
-    let left: Vec<String> = ["/dev/shm", "/tmp/iceoryx2"]
+    // The killed launcher's iceoryx2 root: in the runtime directory it was given.
+    let left: Vec<String> = [PathBuf::from("/dev/shm"), runtime.path().join("dw-ipc")]
         .iter()
-        .flat_map(|d| walk(Path::new(d)))
+        .flat_map(|d| walk(d))
         .filter(|name| name.contains(&prefix))
         .collect();
     assert!(left.is_empty(), "left behind: {left:?}");

@@ -152,7 +152,7 @@ fn a_recorded_flight_opens_in_other_readers_and_resimulates_bit_for_bit() {
     }
     assert_eq!(
         v["first_json"]["/deckwatch/attitude"].as_array().unwrap().len(),
-        18
+        19
     );
     for name in ["deckwatch", "deckwatch.clock", "deckwatch.camera"] {
         assert!(v["metadata"][name].is_object(), "metadata {name}: {v}");

@@ -82,9 +82,11 @@ fn pymavlink_autopilot_and_ground_station() {
              [sim]\nvehicle = \"tilted\"\nvehicle_tilt_deg = [{r}, {p}, {y}]\nframes = 170\nrate = {RATE_HZ}\n\
              [vehicle]\nattitude = \"autopilot\"\n\
              [link]\nenabled = true\naddress = \"udpin:127.0.0.1:{port}\"\nsigning = \"required\"\nsigning_key_file = \"{}\"\n\
+             signing_state_file = \"{}\"\n\
              [rerun]\nsink = \"off\"\n\
              [record]\npath = \"{}\"\nframes = \"none\"\n",
             key_file.display(),
+            dir.path().join("signing.state").display(),
             dir.path().join("flight.mcap").display()
         ),
     )

@@ -50,8 +50,9 @@ fn closed_loop_landings_touch_down_safely_in_one_process_and_through_the_process
     std::fs::write(
         &config,
         format!(
-            "[link]\nsigning = \"required\"\nsigning_key_file = \"{}\"\n",
-            key_file.display()
+            "[link]\nsigning = \"required\"\nsigning_key_file = \"{}\"\nsigning_state_file = \"{}\"\n",
+            key_file.display(),
+            dir.path().join("signing.state").display()
         ),
     )
     .unwrap();

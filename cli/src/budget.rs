@@ -14,6 +14,7 @@
 use crate::soak::{
     context_switches, cpu_split_s, private_mib, render_recording, shared_mib, shm_mib, BackgroundRun, TempDir,
 };
+use deckwatch_runtime::config::MAX_CONFIG_FILE_BYTES;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -108,7 +109,8 @@ pub fn run(a: BudgetArgs) -> Result<(), String> {
         None => render_recording(&me, dir.path(), 30.0, "budget")?,
     };
     let base = match &a.config {
-        Some(p) => std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()))?,
+        Some(p) => deckwatch_common::files::read_bounded_to_string(p, MAX_CONFIG_FILE_BYTES)
+            .map_err(|e| e.to_string())?,
         None => "[decide]\nheave = \"off\"\n".to_string(),
     };
     let factor = a.pi5_cpu_factor.max(a.pi5_memory_factor);

@@ -182,17 +182,18 @@ fn shared_memory(c: &PipelineConfig) -> Vec<Finding> {
             }
         }
     }
-    let state = Path::new("/tmp/iceoryx2");
-    let dir = if state.exists() { state } else { Path::new("/tmp") };
-    match writable(dir) {
-        Ok(()) => out.push(Finding::Ok(format!(
-            "iceoryx2 state folder {} writable",
-            dir.display()
-        ))),
-        Err(e) => out.push(Finding::Fix(
-            format!("iceoryx2 state folder {}", dir.display()),
-            format!("not writable by this user ({e}); under systemd keep PrivateTmp=no"),
-        )),
+    match deckwatch_runtime::bus::ipc_root(&c.bus.domain) {
+        Ok(root) => match writable(&root) {
+            Ok(()) => out.push(Finding::Ok(format!(
+                "iceoryx2 root {}: this user's alone, writable",
+                root.display()
+            ))),
+            Err(e) => out.push(Finding::Fix(
+                format!("iceoryx2 root {}", root.display()),
+                format!("not writable by this user ({e})"),
+            )),
+        },
+        Err(e) => out.push(Finding::Fix("iceoryx2 root".into(), e.to_string())),
     }
     match Bus::live_nodes(&c.bus.domain) {
         Ok(n) if n.is_empty() => out.push(Finding::Ok(format!("domain `{}` is free", c.bus.domain))),
@@ -235,7 +236,7 @@ fn camera(c: &PipelineConfig) -> Vec<Finding> {
 }
 
 fn link(c: &PipelineConfig) -> Vec<Finding> {
-    use deckwatch_link::admission::Signing;
+    use deckwatch_link::signing::Signing;
     use deckwatch_link::{Endpoint, SigningMode};
     if !c.link.enabled {
         return vec![Finding::Note("link off: no autopilot endpoint needed".into())];
@@ -276,17 +277,55 @@ fn link(c: &PipelineConfig) -> Vec<Finding> {
             }
         }
     };
-    let signing = match (c.link.signing, Signing::configured(&c.link)) {
+    let configured = Signing::configured(&c.link);
+    let signing = match (c.link.signing, &configured) {
         (SigningMode::Off, _) => Finding::Note(format!(
             "MAVLink signing off: whoever reaches {address} can send the link an attitude (keep it on the loopback behind mavlink-router, or set [link] signing)"
         )),
-        (SigningMode::Required, Ok(_)) => Finding::Ok(format!(
-            "MAVLink signing required: the key in {} is this user's alone",
-            c.link.signing_key_file
+        (SigningMode::Required, Ok(s)) => Finding::Ok(format!(
+            "MAVLink signing required: the key in {} is this user's alone; timestamps kept in {}",
+            c.link.signing_key_file,
+            s.as_ref()
+                .and_then(|s| s.kept_file())
+                .map_or("-".into(), |f| f.display().to_string())
         )),
-        (SigningMode::Required, Err(e)) => Finding::Fix("MAVLink signing key".into(), e.to_string()),
+        (SigningMode::Required, Err(e)) => Finding::Fix("MAVLink signing".into(), e.to_string()),
     };
-    vec![reach, signing]
+    let mut found = vec![reach, signing];
+    if let (SigningMode::Required, Ok(Some(s))) = (c.link.signing, &configured) {
+        found.push(signing_clock(s.newest_10us()));
+    }
+    found
+}
+
+/// Whether this machine's clock can be trusted for MAVLink signing: set (not behind the newest
+/// time the link kept) and synchronised (the kernel's NTP status). Without it the kept state
+/// alone orders the frames, which holds, but the autopilot's frames are then judged against it.
+fn signing_clock(kept_newest_10us: u64) -> Finding {
+    let what = "clock for MAVLink signing".to_string();
+    let now = deckwatch_link::signing::clock_10us();
+    if now < kept_newest_10us {
+        return Finding::Fix(
+            what,
+            format!(
+                "the clock is {:.0} s behind the newest signing time kept: not set (a board without a real-time clock before NTP or GPS)? Frames older than the kept state are refused all the same; set the clock (timedatectl, chrony) before flight",
+                (kept_newest_10us - now) as f64 / 1e5
+            ),
+        );
+    }
+    // SAFETY: adjtimex with `modes` 0 only reads the kernel's time status into the zeroed
+    // struct it is given.
+    let status = unsafe {
+        let mut t: libc::timex = std::mem::zeroed();
+        libc::adjtimex(&mut t)
+    };
+    if status == libc::TIME_ERROR {
+        Finding::Note(format!(
+            "{what}: set, but not synchronised (the kernel's NTP status): the kept signing state still orders the frames; run chrony or systemd-timesyncd"
+        ))
+    } else {
+        Finding::Ok(format!("{what}: set and synchronised"))
+    }
 }
 
 fn viewer(c: &PipelineConfig) -> Vec<Finding> {
@@ -400,4 +439,26 @@ fn recorder(c: &PipelineConfig) -> Vec<Finding> {
             per_s / 1e6
         ))
     }]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A kept signing time ahead of the clock is a clock not set: said as something to fix; a
+    /// clock ahead of it is fine (and its NTP status a note at most).
+    #[test]
+    fn a_clock_behind_the_kept_signing_state_is_named() {
+        let ahead = deckwatch_link::signing::clock_10us() + 3600 * 100_000;
+        match signing_clock(ahead) {
+            Finding::Fix(what, how) => {
+                assert!(
+                    what.contains("clock") && how.contains("behind") && how.contains("3600"),
+                    "{how}"
+                )
+            }
+            _ => panic!("a clock an hour behind the kept state passed"),
+        }
+        assert!(!matches!(signing_clock(0), Finding::Fix(..)));
+    }
 }

@@ -41,6 +41,7 @@ struct Cli {
 }
 
 mod budget;
+mod calibration;
 mod decide_eval;
 mod decisions_csv;
 mod doctor;
@@ -48,6 +49,7 @@ mod eval;
 mod flight;
 mod inproc;
 mod launch;
+mod pattern;
 mod pipeline;
 mod predict_eval;
 mod sim_motion;
@@ -132,11 +134,20 @@ enum Command {
         #[arg(long)]
         out: std::path::PathBuf,
     },
+    /// Camera calibrations from other tools (ROS camera_info, OpenCV FileStorage, Kalibr).
+    Calibration {
+        #[command(subcommand)]
+        command: calibration::CalibrationCommand,
+    },
     /// Work with recordings.
     Recording {
         #[command(subcommand)]
         command: RecordingCommand,
     },
+    /// The deck's marker pattern as SVG at true scale for printing or painting (`--out`,
+    /// `--tile A4` for pages), and `pattern check PHOTO`: a photograph of the printed or
+    /// painted pattern measured against the configured layout (exit status 1 when off).
+    Pattern(Box<pattern::PatternArgs>),
     /// Remove what a killed launcher left behind in a domain: the shared memory of its dead
     /// processes and the domain, its temporary run folders, and (with `--rerun FILE.rrd`) that
     /// recording's part files. Refuses while a pipeline runs in the domain. `deckwatch run` does
@@ -481,6 +492,7 @@ fn main() -> ExitCode {
         Command::Recording {
             command: RecordingCommand::Check { dir },
         } => check_recording(&dir),
+        Command::Calibration { command } => calibration::run(command),
         Command::Cameras { json } => cameras(json),
         Command::Clean { domain, rerun } => launch::clean(&domain, rerun.as_deref()).map(|c| {
             println!(
@@ -497,6 +509,11 @@ fn main() -> ExitCode {
             }
         }),
         Command::CameraRecord { config, frames, out } => camera_record(config, frames, &out),
+        Command::Pattern(a) => match pattern::run(*a) {
+            Ok(true) => Ok(()),
+            Ok(false) => return ExitCode::from(1),
+            Err(e) => Err(e),
+        },
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

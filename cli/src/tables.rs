@@ -7,7 +7,7 @@ use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::Percentiles;
 use deckwatch_common::{CameraModel, DeckLayout};
 use deckwatch_estimate::{PaperEstimator, PaperVariant};
-use deckwatch_formats::marker_table::{MarkerTableReader, MarkerTableWriter};
+use deckwatch_formats::marker_table::{open_marker_table, MarkerTableReader, MarkerTableWriter};
 use deckwatch_formats::recording::read_camera_json;
 use deckwatch_sim::scenario::SimulationArgs;
 use std::collections::BTreeMap;
@@ -83,7 +83,7 @@ pub fn estimate_table(a: EstimateTableArgs) -> Result<bool, String> {
         Box::new(std::io::stdin().lock())
     } else {
         Box::new(std::io::BufReader::new(
-            std::fs::File::open(&a.input).map_err(|e| format!("{}: cannot read: {e}", a.input))?,
+            open_marker_table(std::path::Path::new(&a.input)).map_err(|e| e.to_string())?,
         ))
     };
     let source = if a.input == "-" { "stdin" } else { a.input.as_str() };

@@ -11,6 +11,7 @@ pub mod deck;
 pub mod diag;
 pub mod ellipse;
 pub mod error;
+pub mod files;
 pub mod homography;
 pub mod image;
 #[cfg(feature = "jpeg")]

@@ -55,6 +55,7 @@ struct Estimate {
     markers_used: u32,
     rpy_std_deg: [f64; 3],
     camera_position_m: [f64; 3],
+    camera_position_covariance_m2: [[f64; 3]; 3],
 }
 
 impl Estimate {
@@ -68,6 +69,7 @@ impl Estimate {
         out.markers_used = self.markers_used;
         out.rpy_std_deg = self.rpy_std_deg;
         out.camera_position_m = self.camera_position_m;
+        out.camera_position_covariance_m2 = self.camera_position_covariance_m2;
     }
 }
 
@@ -164,6 +166,7 @@ impl DeckEstimator {
             estimator: self.primary.into(),
             rpy_std_deg: [f64::NAN; 3],
             camera_position_m: [f64::NAN; 3],
+            camera_position_covariance_m2: [[f64::NAN; 3]; 3],
             residual: f64::NAN,
             ..Default::default()
         };
@@ -360,6 +363,7 @@ impl DeckEstimator {
                             markers_used: (e.ring_markers_used + 2) as u32,
                             rpy_std_deg: [f64::NAN; 3],
                             camera_position_m: [f64::NAN; 3],
+                            camera_position_covariance_m2: [[f64::NAN; 3]; 3],
                         }),
                     },
                     Err(e) => fail(paper_failure(&e)),
@@ -384,6 +388,7 @@ impl DeckEstimator {
                             residual: e.reprojection_rms_px,
                             markers_used: e.markers_used(),
                             rpy_std_deg: e.rpy_std_deg(),
+                            camera_position_covariance_m2: e.camera_position_covariance_m2,
                             camera_position_m: [
                                 e.viewpoint.offset_x_m,
                                 e.viewpoint.offset_y_m,

@@ -12,6 +12,7 @@ pub mod deck_estimator;
 pub mod ellipse;
 pub mod motion;
 pub mod paper;
+pub mod pattern_check;
 pub mod pose;
 pub mod vehicle_height;
 pub mod vehicle_track;

@@ -4,6 +4,10 @@ use deckwatch_common::InvalidField;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
+/// The largest `chunk_mib`: a reader holds a whole chunk (decompressed), so the reader's bound on
+/// one record (`reader::MAX_RECORD_BYTES`) is this plus the frame that filled the chunk.
+pub const MAX_CHUNK_MIB: u32 = 64;
+
 /// How frames are written.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -99,10 +103,10 @@ impl RecordConfig {
                 format!("must be 1..=100, got {}", self.jpeg_quality),
             ));
         }
-        if !(1..=1024).contains(&self.chunk_mib) {
+        if !(1..=MAX_CHUNK_MIB).contains(&self.chunk_mib) {
             return Err(InvalidField::new(
                 "chunk_mib",
-                format!("must be 1..=1024, got {}", self.chunk_mib),
+                format!("must be 1..={MAX_CHUNK_MIB}, got {}", self.chunk_mib),
             ));
         }
         if !(1..=256).contains(&self.queue_frames) {

@@ -51,8 +51,39 @@ pub enum FlightRecord {
     },
 }
 
-/// Largest record the reader accepts (a corrupt length must not allocate the machine away).
-const RECORD_LIMIT: usize = 1 << 30;
+// The bounds of what one file may make the reader hold, checked against each length field
+// before what it claims is allocated: a corrupt or crafted length must not allocate the machine
+// away. Each is well beyond what a deckwatch recorder writes.
+/// The largest message (bytes): a raw frame of the most pixels deckwatch reads
+/// (`camera::MAX_IMAGE_PIXELS`), with room for its other fields.
+pub const MAX_MESSAGE_BYTES: usize = deckwatch_common::camera::MAX_IMAGE_PIXELS as usize + (1 << 20);
+/// The largest record (bytes), a chunk decompressed included: the largest chunk a recorder
+/// writes (`[record] chunk_mib`, at most [`crate::config::MAX_CHUNK_MIB`]) and the message
+/// that filled it. The MCAP reader allocates a chunk's buffer from its header's size.
+pub const MAX_RECORD_BYTES: usize = ((crate::config::MAX_CHUNK_MIB as usize) << 20) + MAX_MESSAGE_BYTES;
+/// The largest schema, channel or metadata record (bytes): deckwatch's largest schema is ~4 KB.
+pub const MAX_DECLARATION_BYTES: usize = 64 << 10;
+/// The most schemas, channels and metadata records a file may have (each is kept while the
+/// file is read): deckwatch writes ten or so.
+pub const MAX_DECLARATIONS: usize = 256;
+/// The largest attachment (bytes): deckwatch attaches its pipeline configuration, at most 1 MiB.
+pub const MAX_ATTACHMENT_BYTES: usize = 16 << 20;
+/// The largest JSON message decoded (bytes): deckwatch's are ~1 KB, and parsing JSON holds up to
+/// ~16 times its bytes.
+pub const MAX_JSON_MESSAGE_BYTES: usize = 1 << 20;
+
+/// The bound on a record of `opcode` (outside a chunk or in one), and what the record is.
+fn record_bound(opcode: u8) -> (usize, &'static str) {
+    use mcap::records::op;
+    match opcode {
+        op::MESSAGE => (MAX_MESSAGE_BYTES, "message"),
+        op::SCHEMA => (MAX_DECLARATION_BYTES, "schema"),
+        op::CHANNEL => (MAX_DECLARATION_BYTES, "channel"),
+        op::METADATA => (MAX_DECLARATION_BYTES, "metadata"),
+        op::ATTACHMENT => (MAX_ATTACHMENT_BYTES, "attachment"),
+        _ => (MAX_RECORD_BYTES, "record"),
+    }
+}
 
 /// A recording opened for reading; an iterator over its records.
 pub struct FlightReader {
@@ -61,6 +92,7 @@ pub struct FlightReader {
     reader: LinearReader,
     schemas: HashMap<u16, (String, String, Vec<u8>)>,
     channels: HashMap<u16, Arc<ChannelInfo>>,
+    metadata_records: usize,
     /// Why reading stopped before the end magic (a killed writer, a corrupt record).
     pub ended_early: Option<String>,
     done: bool,
@@ -72,7 +104,7 @@ impl FlightReader {
         let reader = LinearReader::new_with_options(
             LinearReaderOptions::default()
                 .with_prevalidate_chunk_crcs(true)
-                .with_record_length_limit(RECORD_LIMIT),
+                .with_record_length_limit(MAX_RECORD_BYTES),
         );
         Ok(Self {
             path: path.to_path_buf(),
@@ -80,6 +112,7 @@ impl FlightReader {
             reader,
             schemas: HashMap::new(),
             channels: HashMap::new(),
+            metadata_records: 0,
             ended_early: None,
             done: false,
         })
@@ -99,6 +132,24 @@ impl FlightReader {
         self.ended_early = Some(why);
         None
     }
+
+    /// Reading ends with an error: the file passes a bound (not a killed writer's cut).
+    fn refuse(&mut self, problem: String) -> Option<Result<FlightRecord, FlightError>> {
+        self.done = true;
+        Some(Err(FlightError::file(&self.path, problem)))
+    }
+}
+
+/// Whether a file that declared `known` schemas, channels or metadata records may declare one
+/// more.
+fn check_declarations(path: &Path, kind: &str, known: usize) -> Result<(), FlightError> {
+    if known >= MAX_DECLARATIONS {
+        return Err(FlightError::file(
+            path,
+            format!("more than {MAX_DECLARATIONS} {kind} records, the most deckwatch reads"),
+        ));
+    }
+    Ok(())
 }
 
 impl Iterator for FlightReader {
@@ -115,6 +166,19 @@ impl Iterator for FlightReader {
                 None => {
                     self.done = true;
                     return None;
+                }
+                // A length beyond the bounds is refused from the length, before its buffer.
+                Some(Err(mcap::McapError::RecordTooLarge { opcode, len })) => {
+                    return self.refuse(format!(
+                        "a record (opcode {opcode:#04x}) of {len} bytes, more than the \
+                         {MAX_RECORD_BYTES} bytes deckwatch reads in one record"
+                    ))
+                }
+                Some(Err(mcap::McapError::ChunkTooLarge(len))) => {
+                    return self.refuse(format!(
+                        "a chunk of {len} bytes, more than the {MAX_RECORD_BYTES} bytes deckwatch \
+                         reads in one chunk"
+                    ))
                 }
                 Some(Err(e)) => return self.stop(e.to_string()),
                 Some(Ok(event)) => event,
@@ -133,6 +197,13 @@ impl Iterator for FlightReader {
                 }
                 LinearReadEvent::Record { data, opcode } => (opcode, data),
             };
+            let (max_bytes, kind) = record_bound(opcode);
+            if data.len() > max_bytes {
+                let len = data.len();
+                return self.refuse(format!(
+                    "a {kind} record of {len} bytes, more than the {max_bytes} bytes deckwatch reads in one"
+                ));
+            }
             let record = match mcap::parse_record(opcode, data) {
                 Ok(r) => r,
                 Err(e) => {
@@ -142,10 +213,22 @@ impl Iterator for FlightReader {
             };
             match record {
                 Record::Schema { header, data } => {
+                    if !self.schemas.contains_key(&header.id) {
+                        if let Err(e) = check_declarations(&self.path, "schema", self.schemas.len()) {
+                            self.done = true;
+                            return Some(Err(e));
+                        }
+                    }
                     self.schemas
                         .insert(header.id, (header.name, header.encoding, data.into_owned()));
                 }
                 Record::Channel(c) => {
+                    if !self.channels.contains_key(&c.id) {
+                        if let Err(e) = check_declarations(&self.path, "channel", self.channels.len()) {
+                            self.done = true;
+                            return Some(Err(e));
+                        }
+                    }
                     let (schema_name, schema_encoding, schema_data) =
                         self.schemas.get(&c.schema_id).cloned().unwrap_or_default();
                     self.channels.insert(
@@ -175,10 +258,15 @@ impl Iterator for FlightReader {
                     })));
                 }
                 Record::Metadata(m) => {
+                    if let Err(e) = check_declarations(&self.path, "metadata", self.metadata_records) {
+                        self.done = true;
+                        return Some(Err(e));
+                    }
+                    self.metadata_records += 1;
                     return Some(Ok(FlightRecord::Metadata {
                         name: m.name,
                         entries: m.metadata,
-                    }))
+                    }));
                 }
                 Record::Attachment { header, data, .. } => {
                     return Some(Ok(FlightRecord::Attachment {
@@ -218,6 +306,15 @@ impl RecordedMessage {
                     self.channel.schema_name,
                     M::SCHEMA,
                     M::TOPIC
+                ),
+            ));
+        }
+        if self.data.len() > MAX_JSON_MESSAGE_BYTES {
+            return Err(self.error(
+                path,
+                format!(
+                    "{} bytes of JSON, more than the {MAX_JSON_MESSAGE_BYTES} deckwatch decodes",
+                    self.data.len()
                 ),
             ));
         }
@@ -420,6 +517,79 @@ mod tests {
             }
         }
         !crc
+    }
+
+    /// An MCAP file of `records` (opcode, body) after the magic and an empty header record.
+    fn mcap_of(records: &[(u8, Vec<u8>)]) -> Vec<u8> {
+        let mut file = mcap::MAGIC.to_vec();
+        // Header: profile and library, two empty strings.
+        let mut all = vec![(mcap::records::op::HEADER, vec![0u8; 8])];
+        all.extend_from_slice(records);
+        for (opcode, body) in all {
+            file.push(opcode);
+            file.extend_from_slice(&(body.len() as u64).to_le_bytes());
+            file.extend_from_slice(&body);
+        }
+        file
+    }
+
+    fn read_all(dir: &Path, bytes: &[u8]) -> Result<usize, FlightError> {
+        let path = dir.join("crafted.mcap");
+        std::fs::write(&path, bytes).unwrap();
+        FlightReader::open(&path)?.try_fold(0, |n, r| r.map(|_| n + 1))
+    }
+
+    /// Lengths that claim more than the bounds are refused from the length, as errors that name
+    /// the file and the size: before a buffer of that size is allocated, not read as a file that
+    /// ends early.
+    #[test]
+    fn lengths_beyond_the_bounds_are_refused_before_their_buffers() {
+        let dir = tempfile::tempdir().unwrap();
+        let huge: u64 = 10 << 30;
+        // A record claiming 10 GiB, in a file of a few bytes.
+        let mut file = mcap_of(&[]);
+        file.push(mcap::records::op::MESSAGE);
+        file.extend_from_slice(&huge.to_le_bytes());
+        file.extend_from_slice(&[0; 32]);
+        let e = read_all(dir.path(), &file).unwrap_err().to_string();
+        assert!(
+            e.contains("crafted.mcap") && e.contains("10737418240 bytes"),
+            "{e}"
+        );
+        assert!(e.contains(&MAX_RECORD_BYTES.to_string()), "{e}");
+        // A zstd chunk whose header claims 10 GiB decompressed (the reader would allocate it).
+        let mut chunk = Vec::new();
+        chunk.extend_from_slice(&0u64.to_le_bytes()); // message start time
+        chunk.extend_from_slice(&0u64.to_le_bytes()); // message end time
+        chunk.extend_from_slice(&huge.to_le_bytes()); // uncompressed size
+        chunk.extend_from_slice(&1u32.to_le_bytes()); // uncompressed CRC (checked first)
+        chunk.extend_from_slice(&4u32.to_le_bytes());
+        chunk.extend_from_slice(b"zstd");
+        chunk.extend_from_slice(&16u64.to_le_bytes()); // compressed size
+        chunk.extend_from_slice(&[0; 16]);
+        let e = read_all(dir.path(), &mcap_of(&[(mcap::records::op::CHUNK, chunk)]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("a chunk of 10737418240 bytes"), "{e}");
+        // A schema of 100 KB (deckwatch's are ~4 KB), within the record bound.
+        let mut schema = 1u16.to_le_bytes().to_vec();
+        schema.extend_from_slice(&[0; 8]); // name and encoding, empty
+        schema.extend_from_slice(&100_000u32.to_le_bytes());
+        schema.extend_from_slice(&vec![b'x'; 100_000]);
+        let e = read_all(dir.path(), &mcap_of(&[(mcap::records::op::SCHEMA, schema)]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("a schema record of 100014 bytes"), "{e}");
+        // More channels than a recording declares.
+        let channels: Vec<_> = (0..=MAX_DECLARATIONS as u16)
+            .map(|id| {
+                let mut c = id.to_le_bytes().to_vec();
+                c.extend_from_slice(&[0; 2 + 4 + 4 + 4]); // schema id, topic, encoding, metadata
+                (mcap::records::op::CHANNEL, c)
+            })
+            .collect();
+        let e = read_all(dir.path(), &mcap_of(&channels)).unwrap_err().to_string();
+        assert!(e.contains("more than 256 channel records"), "{e}");
     }
 
     /// A small PNG whose header claims 30 000 x 30 000 (900 MB of pixels) is refused from its

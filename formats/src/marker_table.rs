@@ -64,6 +64,21 @@ impl<W: Write> MarkerTableWriter<W> {
     }
 }
 
+/// The largest marker table read from a file (bytes): a row of 20 markers with its truth is
+/// ~1 KB, so this is ten hours at 30 fps. Rows are streamed (what is held is a line, at most
+/// [`MAX_CSV_LINE_BYTES`](crate::recording::MAX_CSV_LINE_BYTES)); the bound stops a file that
+/// never ends.
+pub const MAX_MARKER_TABLE_BYTES: u64 = 1 << 30;
+
+/// A marker table file opened for [`MarkerTableReader`], within its bounds (its size,
+/// [`MAX_MARKER_TABLE_BYTES`], checked before it is read; each line's).
+pub fn open_marker_table(path: &Path) -> Result<deckwatch_common::files::BoundedFile, RecordingError> {
+    Ok(
+        deckwatch_common::files::open_bounded(path, MAX_MARKER_TABLE_BYTES)?
+            .with_max_line_bytes(crate::recording::MAX_CSV_LINE_BYTES),
+    )
+}
+
 /// Reads marker rows from CSV, one at a time (so a pipe streams).
 pub struct MarkerTableReader<R: Read> {
     source: PathBuf,
@@ -177,6 +192,27 @@ impl<R: Read> MarkerTableReader<R> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A sparse marker table beyond its bound is refused from its size; a line beyond its bound
+    /// is a bad row at its line, and the file ends there.
+    #[test]
+    fn a_table_beyond_its_bounds_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("huge.csv");
+        std::fs::File::create(&path).unwrap().set_len(10 << 30).unwrap();
+        let e = open_marker_table(&path).err().unwrap().to_string();
+        assert!(e.contains("huge.csv") && e.contains("10737418240 bytes"), "{e}");
+        assert!(e.contains(&format!("{MAX_MARKER_TABLE_BYTES} bytes")), "{e}");
+        let text = format!("index,timestamp_ns,alt_m\n0,0,{}\n1,1,nan\n", "9".repeat(1 << 17));
+        std::fs::write(&path, text).unwrap();
+        let mut table = MarkerTableReader::new(&path, open_marker_table(&path).unwrap(), 0).unwrap();
+        let e = table.next_row().unwrap().unwrap_err().to_string();
+        assert!(
+            e.starts_with(&format!("{}:2: a line longer than", path.display())),
+            "{e}"
+        );
+        assert!(table.next_row().is_none());
+    }
 
     #[test]
     fn round_trip() {

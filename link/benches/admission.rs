@@ -5,8 +5,9 @@
 //! before anything else): the cost of each kind of flood per frame.
 
 use criterion::Criterion;
-use deckwatch_link::admission::{frame, Admission, Refusal, Signing};
-use deckwatch_link::mavlink::dialects::common::ATTITUDE_QUATERNION_DATA;
+use deckwatch_link::admission::{frame, Admission, Refusal};
+use deckwatch_link::dialect::ATTITUDE_QUATERNION_DATA;
+use deckwatch_link::signing::Signing;
 use deckwatch_link::{LinkConfig, MavHeader, MavMessage, SigningMode};
 use std::hint::black_box;
 use std::net::SocketAddr;

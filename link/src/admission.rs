@@ -8,15 +8,13 @@
 //! vehicle attitude, the clock or the reply address. The signature itself is the mavlink crate's
 //! (`SigningData`); this module decides what to do with its verdict and names the cause.
 
-use crate::config::{LinkConfig, SigningMode};
+use crate::config::LinkConfig;
+use crate::dialect::MavMessage;
+use crate::signing::{SignatureFault, Signing};
 use mavlink::consts::{self, v2};
-use mavlink::dialects::common::MavMessage;
-use mavlink::{
-    MAVLinkV1MessageRaw, MAVLinkV2MessageRaw, MavHeader, MavlinkVersion, Message, SigningConfig, SigningData,
-};
+use mavlink::{MAVLinkV1MessageRaw, MAVLinkV2MessageRaw, MavHeader, MavlinkVersion, Message};
 use std::collections::HashMap;
 use std::net::SocketAddr;
-use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 const STX_V1: u8 = 0xFE;
@@ -107,147 +105,6 @@ pub struct Admitted {
     pub message: MavMessage,
     /// The frame as received (with its signature, if any), for the recorder.
     pub frame: FrameBytes,
-}
-
-/// Why the signing key could not be used.
-#[derive(Debug, thiserror::Error)]
-pub enum KeyError {
-    #[error("link.signing_key_file `{path}`: {source}")]
-    Read { path: PathBuf, source: std::io::Error },
-    #[error("link.signing_key_file `{path}`: readable by others (mode {mode:o}); `chmod 600` it: a key others can read signs for them too")]
-    NotPrivate { path: PathBuf, mode: u32 },
-    #[error("link.signing_key_file `{path}`: owned by uid {owner}, not by this user (uid {us})")]
-    NotOurs { path: PathBuf, owner: u32, us: u32 },
-    #[error("link.signing_key_file `{path}`: {what}; it must hold the 32-byte key, raw or as 64 hexadecimal digits")]
-    Format { path: PathBuf, what: String },
-    #[error("link.signing_key_file `{path}`: a weak key: {what}; make a random one (`openssl rand -hex 32 > FILE`) and give the autopilot the same")]
-    Weak { path: PathBuf, what: String },
-}
-
-/// The 32-byte signing key from `path`: owner-only (mode 0600 or stricter, owned by this user),
-/// raw 32 bytes or 64 hexadecimal digits (a trailing newline allowed).
-pub fn load_key(path: &Path) -> Result<[u8; 32], KeyError> {
-    use std::io::Read;
-    use std::os::unix::fs::MetadataExt;
-    let read = |source| KeyError::Read {
-        path: path.into(),
-        source,
-    };
-    // Checked and read through one open file: the name cannot be swapped in between.
-    let mut file = std::fs::File::open(path).map_err(read)?;
-    let meta = file.metadata().map_err(read)?;
-    if meta.mode() & 0o077 != 0 {
-        return Err(KeyError::NotPrivate {
-            path: path.into(),
-            mode: meta.mode() & 0o7777,
-        });
-    }
-    // SAFETY: geteuid has no preconditions and cannot fail.
-    let us = unsafe { libc::geteuid() };
-    if meta.uid() != us {
-        return Err(KeyError::NotOurs {
-            path: path.into(),
-            owner: meta.uid(),
-            us,
-        });
-    }
-    // A key file is 64 bytes at most (hex and a newline); more is not a key.
-    let mut bytes = Vec::with_capacity(80);
-    file.by_ref().take(4096).read_to_end(&mut bytes).map_err(read)?;
-    let key = parse_key(&bytes).map_err(|what| KeyError::Format {
-        path: path.into(),
-        what,
-    })?;
-    match weakness(&key) {
-        Some(what) => Err(KeyError::Weak {
-            path: path.into(),
-            what: what.into(),
-        }),
-        None => Ok(key),
-    }
-}
-
-/// Fewer distinct bytes than this in 32 is no random key: 32 random bytes have about 30, and
-/// fewer than 12 comes once in more than 10^20 keys.
-const MIN_DISTINCT_KEY_BYTES: usize = 12;
-
-/// Why `key` is guessable, if it is: one byte repeated (the all-zero key among them), a few
-/// bytes repeated, or 32 printable characters (a passphrase written as the raw key: its
-/// strength is the passphrase's, and PX4's and ArduPilot's tools hash a passphrase instead).
-/// A random key is printable throughout once in 10^13.
-pub fn weakness(key: &[u8; 32]) -> Option<&'static str> {
-    let mut seen = [false; 256];
-    for &b in key {
-        seen[usize::from(b)] = true;
-    }
-    let distinct = seen.iter().filter(|&&s| s).count();
-    if distinct == 1 {
-        Some("every byte is the same (an all-zero key is the best known of these)")
-    } else if distinct < MIN_DISTINCT_KEY_BYTES {
-        Some("a few bytes repeated")
-    } else if key.iter().all(|b| (0x20..0x7f).contains(b)) {
-        Some("32 printable characters: a passphrase used as the raw key")
-    } else {
-        None
-    }
-}
-
-fn parse_key(bytes: &[u8]) -> Result<[u8; 32], String> {
-    if let Ok(raw) = <[u8; 32]>::try_from(bytes) {
-        return Ok(raw);
-    }
-    let text = std::str::from_utf8(bytes)
-        .map_err(|_| format!("{} bytes that are not text", bytes.len()))?
-        .trim();
-    if text.len() != 64 || !text.bytes().all(|b| b.is_ascii_hexdigit()) {
-        return Err(format!(
-            "{} bytes, not 32 raw bytes or 64 hex digits",
-            bytes.len()
-        ));
-    }
-    let mut key = [0u8; 32];
-    for (k, pair) in text.as_bytes().chunks(2).enumerate() {
-        // Two ASCII hex digits: always valid UTF-8 and a valid u8.
-        let s = std::str::from_utf8(pair).unwrap_or("00");
-        key[k] = u8::from_str_radix(s, 16).unwrap_or(0);
-    }
-    Ok(key)
-}
-
-/// The signing shared by the receiving and the sending side of one link: the mavlink crate's
-/// `SigningData` (one timestamp, which the specification wants never to go back, and each
-/// stream's newest) and the key (which the crate does not hand back, and which telling a bad
-/// signature from a replay needs).
-pub struct Signing {
-    key: [u8; 32],
-    data: SigningData,
-}
-
-impl Signing {
-    pub fn new(key: [u8; 32], link_id: u8) -> Self {
-        Self {
-            key,
-            data: SigningData::from_config(SigningConfig::new(key, link_id, true, false)),
-        }
-    }
-
-    /// The `[link]` signing: the key when signing is required.
-    pub fn configured(config: &LinkConfig) -> Result<Option<Arc<Signing>>, KeyError> {
-        match config.signing {
-            SigningMode::Off => Ok(None),
-            SigningMode::Required => {
-                let key = load_key(Path::new(&config.signing_key_file))?;
-                Ok(Some(Arc::new(Signing::new(key, config.signing_link_id))))
-            }
-        }
-    }
-}
-
-impl std::fmt::Debug for Signing {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        // Never the key.
-        f.write_str("Signing { .. }")
-    }
 }
 
 /// One sender's token bucket: `rate_hz` frames a second, bursts of a quarter second.
@@ -557,16 +414,11 @@ impl Admission {
             authentic_autopilot_sequence: (authentic && pinned).then(|| raw.sequence()),
         };
         if let Some(signing) = &self.signing {
-            if raw.incompatibility_flags() & v2::IFLAG_SIGNED == 0 {
-                return refuse(Refusal::Unsigned, false);
-            }
-            let mut value = [0u8; v2::SIGNATURE_VALUE_SIZE];
-            raw.calculate_signature(&signing.key, &mut value);
-            if value != raw.signature_value() {
-                return refuse(Refusal::BadSignature, false);
-            }
-            if !signing.data.verify_signature(raw) {
-                return refuse(Refusal::Replay, false);
+            match signing.verify(raw) {
+                Ok(()) => {}
+                Err(SignatureFault::Unsigned) => return refuse(Refusal::Unsigned, false),
+                Err(SignatureFault::BadSignature) => return refuse(Refusal::BadSignature, false),
+                Err(SignatureFault::Replay) => return refuse(Refusal::Replay, false),
             }
         }
         let signed = self.signing.is_some();
@@ -660,17 +512,26 @@ pub fn frame(header: MavHeader, message: &MavMessage, signing: Option<&Signing>)
         bytes: [0; consts::MAX_FRAME_SIZE],
         len: 0,
     };
+    let mut raw = MAVLinkV2MessageRaw::new();
+    match signing {
+        Some(s) => {
+            raw.serialize_message_for_signing(header, message);
+            s.sign(&mut raw);
+        }
+        None => raw.serialize_message(header, message),
+    }
+    let bytes = raw.raw_bytes();
     // A whole frame always fits its largest size.
-    out.len =
-        mavlink::write_v2_msg_signed(&mut &mut out.bytes[..], header, message, signing.map(|s| &s.data))
-            .unwrap_or(0);
+    out.len = bytes.len().min(consts::MAX_FRAME_SIZE);
+    out.bytes[..out.len].copy_from_slice(&bytes[..out.len]);
     out
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use mavlink::dialects::common::{ATTITUDE_QUATERNION_DATA, HEARTBEAT_DATA};
+    use crate::config::SigningMode;
+    use crate::dialect::{ATTITUDE_QUATERNION_DATA, HEARTBEAT_DATA};
 
     /// A key as random as any (`weakness` finds nothing in it).
     const KEY: [u8; 32] = [
@@ -896,68 +757,5 @@ mod tests {
             a.datagram(&spoof, addr(20_000 + port), 2_000_000_000);
         }
         assert!(a.limit.buckets.len() <= MAX_SENDERS + 1);
-    }
-
-    #[test]
-    fn the_key_file_must_be_ours_alone_and_32_bytes() {
-        use std::os::unix::fs::PermissionsExt;
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("key");
-        std::fs::write(&path, KEY).unwrap();
-        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o644)).unwrap();
-        let e = load_key(&path).unwrap_err();
-        assert!(matches!(e, KeyError::NotPrivate { mode: 0o644, .. }), "{e}");
-        assert!(e.to_string().contains("link.signing_key_file"), "{e}");
-        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o640)).unwrap();
-        assert!(matches!(
-            load_key(&path),
-            Err(KeyError::NotPrivate { mode: 0o640, .. })
-        ));
-        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o600)).unwrap();
-        assert_eq!(load_key(&path).unwrap(), KEY);
-        let hex: String = KEY.iter().map(|b| format!("{b:02x}")).collect();
-        std::fs::write(&path, format!("{hex}\n")).unwrap();
-        assert_eq!(load_key(&path).unwrap(), KEY);
-        std::fs::write(&path, "secret").unwrap();
-        assert!(matches!(load_key(&path), Err(KeyError::Format { .. })));
-        assert!(matches!(
-            load_key(&dir.path().join("missing")),
-            Err(KeyError::Read { .. })
-        ));
-    }
-
-    /// Keys anyone could guess are refused with why: the all-zero key, one byte repeated, a
-    /// pattern of a few bytes, a 32-character passphrase written as the raw key (raw or hex).
-    #[test]
-    fn a_weak_key_is_refused() {
-        use std::os::unix::fs::PermissionsExt;
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("key");
-        let pattern: [u8; 32] = std::array::from_fn(|k| [0xde, 0xad, 0xbe, 0xef][k % 4]);
-        let passphrase = *b"correct horse battery staple 123";
-        for (key, why) in [
-            ([0u8; 32], "every byte is the same"),
-            ([0x5a; 32], "every byte is the same"),
-            (pattern, "a few bytes repeated"),
-            (passphrase, "passphrase"),
-        ] {
-            for text in [
-                key.to_vec(),
-                key.iter()
-                    .map(|b| format!("{b:02x}"))
-                    .collect::<String>()
-                    .into_bytes(),
-            ] {
-                std::fs::write(&path, &text).unwrap();
-                std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o600)).unwrap();
-                let e = load_key(&path).unwrap_err();
-                assert!(
-                    matches!(e, KeyError::Weak { .. }) && e.to_string().contains(why),
-                    "{e}"
-                );
-                assert!(e.to_string().contains("link.signing_key_file"), "{e}");
-            }
-        }
-        assert_eq!(weakness(&KEY), None);
     }
 }

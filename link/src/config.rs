@@ -34,6 +34,11 @@ pub struct LinkConfig {
     /// The 32-byte key (raw, or 64 hex digits), in a file only its owner can read; the same key
     /// as the autopilot's (README: PX4 and ArduPilot). Set exactly when `signing = "required"`.
     pub signing_key_file: String,
+    /// Where each signing stream's newest timestamp is kept across restarts (a replay of frames
+    /// captured before a restart is refused after it). Empty: `signing-KEYID.state` in
+    /// `$STATE_DIRECTORY` (systemd's `StateDirectory=`), `$XDG_STATE_HOME/deckwatch` or
+    /// `~/.local/state/deckwatch`.
+    pub signing_state_file: String,
     /// Our link id in the signature (one stream per link id, system and component).
     pub signing_link_id: u8,
     /// Frames a second taken from any one sender (UDP address); the rest are dropped before
@@ -47,8 +52,14 @@ pub struct LinkConfig {
     pub heartbeat_hz: f64,
     /// TIMESYNC requests per second (0: never; the clock then comes from arrival times).
     pub timesync_hz: f64,
-    /// LANDING_TARGET per second at most (0: one per frame).
+    /// LANDING_TARGET (and TARGET_RELATIVE) per second at most (0: one per frame).
     pub landing_target_hz: f64,
+    /// The target messages each usable decision sends, at `landing_target_hz` and never on a
+    /// stale one: `"landing_target"` (LANDING_TARGET, common dialect: ArduPilot's precision
+    /// landing, PX4's landing target estimator) and `"target_relative"` (TARGET_RELATIVE, the
+    /// development dialect: PX4 1.18's Vision Target Estimator; README, "PX4's Vision Target
+    /// Estimator").
+    pub target_messages: Vec<String>,
     /// Deck attitude and decision as NAMED_VALUE_FLOAT/INT per second (0: off).
     pub telemetry_hz: f64,
     /// The link is lost when no HEARTBEAT came for this long (ms).
@@ -69,6 +80,7 @@ impl Default for LinkConfig {
             autopilot_component_id: 1,
             signing: SigningMode::Off,
             signing_key_file: String::new(),
+            signing_state_file: String::new(),
             signing_link_id: 0,
             sender_rate_hz: 2000.0,
             system_id: 0,
@@ -76,12 +88,18 @@ impl Default for LinkConfig {
             heartbeat_hz: 1.0,
             timesync_hz: 2.0,
             landing_target_hz: 0.0,
+            target_messages: vec![LANDING_TARGET_MESSAGE.into()],
             telemetry_hz: 5.0,
             heartbeat_timeout_ms: 3000.0,
             attitude_timeout_ms: 200.0,
         }
     }
 }
+
+/// `[link] target_messages`: LANDING_TARGET.
+pub const LANDING_TARGET_MESSAGE: &str = "landing_target";
+/// `[link] target_messages`: TARGET_RELATIVE.
+pub const TARGET_RELATIVE_MESSAGE: &str = "target_relative";
 
 /// `[link] signing`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
@@ -155,6 +173,12 @@ fn is_loopback(host_port: &str) -> bool {
 }
 
 impl LinkConfig {
+    /// Whether `[link] target_messages` names `message` ([`LANDING_TARGET_MESSAGE`],
+    /// [`TARGET_RELATIVE_MESSAGE`]).
+    pub fn sends(&self, message: &str) -> bool {
+        self.target_messages.iter().any(|m| m == message)
+    }
+
     pub fn endpoint(&self) -> Result<Endpoint, InvalidField> {
         Endpoint::parse(&self.address).map_err(|e| InvalidField::new("address", e))
     }
@@ -246,6 +270,19 @@ impl LinkConfig {
                 return Err(InvalidField::new(key, format!("must be in [0, {max}], got {v}")));
             }
         }
+        let known = [LANDING_TARGET_MESSAGE, TARGET_RELATIVE_MESSAGE];
+        if let Some(m) = self.target_messages.iter().find(|m| !known.contains(&m.as_str())) {
+            return Err(InvalidField::new(
+                "target_messages",
+                format!("`{m}` is not a target message: \"{LANDING_TARGET_MESSAGE}\" or \"{TARGET_RELATIVE_MESSAGE}\""),
+            ));
+        }
+        if self.target_messages.is_empty() {
+            return Err(InvalidField::new(
+                "target_messages",
+                format!("is empty: the autopilot would be told of no deck; name \"{LANDING_TARGET_MESSAGE}\", \"{TARGET_RELATIVE_MESSAGE}\" or both"),
+            ));
+        }
         if !(self.heartbeat_hz > 0.0) {
             return Err(InvalidField::new(
                 "heartbeat_hz",
@@ -292,6 +329,34 @@ mod tests {
             ..LinkConfig::default()
         };
         assert_eq!(bad.validate().unwrap_err().field, "attitude_timeout_ms");
+    }
+
+    #[test]
+    fn target_messages_are_named_ones() {
+        let d = LinkConfig::default();
+        assert!(d.sends(LANDING_TARGET_MESSAGE) && !d.sends(TARGET_RELATIVE_MESSAGE));
+        for list in [&["landing_target", "target_relative"][..], &["target_relative"]] {
+            let c = LinkConfig {
+                target_messages: list.iter().map(|s| s.to_string()).collect(),
+                ..LinkConfig::default()
+            };
+            c.validate().unwrap();
+            assert!(c.sends(TARGET_RELATIVE_MESSAGE));
+        }
+        for (list, said) in [
+            (&["landing_target", "target_relativ"][..], "`target_relativ`"),
+            (&["LANDING_TARGET"], "`LANDING_TARGET`"),
+            (&[], "empty"),
+        ] {
+            let e = LinkConfig {
+                target_messages: list.iter().map(|s| s.to_string()).collect(),
+                ..LinkConfig::default()
+            }
+            .validate()
+            .unwrap_err();
+            assert_eq!(e.field, "target_messages");
+            assert!(e.problem.contains(said), "{e:?}");
+        }
     }
 
     /// Sending to another host is as open as listening beyond the loopback: unsigned, refused

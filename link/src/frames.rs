@@ -76,6 +76,15 @@ pub fn body_target(
     }
 }
 
+/// A covariance in W (m^2; the camera's position over the deck centre, or the deck centre's from
+/// the camera: the same) as body FRD has it: `F R_V^T Σ R_V F`.
+pub fn body_covariance(covariance_w_m2: &[[f64; 3]; 3], r_v: &RotationMatrix) -> [[f64; 3]; 3] {
+    let w = Matrix3::from_fn(|i, j| covariance_w_m2[i][j]);
+    let to_frd = flip() * r_v.transpose();
+    let b = to_frd * w * to_frd.transpose();
+    [0, 1, 2].map(|i| [0, 1, 2].map(|j| b[(i, j)]))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

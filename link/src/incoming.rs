@@ -3,10 +3,10 @@
 
 use crate::clock::ClockSync;
 use crate::config::LinkConfig;
+use crate::dialect::{MavAutopilot, MavMessage, MavType, TIMESYNC_DATA};
 use crate::frames::{vehicle_from_ned_euler, vehicle_from_ned_quaternion};
 use deckwatch_common::messages::VehicleSample;
 use deckwatch_common::Quaternion;
-use mavlink::dialects::common::{MavAutopilot, MavMessage, MavType, TIMESYNC_DATA};
 use mavlink::MavHeader;
 
 /// The state of the link at one moment.
@@ -253,10 +253,10 @@ impl Incoming {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use deckwatch_common::messages::ClockMethod;
-    use mavlink::dialects::common::{
+    use crate::dialect::{
         MavModeFlag, MavState, ATTITUDE_QUATERNION_DATA, HEARTBEAT_DATA, LOCAL_POSITION_NED_DATA,
     };
+    use deckwatch_common::messages::ClockMethod;
 
     fn header(system_id: u32, component_id: u8) -> MavHeader {
         MavHeader {

@@ -1,19 +1,21 @@
 //! What deckwatch tells the autopilot and the ground station: its heartbeat, TIMESYNC requests,
-//! and each landing decision as LANDING_TARGET (for precision landing), NAMED_VALUE_FLOAT/INT
-//! (plotted by QGroundControl and Mission Planner) and STATUSTEXT (on every change).
+//! and each landing decision as LANDING_TARGET and/or TARGET_RELATIVE (for precision landing;
+//! `[link] target_messages`), NAMED_VALUE_FLOAT/INT (plotted by QGroundControl and Mission
+//! Planner) and STATUSTEXT (on every change).
 
 use crate::clock::ClockEstimate;
-use crate::config::LinkConfig;
-use crate::frames::body_target;
-use crate::incoming::LinkState;
-use deckwatch_common::messages::{DecisionReason, DecisionState, LandingDecision};
-use deckwatch_common::vehicle::Compensation;
-use deckwatch_common::RotationMatrix;
-use mavlink::dialects::common::{
+use crate::config::{LinkConfig, LANDING_TARGET_MESSAGE, TARGET_RELATIVE_MESSAGE};
+use crate::dialect::{
     LandingTargetType, MavAutopilot, MavBool, MavFrame, MavMessage, MavModeFlag, MavSeverity, MavState,
     MavType, HEARTBEAT_DATA, LANDING_TARGET_DATA, NAMED_VALUE_FLOAT_DATA, NAMED_VALUE_INT_DATA,
     STATUSTEXT_DATA, TIMESYNC_DATA,
 };
+use crate::frames::{body_covariance, body_target};
+use crate::incoming::LinkState;
+use crate::target_relative::{relative_target, target_relative_message};
+use deckwatch_common::messages::{DecisionReason, DecisionState, LandingDecision};
+use deckwatch_common::vehicle::Compensation;
+use deckwatch_common::{Quaternion, RotationMatrix};
 
 /// The names of the NAMED_VALUE_FLOAT/INT deckwatch sends (at most 10 characters each).
 pub mod names {
@@ -91,7 +93,11 @@ pub struct Outgoing {
     last_target_ns: Option<u64>,
     last_telemetry_ns: Option<u64>,
     last_status: Option<(DecisionState, u8, LinkState)>,
+    /// `[link] target_messages`.
+    send_landing_target: bool,
+    send_target_relative: bool,
     pub landing_targets: u64,
+    pub target_relatives: u64,
 }
 
 fn period_ns(hz: f64) -> u64 {
@@ -116,7 +122,10 @@ impl Outgoing {
             last_target_ns: None,
             last_telemetry_ns: None,
             last_status: None,
+            send_landing_target: config.sends(LANDING_TARGET_MESSAGE),
+            send_target_relative: config.sends(TARGET_RELATIVE_MESSAGE),
             landing_targets: 0,
+            target_relatives: 0,
         }
     }
 
@@ -161,13 +170,28 @@ impl Outgoing {
     }
 
     /// The messages for one decision, made at `now_ns`; `clock` puts times on the autopilot's
-    /// clock, `boot_ms` is the autopilot's time now (ms) for the named values.
+    /// clock, `boot_ms` is the autopilot's time now (ms) for the named values. Without the
+    /// vehicle's attitude at the exposure ([`Self::decision_with_attitude`]).
     pub fn decision(
         &mut self,
         d: &LandingDecision,
         link: LinkState,
         clock: Option<&ClockEstimate>,
         now_ns: u64,
+    ) -> Vec<MavMessage> {
+        self.decision_with_attitude(d, link, clock, now_ns, None)
+    }
+
+    /// The same, with `vehicle_at_capture`: the vehicle's north-referenced attitude (`R_V`, body
+    /// FLU to NWU) at the frame's mid-exposure from the autopilot's own stream, TARGET_RELATIVE's
+    /// `q_sensor` (none: `q_sensor` is zero, and PX4 uses its own attitude; [`crate::target_relative`]).
+    pub fn decision_with_attitude(
+        &mut self,
+        d: &LandingDecision,
+        link: LinkState,
+        clock: Option<&ClockEstimate>,
+        now_ns: u64,
+        vehicle_at_capture: Option<&Quaternion>,
     ) -> Vec<MavMessage> {
         let mut out = Vec::with_capacity(9);
         let a = &d.attitude;
@@ -199,29 +223,40 @@ impl Outgoing {
         let due = |last: Option<u64>, period: u64| last.is_none_or(|t| now_ns.saturating_sub(t) >= period);
         if usable && due(self.last_target_ns, self.target_period_ns) {
             self.last_target_ns = Some(now_ns);
-            self.landing_targets += 1;
             let r_v = a.vehicle.matrix();
             let t = body_target(position, &a.rpy.to_matrix(), &r_v, &self.mount);
             // Mid-exposure on the autopilot's clock; our own clock until it is known.
             let captured = d.stamp.times.captured_ns;
             let time_usec = remote(captured).map_or(captured as f64, |r| r.max(0.0)) / 1e3;
             let [x, y, z] = t.position_frd_m.map(|v| v as f32);
-            out.push(MavMessage::LANDING_TARGET(LANDING_TARGET_DATA {
-                time_usec: time_usec as u64,
-                angle_x: t.angle_rad[0] as f32,
-                angle_y: t.angle_rad[1] as f32,
-                distance: t.distance_m as f32,
-                size_x: 0.0,
-                size_y: 0.0,
-                target_num: 0,
-                frame: MavFrame::MAV_FRAME_BODY_FRD,
-                x,
-                y,
-                z,
-                q: t.orientation_frd.map(|v| v as f32),
-                mavtype: LandingTargetType::LANDING_TARGET_TYPE_VISION_FIDUCIAL,
-                position_valid: MavBool::MAV_BOOL_TRUE,
-            }));
+            if self.send_landing_target {
+                self.landing_targets += 1;
+                out.push(MavMessage::LANDING_TARGET(LANDING_TARGET_DATA {
+                    time_usec: time_usec as u64,
+                    angle_x: t.angle_rad[0] as f32,
+                    angle_y: t.angle_rad[1] as f32,
+                    distance: t.distance_m as f32,
+                    size_x: 0.0,
+                    size_y: 0.0,
+                    target_num: 0,
+                    frame: MavFrame::MAV_FRAME_BODY_FRD,
+                    x,
+                    y,
+                    z,
+                    q: t.orientation_frd.map(|v| v as f32),
+                    mavtype: LandingTargetType::LANDING_TARGET_TYPE_VISION_FIDUCIAL,
+                    position_valid: MavBool::MAV_BOOL_TRUE,
+                }));
+            }
+            if self.send_target_relative {
+                // The same instant as LANDING_TARGET's, on our own clock (PX4 moves it onto its
+                // own: `target_relative_message`).
+                let covariance_frd = body_covariance(&a.camera_position_covariance_m2, &r_v);
+                if let Some(r) = relative_target(&t, a.rpy_std_deg, &covariance_frd, vehicle_at_capture) {
+                    self.target_relatives += 1;
+                    out.push(target_relative_message(&r, captured / 1_000));
+                }
+            }
         }
         let changed = status_text.is_some();
         out.extend(status_text);
@@ -282,6 +317,7 @@ mod tests {
         d.attitude.valid = true.into();
         d.attitude.rpy = Rpy::from_degrees(2.0, -1.0, 0.0);
         d.attitude.camera_position_m = [0.0, 0.0, 5.0];
+        d.attitude.rpy_std_deg = [0.1, 0.1, 0.4];
         d.attitude.vehicle.compensation = Compensation::Frame.into();
         d.stamp.times.captured_ns = 1_000_000;
         d
@@ -309,6 +345,7 @@ mod tests {
         m.iter()
             .map(|m| match m {
                 MavMessage::LANDING_TARGET(_) => "target",
+                MavMessage::TARGET_RELATIVE(_) => "relative",
                 MavMessage::NAMED_VALUE_FLOAT(_) => "float",
                 MavMessage::NAMED_VALUE_INT(_) => "int",
                 MavMessage::STATUSTEXT(_) => "text",
@@ -383,5 +420,64 @@ mod tests {
         u.attitude.vehicle.compensation = Compensation::Missing.into();
         let m = o.decision(&u, LinkState::Up, None, 3_000_010);
         assert!(!kinds(&m).contains(&"target"));
+    }
+
+    /// TARGET_RELATIVE goes beside LANDING_TARGET when configured, under the same conditions, at
+    /// the same rate and (no autopilot clock known yet: both on ours) with the same stamp; alone
+    /// when LANDING_TARGET is not named.
+    #[test]
+    fn target_relative_follows_the_landing_target() {
+        let both = LinkConfig {
+            target_messages: vec![LANDING_TARGET_MESSAGE.into(), TARGET_RELATIVE_MESSAGE.into()],
+            landing_target_hz: 10.0,
+            ..LinkConfig::default()
+        };
+        let mut o = Outgoing::new(&both, RotationMatrix::identity());
+        let d = decision(DecisionState::ClearToLand);
+        // Heading 030: q_sensor is the vehicle's, the body position the deck straight below.
+        let vehicle = crate::frames::vehicle_from_ned_euler(0.0, 0.0, 30f32.to_radians()).unwrap();
+        let m = o.decision_with_attitude(&d, LinkState::Up, None, 10, Some(&vehicle));
+        assert_eq!(kinds(&m)[..3], ["target", "relative", "text"]);
+        let (MavMessage::LANDING_TARGET(l), MavMessage::TARGET_RELATIVE(r)) = (&m[0], &m[1]) else {
+            unreachable!()
+        };
+        assert_eq!(r.timestamp, l.time_usec);
+        assert_eq!([r.x, r.y, r.z], [l.x, l.y, l.z]);
+        assert_eq!(r.q_target, l.q);
+        assert_eq!(
+            r.q_sensor,
+            crate::frames::ned_quaternion_of_vehicle(&vehicle.to_matrix())
+        );
+        assert!((r.yaw_std - 0.4f32.to_radians()).abs() < 1e-7);
+        // 50 ms later: neither (10 Hz); 100 ms: both.
+        assert!(!kinds(&o.decision(&d, LinkState::Up, None, 50_000_010)).contains(&"relative"));
+        assert_eq!(
+            kinds(&o.decision(&d, LinkState::Up, None, 100_000_010)),
+            ["target", "relative"]
+        );
+        // Without the attitude at the exposure: q_sensor zero ("ignored").
+        let m = o.decision(&d, LinkState::Up, None, 200_000_010);
+        let MavMessage::TARGET_RELATIVE(r) = &m[1] else {
+            unreachable!()
+        };
+        assert_eq!(r.q_sensor, [0.0; 4]);
+        // Never on a stale decision, nor an uncompensated frame.
+        let stale = stale_decision(Some(&d));
+        let m = o.decision_with_attitude(&stale, LinkState::Up, None, 400_000_010, Some(&vehicle));
+        assert!(!kinds(&m).contains(&"relative") && !kinds(&m).contains(&"target"));
+        let mut u = d;
+        u.attitude.vehicle.compensation = Compensation::Missing.into();
+        let m = o.decision_with_attitude(&u, LinkState::Up, None, 600_000_010, Some(&vehicle));
+        assert!(!kinds(&m).contains(&"relative"));
+        assert_eq!((o.landing_targets, o.target_relatives), (3, 3));
+        // TARGET_RELATIVE alone.
+        let alone = LinkConfig {
+            target_messages: vec![TARGET_RELATIVE_MESSAGE.into()],
+            ..LinkConfig::default()
+        };
+        let mut o = Outgoing::new(&alone, RotationMatrix::identity());
+        let m = o.decision(&d, LinkState::Up, None, 10);
+        assert_eq!(kinds(&m)[..2], ["relative", "text"]);
+        assert_eq!((o.landing_targets, o.target_relatives), (0, 1));
     }
 }

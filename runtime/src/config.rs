@@ -87,8 +87,9 @@ pub struct PipelineConfig {
 /// What is wrong with a configuration, and where.
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
-    #[error("{file}: cannot read: {source}")]
-    Read { file: String, source: std::io::Error },
+    /// The file cannot be read, or is larger than [`MAX_CONFIG_FILE_BYTES`] (the error names it).
+    #[error(transparent)]
+    Read(#[from] deckwatch_common::files::FileReadError),
     /// TOML syntax, an unknown key or a value of the wrong type (the message has the line).
     #[error("{file}: {message}")]
     Parse { file: String, message: String },
@@ -118,6 +119,10 @@ impl ConfigError {
     }
 }
 
+/// The largest pipeline configuration read (bytes): every section with its comments is ~10 KB,
+/// so a file of a megabyte is no configuration, and is refused before it is read.
+pub const MAX_CONFIG_FILE_BYTES: u64 = 1 << 20;
+
 /// The name configuration errors give a configuration that came from no file.
 pub const DEFAULTS: &str = "(defaults)";
 
@@ -146,14 +151,10 @@ impl PipelineConfig {
         toml::from_str(text).map_err(parse_error)
     }
 
-    /// Reads and parses a file.
+    /// Reads (at most [`MAX_CONFIG_FILE_BYTES`]) and parses a file.
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
-            file: file.clone(),
-            source,
-        })?;
-        Self::from_toml(&file, &text)
+        let text = deckwatch_common::files::read_bounded_to_string(path, MAX_CONFIG_FILE_BYTES)?;
+        Self::from_toml(&path.display().to_string(), &text)
     }
 
     /// The file's configuration, or the defaults without one.
@@ -242,7 +243,7 @@ impl PipelineConfig {
         if self.link.signing == deckwatch_link::config::SigningMode::Required {
             // The key itself, now (`--print-config` too), not first when the link starts: a weak
             // or readable key is refused with the configuration that names it.
-            deckwatch_link::admission::load_key(Path::new(&self.link.signing_key_file))
+            deckwatch_link::signing::load_key(Path::new(&self.link.signing_key_file))
                 .map_err(|e| invalid("link.signing_key_file".into(), e.to_string()))?;
         }
         if self.source.kind == FrameSource::Libcamera
@@ -435,6 +436,19 @@ mod tests {
             .to_string();
         assert!(
             m.contains("/nonexistent/x.toml") && m.contains("cannot read"),
+            "{m}"
+        );
+    }
+
+    /// A sparse 10 GB configuration is refused from its size, naming the file and the limit.
+    #[test]
+    fn a_configuration_beyond_its_bound_is_refused_unread() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("huge.toml");
+        std::fs::File::create(&path).unwrap().set_len(10 << 30).unwrap();
+        let m = PipelineConfig::load(&path).unwrap_err().to_string();
+        assert!(
+            m.contains("huge.toml") && m.contains("10737418240 bytes") && m.contains("1048576 bytes"),
             "{m}"
         );
     }

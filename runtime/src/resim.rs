@@ -138,6 +138,15 @@ pub fn recorded_config(path: &Path) -> Result<Option<PipelineConfig>, RunError> 
             record.map_err(|e| RunError::Record(e.to_string()))?
         {
             if name == "pipeline.toml" {
+                // Held to the bound of a configuration file, not of an attachment.
+                if data.len() as u64 > crate::config::MAX_CONFIG_FILE_BYTES {
+                    return Err(RunError::Record(format!(
+                        "{}: the attached pipeline.toml has {} bytes, more than the {} of a configuration",
+                        path.display(),
+                        data.len(),
+                        crate::config::MAX_CONFIG_FILE_BYTES
+                    )));
+                }
                 let text = String::from_utf8_lossy(&data);
                 let file = format!("{} (attachment pipeline.toml)", path.display());
                 return Ok(Some(PipelineConfig::from_toml(&file, &text)?));

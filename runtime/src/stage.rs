@@ -412,6 +412,26 @@ pub enum RunError {
     Record(String),
 }
 
+/// The exit code of a stage that refused its input (its configuration, a recording, the
+/// simulator's options): sysexits' `EX_DATAERR`. The launcher does not restart it, since it would
+/// read the same input again; a camera or a bus that failed is restarted as a crash is.
+pub const EXIT_BAD_INPUT: u8 = 65;
+
+impl RunError {
+    /// Whether the error is in what the stage was given, not in what happened to it.
+    pub fn is_bad_input(&self) -> bool {
+        use deckwatch_capture::source::SourceError;
+        match self {
+            RunError::Config(_) => true,
+            RunError::Source(e) => matches!(
+                e,
+                SourceError::Config { .. } | SourceError::Recording(_) | SourceError::Simulator(_)
+            ),
+            _ => false,
+        }
+    }
+}
+
 /// Runs a process's binary, every one of them the same way: parse the command line, check the
 /// configuration, run, report; the exit code says how it went.
 pub fn main<P: Process>() -> ExitCode {
@@ -437,7 +457,11 @@ pub fn exit_code(name: &str, result: Result<String, RunError>) -> ExitCode {
         }
         Err(e) => {
             deckwatch_common::say!("deckwatch-{name}: {e}");
-            ExitCode::FAILURE
+            if e.is_bad_input() {
+                ExitCode::from(EXIT_BAD_INPUT)
+            } else {
+                ExitCode::FAILURE
+            }
         }
     }
 }

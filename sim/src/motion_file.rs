@@ -17,6 +17,10 @@ use std::path::Path;
 /// The longest step between two samples (s): 10 Hz with 10 % jitter.
 pub const MAX_STEP_S: f64 = 0.11;
 
+/// The largest motion file read (bytes): a row is ~60 bytes, so a 30-minute series at 50 Hz
+/// is ~5 MB and this bound holds six hours at 50 Hz; larger is no ship's motion record.
+pub const MAX_MOTION_FILE_BYTES: u64 = 64 << 20;
+
 /// A motion file that cannot be used: where (line and column, counted from 1; 0 for the file
 /// as a whole) and what.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -75,12 +79,15 @@ impl RecordedShipMotion {
     /// Reads a motion file.
     pub fn load(path: &Path) -> Result<Self, MotionFileError> {
         let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| MotionFileError {
-            file: name.clone(),
-            line: 0,
-            column: 0,
-            problem: format!("cannot read: {e}"),
-        })?;
+        let text =
+            deckwatch_common::files::read_bounded_to_string(path, MAX_MOTION_FILE_BYTES).map_err(|e| {
+                MotionFileError {
+                    file: name.clone(),
+                    line: e.line().unwrap_or(0) as usize,
+                    column: 0,
+                    problem: e.problem(),
+                }
+            })?;
         Self::parse(&text, &name)
     }
 
@@ -416,6 +423,21 @@ mod tests {
             &[row(0.0, 0.0), row(0.1, 0.0)],
         );
         assert!(e.unwrap_err().to_string().contains("cannot write"));
+    }
+
+    /// A sparse motion file beyond [`MAX_MOTION_FILE_BYTES`] is refused from its size, unread.
+    #[test]
+    fn a_motion_file_beyond_its_bound_is_refused_unread() {
+        let path = std::env::temp_dir().join(format!("deckwatch-huge-motion-{}.csv", std::process::id()));
+        std::fs::File::create(&path).unwrap().set_len(10 << 30).unwrap();
+        let e = RecordedShipMotion::load(&path);
+        let _ = std::fs::remove_file(&path);
+        let e = e.unwrap_err().to_string();
+        assert!(e.contains("deckwatch-huge-motion-"), "{e}");
+        assert!(
+            e.contains("10737418240 bytes") && e.contains("67108864 bytes"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -427,8 +427,10 @@ impl ImageArgs {
                 .map_err(|_| InvalidOption::new("--motion-psf", "give LENGTH_PX,ANGLE_DEG"))?;
             Psf::Motion { length_px, angle_deg }
         } else if let Some(path) = &self.psf_file {
-            let text = std::fs::read_to_string(path)
-                .map_err(|e| InvalidOption::new("--psf-file", format!("{}: {e}", path.display())))?;
+            // A 63 x 63 kernel of 20-digit weights is ~80 KB; a megabyte is no kernel.
+            const MAX_PSF_FILE_BYTES: u64 = 1 << 20;
+            let text = deckwatch_common::files::read_bounded_to_string(path, MAX_PSF_FILE_BYTES)
+                .map_err(|e| InvalidOption::new("--psf-file", e.to_string()))?;
             Psf::kernel_from_text(&text)
                 .map_err(|e| InvalidOption::new("--psf-file", format!("{}: {e}", path.display())))?
         } else {
@@ -593,5 +595,27 @@ mod tests {
         assert_eq!(o.read_noise_dn, 0.0);
         a.vignetting = Some(3.0);
         assert!(a.resolve(&sim).unwrap_err().to_string().contains("`vignetting`"));
+    }
+
+    /// A sparse kernel file beyond its bound is refused from its size, unread.
+    #[test]
+    fn a_psf_file_beyond_its_bound_is_refused_unread() {
+        let sim = sim_args("case1").resolve().unwrap();
+        let path = std::env::temp_dir().join(format!("deckwatch-huge-psf-{}.txt", std::process::id()));
+        std::fs::File::create(&path).unwrap().set_len(10 << 30).unwrap();
+        let a = ImageArgs {
+            psf_file: Some(path.clone()),
+            ..ImageArgs::default()
+        };
+        let e = a.resolve(&sim).map(|_| ()).unwrap_err().to_string();
+        let _ = std::fs::remove_file(&path);
+        assert!(
+            e.contains("--psf-file") && e.contains("deckwatch-huge-psf-"),
+            "{e}"
+        );
+        assert!(
+            e.contains("10737418240 bytes") && e.contains("1048576 bytes"),
+            "{e}"
+        );
     }
 }

@@ -52,6 +52,8 @@ def main():
     ap.add_argument("--start-after-s", type=float, default=3.0)
     ap.add_argument("--duration-s", type=float, default=6.0)
     ap.add_argument("--rate-hz", type=float, default=50.0)
+    ap.add_argument("--kinds", default="all",
+                    help="comma-separated kinds to send (unsigned, other-key, other-system, replay, mavlink1, bad-crc, junk, timesync), or all")
     a = ap.parse_args()
     # The autopilot writes its captured frames in its first second.
     capture_deadline = time.monotonic() + a.start_after_s + 10.0
@@ -77,7 +79,11 @@ def main():
     sent = {}
     received = 0
 
+    kinds = None if a.kinds == "all" else set(a.kinds.split(","))
+
     def send(kind, data):
+        if kinds is not None and kind not in kinds:
+            return
         sock.sendto(data, to)
         sent[kind] = sent.get(kind, 0) + 1
 

@@ -305,9 +305,9 @@ pub fn leftovers(domain: &str) -> Vec<String> {
         .collect();
     let prefix = deckwatch_runtime::bus::domain_prefix(domain);
     left.extend(
-        ["/dev/shm", "/tmp/iceoryx2"]
+        [PathBuf::from("/dev/shm"), deckwatch_runtime::bus::ipc_root_path()]
             .iter()
-            .flat_map(|d| walk(Path::new(d)))
+            .flat_map(|d| walk(d))
             .filter(|name| name.contains(&prefix)),
     );
     left.extend(run_dirs(domain).into_iter().map(|d| d.display().to_string()));

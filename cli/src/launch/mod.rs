@@ -96,7 +96,7 @@ pub fn launch(config: &PipelineConfig, file: &str, options: &LaunchOptions) -> R
     if config.link.enabled {
         // The signing key, read now: a key others can read, or none, stops the start here
         // rather than the link stage at every restart.
-        deckwatch_link::admission::Signing::configured(&config.link).map_err(|e| e.to_string())?;
+        deckwatch_link::signing::Signing::configured(&config.link).map_err(|e| e.to_string())?;
     }
     let domain = config.bus.domain.clone();
     quiet_logging();
@@ -212,20 +212,9 @@ const STDERR_READ_TIMEOUT: Duration = Duration::from_secs(2);
 /// The launcher's name as a rerun part and iceoryx2 node.
 const LAUNCHER: &str = "launcher";
 
-/// Where run folders go: the service's runtime directory (systemd's `RuntimeDirectory=`, mode
-/// 0700 and ours), else the user's (`XDG_RUNTIME_DIR`), else the temporary directory.
-fn run_base() -> PathBuf {
-    ["RUNTIME_DIRECTORY", "XDG_RUNTIME_DIR"]
-        .iter()
-        .filter_map(std::env::var_os)
-        .map(PathBuf::from)
-        .find(|p| p.is_absolute() && p.is_dir())
-        .unwrap_or_else(std::env::temp_dir)
-}
-
 /// The launcher's folder of a run (the configuration it hands the stages).
 fn run_dir(domain: &str, pid: u32) -> PathBuf {
-    run_base().join(format!("deckwatch-{domain}-{pid}"))
+    deckwatch_runtime::bus::runtime_base().join(format!("deckwatch-{domain}-{pid}"))
 }
 
 /// True when `path` is a folder (not a link to one) owned by this user.
@@ -273,7 +262,7 @@ fn create_run_dir(dir: &Path, config_toml: &str) -> Result<PathBuf, String> {
 /// Run folders of `domain` whose launcher is gone (a SIGKILL leaves them); only this user's.
 fn stale_run_dirs(domain: &str) -> Vec<PathBuf> {
     let prefix = format!("deckwatch-{domain}-");
-    let Ok(entries) = std::fs::read_dir(run_base()) else {
+    let Ok(entries) = std::fs::read_dir(deckwatch_runtime::bus::runtime_base()) else {
         return Vec::new();
     };
     entries

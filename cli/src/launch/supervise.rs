@@ -13,7 +13,7 @@ use super::say;
 use deckwatch_common::messages::{monotonic_ns, LandingDecision, StageHeartbeat};
 use deckwatch_runtime::bus::{event_loop, Bus, BusError, Flow, LoopEnd, Wake};
 use deckwatch_runtime::config::{PipelineConfig, SupervisorConfig};
-use deckwatch_runtime::stage::active_stages;
+use deckwatch_runtime::stage::{active_stages, EXIT_BAD_INPUT};
 use deckwatch_runtime::stages::capture;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -258,6 +258,13 @@ pub fn supervise(
                     Some(silent) => format!("not responding for {} ms, killed", silent.as_millis()),
                     None => describe(status),
                 };
+                if s.hung.is_none() && status.code() == Some(i32::from(EXIT_BAD_INPUT)) {
+                    failure = Some(format!(
+                        "{} refused its input ({why}): not restarted, it would read the same again",
+                        s.process.name
+                    ));
+                    return Ok(Flow::Stop);
+                }
                 match policy.on_crash(&mut s.history, s.process.started.elapsed(), run_started.elapsed()) {
                     CrashVerdict::GiveUp => {
                         failure = Some(format!(

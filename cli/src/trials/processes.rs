@@ -9,10 +9,14 @@ use super::{fault_model, world_of, Setup, TrialsArgs};
 use crate::launch::{launch, LaunchOptions};
 use deckwatch_common::messages::{monotonic_ns, DecisionReason, DecisionState};
 use deckwatch_common::wire::WireCode;
-use deckwatch_link::admission::load_key;
+use deckwatch_link::dialect::{
+    MavAutopilot, MavModeFlag, MavState, MavType, ATTITUDE_QUATERNION_DATA, HEARTBEAT_DATA,
+    LOCAL_POSITION_NED_DATA, TIMESYNC_DATA,
+};
 use deckwatch_link::frames::ned_quaternion_of_vehicle;
 use deckwatch_link::mavlink::{self, ConnectionAddress, MavConnection, MavlinkVersion};
 use deckwatch_link::outgoing::names;
+use deckwatch_link::signing::load_key;
 use deckwatch_link::SigningMode;
 use deckwatch_link::{MavHeader, MavMessage};
 use deckwatch_runtime::bus::Bus;
@@ -21,10 +25,6 @@ use deckwatch_sim::landing::{FlightPath, SharedFlightPath};
 use deckwatch_trials::{
     Approach, ApproachOutcome, ApproachWorld, DecisionFollower, FrameFaults, SimulatedAutopilot,
     TouchdownVerdict, VehicleHeightError,
-};
-use mavlink::dialects::common::{
-    MavAutopilot, MavModeFlag, MavState, MavType, ATTITUDE_QUATERNION_DATA, HEARTBEAT_DATA,
-    LOCAL_POSITION_NED_DATA, TIMESYNC_DATA,
 };
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{mpsc, Arc, Mutex};

@@ -97,11 +97,16 @@ pub(super) fn report(records: &[ApproachRecord], json: bool) -> Result<BTreeMap<
     Ok(totals)
 }
 
+/// The largest shard report `trials merge` reads (bytes): a record is ~1 KB, so this holds
+/// 250 000 approaches (rules counted) in one shard, which takes a core weeks to fly.
+const MAX_SHARD_REPORT_BYTES: u64 = 256 << 20;
+
 /// `deckwatch trials merge`: the shards' approach records, in job order, reported as one run.
 pub fn merge(m: &MergeArgs) -> Result<(), String> {
     let mut records: Vec<ApproachRecord> = Vec::new();
     for path in &m.files {
-        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let text = deckwatch_common::files::read_bounded_to_string(path, MAX_SHARD_REPORT_BYTES)
+            .map_err(|e| e.to_string())?;
         for (n, line) in text.lines().enumerate() {
             let Ok(value) = serde_json::from_str::<serde_json::Value>(line) else {
                 continue;

@@ -145,7 +145,8 @@ macro_rules! message_fields {
             alternative,
             vehicle,
             camera_rpy,
-            deck_height_m,
+            deck_height_m;
+            camera_position_covariance_m2 = [[f64::NAN; 3]; 3]
         });
         $callback!(LandingDecision {
             stamp,

@@ -91,7 +91,7 @@ pub const FROZEN_IMAGE_REPEATS: u32 = 1;
 #[cfg_attr(
     feature = "shm",
     derive(ZeroCopySend),
-    type_name("deckwatch.AttitudeMessage.v5")
+    type_name("deckwatch.AttitudeMessage.v6")
 )]
 pub struct AttitudeMessage {
     pub stamp: FrameStamp,
@@ -131,6 +131,9 @@ pub struct AttitudeMessage {
     /// vehicle's height less the camera's height over the deck centre from the full pose. NaN
     /// when either is unknown.
     pub deck_height_m: f64,
+    /// Covariance of `camera_position_m` in the world frame (m^2) when the estimator gives one
+    /// (full pose), else NaN.
+    pub camera_position_covariance_m2: [[f64; 3]; 3],
 }
 
 impl Default for AttitudeMessage {
@@ -155,6 +158,7 @@ impl Default for AttitudeMessage {
             vehicle: VehicleAttitude::default(),
             camera_rpy: Rpy::default(),
             deck_height_m: f64::NAN,
+            camera_position_covariance_m2: [[f64::NAN; 3]; 3],
         }
     }
 }

@@ -40,6 +40,26 @@ pub const VEHICLE_FILE: &str = "vehicle.csv";
 /// The header of `vehicle.csv` (then optionally [`VEHICLE_HEIGHT_COLUMN`]).
 pub const VEHICLE_COLUMNS: [&str; 5] = ["timestamp_ns", "qw", "qx", "qy", "qz"];
 pub const VEHICLE_HEIGHT_COLUMN: &str = "height_m";
+
+// The bounds of what a recording folder's files may hold, checked before anything is read or
+// allocated (`deckwatch_common::files`): each well beyond any recording deckwatch makes.
+/// The largest `camera.json` read (bytes): the paper's deck makes ~1.5 KB.
+pub const MAX_CAMERA_JSON_BYTES: u64 = 1 << 20;
+/// The most frames a recording folder lists: 2.3 h at 60 fps, each a PNG file in the folder. A
+/// row costs ~300 bytes once read, so this also bounds what opening a recording holds.
+pub const MAX_RECORDING_FRAMES: usize = 500_000;
+/// The largest `frames.csv` read (bytes): a row with every column is ~350 bytes, so this holds
+/// [`MAX_RECORDING_FRAMES`] rows with room to spare.
+pub const MAX_FRAMES_CSV_BYTES: u64 = 256 << 20;
+/// The most samples of `vehicle.csv`: 5.5 h at 100 Hz.
+pub const MAX_VEHICLE_SAMPLES: usize = 2_000_000;
+/// The largest `vehicle.csv` read (bytes): a row is ~120 bytes, so this holds
+/// [`MAX_VEHICLE_SAMPLES`] rows.
+pub const MAX_VEHICLE_CSV_BYTES: u64 = 256 << 20;
+/// The longest line of a CSV file deckwatch reads (bytes): a row of every column is under 2 KB,
+/// a marker table's row for 100 markers ~5 KB; a CSV parser holds a whole line.
+pub const MAX_CSV_LINE_BYTES: u64 = 64 << 10;
+
 /// Folder (inside the recording) the writer puts images in.
 pub const IMAGES_DIR: &str = "frames";
 
@@ -78,8 +98,14 @@ impl RecordingError {
         }
     }
 
-    /// A CSV syntax error (e.g. a row with the wrong number of fields), at its line.
+    /// A CSV syntax error (e.g. a row with the wrong number of fields), at its line; or the
+    /// bound of the file it was read from.
     pub(crate) fn csv(path: &Path, e: &csv::Error) -> Self {
+        if let csv::ErrorKind::Io(io) = e.kind() {
+            if let Some(bound) = deckwatch_common::files::bound_in(io) {
+                return Self::at(bound.path(), bound.line(), None, bound.problem());
+            }
+        }
         Self::at(path, e.position().map(|p| p.line()), None, format!("{e}"))
     }
 
@@ -90,6 +116,13 @@ impl RecordingError {
     fn field(mut self, field: impl Into<String>) -> Self {
         self.field = Some(field.into());
         self
+    }
+}
+
+/// A file that cannot be read, or passes its bound.
+impl From<deckwatch_common::files::FileReadError> for RecordingError {
+    fn from(e: deckwatch_common::files::FileReadError) -> Self {
+        Self::at(e.path(), e.line(), None, e.problem())
     }
 }
 
@@ -166,8 +199,7 @@ pub fn write_camera_json(dir: &Path, camera: &CameraModel, deck: &DeckLayout) ->
 /// Reads and validates `camera.json` in `dir`.
 pub fn read_camera_json(dir: &Path) -> Result<(CameraModel, DeckLayout), RecordingError> {
     let path = dir.join(CAMERA_FILE);
-    let text = std::fs::read_to_string(&path)
-        .map_err(|e| RecordingError::new(&path, format!("cannot read: {e}")))?;
+    let text = deckwatch_common::files::read_bounded_to_string(&path, MAX_CAMERA_JSON_BYTES)?;
     parse_camera_json(&path, &text)
 }
 
@@ -279,7 +311,8 @@ impl Recording {
         }
         let (camera, deck) = read_camera_json(&dir)?;
         let path = dir.join(FRAMES_FILE);
-        let file = File::open(&path).map_err(|e| RecordingError::new(&path, format!("cannot read: {e}")))?;
+        let file = deckwatch_common::files::open_bounded(&path, MAX_FRAMES_CSV_BYTES)?
+            .with_max_line_bytes(MAX_CSV_LINE_BYTES);
         let (frames, truth_columns) = parse_frames_csv(&path, BufReader::new(file))?;
         let vehicle_path = dir.join(VEHICLE_FILE);
         let vehicle_samples = if vehicle_path.exists() {
@@ -332,13 +365,14 @@ impl Recording {
 /// Reads `vehicle.csv`: every row a timestamp after the previous one and a unit quaternion; an
 /// error names the file, the line and the column.
 pub fn read_vehicle_csv(path: &Path) -> Result<Vec<VehicleStateSample>, RecordingError> {
-    let file = File::open(path).map_err(|e| RecordingError::new(path, format!("cannot read: {e}")))?;
+    let file = deckwatch_common::files::open_bounded(path, MAX_VEHICLE_CSV_BYTES)?
+        .with_max_line_bytes(MAX_CSV_LINE_BYTES);
     let mut reader = csv::ReaderBuilder::new()
         .has_headers(true)
         .from_reader(BufReader::new(file));
     let header = reader
         .headers()
-        .map_err(|e| RecordingError::new(path, format!("header: {e}")))?
+        .map_err(|e| RecordingError::csv(path, &e))?
         .clone();
     let column = |name: &str| {
         header.iter().position(|h| h.trim() == name).ok_or_else(|| {
@@ -358,7 +392,17 @@ pub fn read_vehicle_csv(path: &Path) -> Result<Vec<VehicleStateSample>, Recordin
     let mut out: Vec<VehicleStateSample> = Vec::new();
     for (k, record) in reader.records().enumerate() {
         let line = k as u64 + 2;
-        let record = record.map_err(|e| RecordingError::new(path, e.to_string()).at_line(line))?;
+        let record = record.map_err(|e| match RecordingError::csv(path, &e) {
+            known if known.line.is_some() => known,
+            unknown => unknown.at_line(line),
+        })?;
+        if out.len() == MAX_VEHICLE_SAMPLES {
+            return Err(RecordingError::new(
+                path,
+                format!("more than {MAX_VEHICLE_SAMPLES} samples, the most deckwatch reads"),
+            )
+            .at_line(line));
+        }
         let get = |i: usize| record.get(idx[i]).unwrap_or("").trim();
         let t: u64 = get(0).parse().map_err(|_| {
             RecordingError::new(path, format!("`{}` is not a time in ns", get(0)))
@@ -519,6 +563,13 @@ pub fn parse_frames_csv(
     let mut prev: Option<(u64, u64)> = None;
     while rdr.read_record(&mut record).map_err(csv_err)? {
         let line = record.position().map(|p| p.line()).unwrap_or(0);
+        if frames.len() == MAX_RECORDING_FRAMES {
+            return Err(RecordingError::new(
+                path,
+                format!("more than {MAX_RECORDING_FRAMES} frames, the most deckwatch reads"),
+            )
+            .at_line(line));
+        }
         let get = |c: usize| record.get(c).unwrap_or("");
         let index: u64 = get(c_index).parse().map_err(|_| {
             RecordingError::new(path, format!("`{}` is not a non-negative integer", get(c_index)))
@@ -587,6 +638,45 @@ mod tests {
 
     fn parse(text: &str) -> Result<(Vec<FrameRecord>, TruthColumns), RecordingError> {
         parse_frames_csv(Path::new("rec/frames.csv"), text.as_bytes())
+    }
+
+    /// Each file of a recording folder beyond its bound (a sparse 10 GB file) is refused from
+    /// its size, unread, naming the file and the bound; a line beyond its bound names its line.
+    #[test]
+    fn files_beyond_their_bounds_are_refused_unread() {
+        let dir = tempfile::tempdir().unwrap();
+        let rec_dir = dir.path().join("rec");
+        let cam = CameraModel::rpi_v2().scaled_to(64, 48);
+        let mut w = RecordingWriter::create(&rec_dir, &cam, &DeckLayout::paper(), NO_TRUTH).unwrap();
+        w.write_frame(0, 0, GrayImage::new(64, 48).view(), &GroundTruth::default())
+            .unwrap();
+        w.finish().unwrap();
+        write_vehicle_csv(&rec_dir, &[]).unwrap();
+        Recording::open(&rec_dir).unwrap();
+        let sparse = |name: &str| {
+            let path = rec_dir.join(name);
+            let keep = std::fs::read(&path).unwrap();
+            File::create(&path).unwrap().set_len(10 << 30).unwrap();
+            let e = Recording::open(&rec_dir).unwrap_err().to_string();
+            std::fs::write(&path, keep).unwrap();
+            assert!(e.contains(&path.display().to_string()), "{e}");
+            assert!(e.contains("10737418240 bytes"), "{e}");
+            e
+        };
+        assert!(sparse(CAMERA_FILE).contains("1048576 bytes"));
+        assert!(sparse(FRAMES_FILE).contains(&format!("{MAX_FRAMES_CSV_BYTES} bytes")));
+        assert!(sparse(VEHICLE_FILE).contains(&format!("{MAX_VEHICLE_CSV_BYTES} bytes")));
+        Recording::open(&rec_dir).unwrap();
+        // One line of a megabyte, in a file well within its bound.
+        let frames = rec_dir.join(FRAMES_FILE);
+        let mut text = std::fs::read_to_string(&frames).unwrap();
+        text += &format!("1,1,{}\n", "f".repeat(1 << 20));
+        std::fs::write(&frames, text).unwrap();
+        let e = Recording::open(&rec_dir).unwrap_err().to_string();
+        assert!(
+            e.starts_with(&format!("{}:3: a line longer than 65536 bytes", frames.display())),
+            "{e}"
+        );
     }
 
     #[test]

@@ -16,7 +16,8 @@
 //! never read, since the bytes come from another process.
 //!
 //! A *domain* isolates pipelines on one machine (tests run several at once): it prefixes every
-//! iceoryx2 file in `/dev/shm` and under `/tmp/iceoryx2`.
+//! iceoryx2 file in `/dev/shm` and in the iceoryx2 root, a folder of this user's alone
+//! ([`ipc_root`]; not iceoryx2's shared `/tmp/iceoryx2`).
 
 use deckwatch_common::messages::{
     monotonic_ns, AttitudeMessage, Channel, FrameHeader, LandingDecision, LinkTraffic, MarkerMessage,
@@ -41,9 +42,11 @@ use std::time::Duration;
 
 mod event_loop;
 mod frames;
+mod root;
 
 pub use event_loop::{event_loop, Flow, LoopEnd, Wake};
 pub use frames::{FramePublisher, FrameSample, FrameSubscriber, PublishError, Rejections};
+pub use root::{ipc_root, ipc_root_path, runtime_base, SHARED_MEMORY_DIR};
 
 /// What a stage sleeps on: notified when its input has something new.
 pub type Listener = iceoryx2::port::listener::Listener<ipc::Service>;
@@ -196,6 +199,12 @@ fn domain_config(domain: &str) -> Result<Config, BusError> {
     config.global.prefix =
         FileName::new(domain_prefix(domain).as_bytes()).map_err(context("domain prefix"))?;
     config.global.creation_timeout = SERVICE_CREATION_TIMEOUT;
+    let root = ipc_root(domain)?;
+    // iceoryx2's paths are folders with a trailing separator (its own default: `/tmp/iceoryx2/`).
+    let root = format!("{}/", root.display());
+    config
+        .global
+        .set_root_path(&iceoryx2::prelude::Path::new(root.as_bytes()).map_err(context("iceoryx2 root"))?);
     Ok(config)
 }
 
@@ -273,6 +282,7 @@ impl Bus {
             .config(&config)
             .create::<ipc::Service>()
             .map_err(context(format!("creating node `{name}`")))?;
+        root::close_shared_counters(&settings.domain)?;
         Ok(Self {
             node,
             settings: settings.clone(),

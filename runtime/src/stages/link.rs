@@ -15,9 +15,12 @@ use crate::config::PipelineConfig;
 use crate::stage::{setup, Heartbeat, Process, RunError, StageArgs};
 use deckwatch_common::messages::{monotonic_ns, Channel, LandingDecision, LinkTraffic, VehicleSample};
 use deckwatch_common::stats::Percentiles;
-use deckwatch_link::admission::{self, Admission, Admitted, Refusal, RefusalCounts, Signing};
+use deckwatch_common::vehicle::VehicleStateSample;
+use deckwatch_estimate::vehicle_track::VehicleTrack;
+use deckwatch_link::admission::{self, Admission, Admitted, Refusal, RefusalCounts};
 use deckwatch_link::incoming::{Incoming, LinkState};
 use deckwatch_link::outgoing::{forwardable, stale_decision, Outgoing};
+use deckwatch_link::signing::Signing;
 use deckwatch_link::{Endpoint, LinkConfig, MavHeader, MavMessage};
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream, ToSocketAddrs, UdpSocket};
@@ -260,10 +263,19 @@ impl Sender {
 /// Where the link's frames go for the recorder (None: no recorder runs).
 type Traffic<'a> = Option<&'a MessagePublisher<LinkTraffic>>;
 
+/// The vehicle samples the link made, on `CLOCK_MONOTONIC`: TARGET_RELATIVE's `q_sensor` is
+/// their attitude at a frame's mid-exposure, interpolated as estimate compensates it (the
+/// decision carries the attitude in W, whose x is the ship's mean heading, not north).
+type Track = Arc<Mutex<VehicleTrack>>;
+
+/// Samples kept (at 200 Hz, 2.5 s: longer than any frame takes through the pipeline).
+const TRACK_SAMPLES: usize = 512;
+
 /// The receiving thread: until the process ends.
 fn receive(
     link: Arc<Sender>,
     incoming: Arc<Mutex<Incoming>>,
+    track: Track,
     bus: Bus,
     recording: bool,
 ) -> Result<(), BusError> {
@@ -298,6 +310,10 @@ fn receive(
             }
             let handled = lock(&incoming).handle(&a.header, &a.message, now);
             if let Some(s) = handled.sample {
+                // As estimate takes them: only while the link is up.
+                if s.link_up.get() {
+                    lock(&track).push(VehicleStateSample::attitude(s.time_ns, s.quaternion));
+                }
                 samples.send(&s)?;
             }
             if let Some(r) = handled.reply {
@@ -333,15 +349,16 @@ fn run(config: PipelineConfig) -> Result<String, RunError> {
         failed: AtomicU64::new(0),
     });
     let incoming = Arc::new(Mutex::new(Incoming::new(&lc)));
+    let track: Track = Arc::new(Mutex::new(VehicleTrack::new(TRACK_SAMPLES)));
     {
-        let (link, incoming) = (link.clone(), incoming.clone());
+        let (link, incoming, track) = (link.clone(), incoming.clone(), track.clone());
         let settings = bus.settings().clone();
         let recording = config.record.enabled();
         std::thread::Builder::new()
             .name("link-rx".into())
             .spawn(move || {
-                let result =
-                    Bus::join(&settings, "link-rx").and_then(|b| receive(link, incoming, b, recording));
+                let result = Bus::join(&settings, "link-rx")
+                    .and_then(|b| receive(link, incoming, track, b, recording));
                 if let Err(e) = result {
                     deckwatch_common::say!("deckwatch-{NAME}: receiving stopped: {e}");
                 }
@@ -376,6 +393,17 @@ fn run(config: PipelineConfig) -> Result<String, RunError> {
     let tick = Duration::from_millis(50);
     // deckwatch's own heartbeat to the launcher (not MAVLink's HEARTBEAT to the autopilot).
     let mut alive = Heartbeat::new(&bus)?;
+    // The signing state, kept on the disk once a second while it changes and at the stop: a
+    // failed write is said once and counted, and the link goes on (the state in memory holds).
+    let mut keep_failures = 0u64;
+    let mut keep = |now: u64, stopping: bool| {
+        if let Some(Err(e)) = link.signing.as_ref().map(|s| s.keep(now, stopping)) {
+            if keep_failures == 0 {
+                deckwatch_common::say!("deckwatch-{NAME}: keeping the signing state: {e}");
+            }
+            keep_failures += 1;
+        }
+    };
     event_loop(&[decisions.listener()], Some(tick), |wake| {
         alive.beat();
         let now = monotonic_ns();
@@ -392,6 +420,7 @@ fn run(config: PipelineConfig) -> Result<String, RunError> {
             last_state = state;
         }
         if wake == Wake::Tick {
+            keep(now, false);
             if heartbeat_period.is_some_and(|_| now >= next_heartbeat) {
                 next_heartbeat = now + heartbeat_period.unwrap_or(u64::MAX);
                 link.send(&Outgoing::heartbeat(state), traffic);
@@ -440,7 +469,12 @@ fn run(config: PipelineConfig) -> Result<String, RunError> {
             let received = monotonic_ns();
             let d = forwardable(&d, received, stale_after_ns);
             let mut first = None;
-            for m in outgoing.decision(&d, state, clock.as_ref(), received) {
+            let at_capture = lock(&track)
+                .at(d.stamp.times.captured_ns, config.vehicle.max_gap_ns())
+                .ok()
+                .map(|a| a.quaternion);
+            for m in outgoing.decision_with_attitude(&d, state, clock.as_ref(), received, at_capture.as_ref())
+            {
                 link.send(&m, traffic);
                 first.get_or_insert_with(monotonic_ns);
             }
@@ -467,6 +501,15 @@ fn run(config: PipelineConfig) -> Result<String, RunError> {
         }
         Ok::<Flow, BusError>(Flow::Continue)
     })?;
+    keep(monotonic_ns(), true);
+    let kept = match link.signing.as_ref().and_then(|s| s.kept_file()) {
+        Some(f) if keep_failures == 0 => format!("; signing state kept in {}", f.display()),
+        Some(f) => format!(
+            "; signing state NOT kept in {} ({keep_failures} writes failed)",
+            f.display()
+        ),
+        None => String::new(),
+    };
     let i = lock(&incoming);
     let c = i.counts;
     let clock = i.clock.estimate().map_or("no clock".to_string(), |e| {
@@ -499,7 +542,7 @@ fn run(config: PipelineConfig) -> Result<String, RunError> {
         (a.admitted, a.refused, a.autopilot_lost, a.from_other_address)
     };
     Ok(format!(
-        "{admitted} frames admitted ({elsewhere} from another address than the replies'), {} refused ({}), {lost} of the autopilot's lost (sequence gaps); {} heartbeats, {} attitudes ({} refused), {} timesyncs, {} ranges, {} local positions in; {sent_decisions} decisions ({} bad ones skipped), {} landing targets out ({} sends failed); {latency}; {clock}",
+        "{admitted} frames admitted ({elsewhere} from another address than the replies'), {} refused ({}), {lost} of the autopilot's lost (sequence gaps); {} heartbeats, {} attitudes ({} refused), {} timesyncs, {} ranges, {} local positions in; {sent_decisions} decisions ({} bad ones skipped), {} landing targets and {} target relatives out ({} sends failed); {latency}; {clock}{kept}",
         refused.total(),
         refused.describe(),
         c.heartbeats,
@@ -510,6 +553,7 @@ fn run(config: PipelineConfig) -> Result<String, RunError> {
         c.positions,
         decisions.rejections().count(),
         outgoing.landing_targets,
+        outgoing.target_relatives,
         link.failed.load(Ordering::Relaxed)
     ))
 }

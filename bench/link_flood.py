@@ -117,13 +117,14 @@ def run(deckwatch, flood_hz, flood_s, python):
     frames = int((flood_s + 8) * RATE_HZ)
     config = os.path.join(d, "p.toml")
     r, p, y = TILT_DEG
+    state_file = os.path.join(d, "signing.state")
     with open(config, "w") as f:
         f.write(
             f'[bus]\ndomain = "{domain}"\n'
             f'[sim]\nvehicle = "tilted"\nvehicle_tilt_deg = [{r}, {p}, {y}]\nframes = {frames}\nrate = {RATE_HZ}\n'
             f'[vehicle]\nattitude = "autopilot"\n'
             f'[link]\nenabled = true\naddress = "udpin:127.0.0.1:{port}"\nsigning = "required"\n'
-            f'signing_key_file = "{key_file}"\nsigning_state_file = "{os.path.join(d, 'signing.state')}"\n'
+            f'signing_key_file = "{key_file}"\nsigning_state_file = "{state_file}"\n'
             f'[rerun]\nsink = "off"\n'
         )
     decisions = os.path.join(d, "decisions.csv")

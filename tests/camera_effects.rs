@@ -31,22 +31,6 @@ fn eval_row(table: &str, recording: &str, estimator: &str) -> (u32, u32, u32, u3
     )
 }
 
-/// The rows of a CSV file without quoted fields (frames.csv, eval's CSV), by column name.
-fn read_csv(path: &Path) -> Vec<HashMap<String, String>> {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    lines
-        .map(|l| {
-            header
-                .iter()
-                .zip(l.split(','))
-                .map(|(k, v)| (k.to_string(), v.to_string()))
-                .collect()
-        })
-        .collect()
-}
-
 /// The baseline's JSON line for a recording: (estimated, missed, RMSE roll pitch yaw).
 fn baseline(recording: &str) -> (u64, u64, [f64; 3]) {
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/bench/opencv_pose_baseline.py");
@@ -126,12 +110,13 @@ fn the_descent_is_estimated_down_to_one_metre_and_says_when_the_ring_leaves_the_
     let (_, estimated, missed, false_decks, _) = eval_row(&table, "approach", "full-pose");
     assert_eq!((estimated, missed, false_decks), (120, 0, 0), "{table}");
     // Below 1.5 m (the last 20 frames): exact to a hundredth of a degree.
-    let truth: HashMap<String, f64> = read_csv(&Path::new(&approach).join("frames.csv"))
-        .into_iter()
-        .map(|r| (r["index"].clone(), r["alt_m"].parse().unwrap()))
-        .collect();
+    let truth: HashMap<String, f64> =
+        deckwatch_tests::read_csv_rows(&Path::new(&approach).join("frames.csv"))
+            .into_iter()
+            .map(|r| (r["index"].clone(), r["alt_m"].parse().unwrap()))
+            .collect();
     let mut low = 0;
-    for r in read_csv(&csv_path) {
+    for r in deckwatch_tests::read_csv_rows(&csv_path) {
         if r["estimator"] != "full-pose" || truth[&r["index"]] >= 1.5 {
             continue;
         }

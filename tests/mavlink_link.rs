@@ -21,39 +21,11 @@ use deckwatch_common::Rpy;
 use deckwatch_runtime::bus::domain_prefix;
 use deckwatch_tests::{pipeline_output, workspace_binary, PipelineGuard};
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
 const TILT_DEG: [f64; 3] = [4.0, -3.0, 0.0];
 const CLOCK_OFFSET_S: f64 = 1234.5;
 const RATE_HZ: f64 = 10.0;
-
-/// The interpreter with pymavlink.
-fn python() -> PathBuf {
-    deckwatch_tests::peer_python("pymavlink")
-}
-
-fn free_udp_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0")
-        .and_then(|s| s.local_addr())
-        .expect("a free UDP port")
-        .port()
-}
-
-fn read_csv(path: &Path) -> Vec<HashMap<String, String>> {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut lines = text.lines();
-    let header: Vec<String> = lines.next().unwrap().split(',').map(str::to_string).collect();
-    lines
-        .map(|l| {
-            header
-                .iter()
-                .cloned()
-                .zip(l.split(',').map(str::to_string))
-                .collect()
-        })
-        .collect()
-}
 
 /// The deck's tilt from the vertical (deg): the same whatever W's heading reference.
 fn tilt_deg(roll_deg: f64, pitch_deg: f64) -> f64 {
@@ -63,10 +35,10 @@ fn tilt_deg(roll_deg: f64, pitch_deg: f64) -> f64 {
 
 #[test]
 fn pymavlink_autopilot_and_ground_station() {
-    let python = python();
+    let python = deckwatch_tests::pymavlink_python();
     let deckwatch = workspace_binary("deckwatch");
     let dir = tempfile::tempdir().unwrap();
-    let port = free_udp_port();
+    let port = deckwatch_tests::free_udp_port();
     let domain = format!("t{}-mav", std::process::id());
     let config = dir.path().join("p.toml");
     // The link's key, owner-only (the link refuses it otherwise).
@@ -277,7 +249,7 @@ fn pymavlink_autopilot_and_ground_station() {
 
     // The deck attitude, compensated for the 5 deg tilt: the deck's own tilt from gravity matches
     // the simulator's truth (uncompensated, it would be off by degrees).
-    let rows = read_csv(&decisions);
+    let rows = deckwatch_tests::read_csv_rows(&decisions);
     let rows: Vec<_> = rows.iter().filter(|r| r["watchdog"] == "0").collect();
     let num = |r: &HashMap<String, String>, k: &str| r[k].parse::<f64>().unwrap();
     let captured = |r: &HashMap<String, String>| r["captured_ns"].parse::<u64>().unwrap();

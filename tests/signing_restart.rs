@@ -20,17 +20,6 @@ use std::process::{Command, Stdio};
 
 const RATE_HZ: f64 = 20.0;
 
-fn python() -> PathBuf {
-    deckwatch_tests::peer_python("pymavlink")
-}
-
-fn free_udp_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0")
-        .and_then(|s| s.local_addr())
-        .expect("a free UDP port")
-        .port()
-}
-
 /// The link's closing line from a run's standard error.
 fn link_line(stderr: &str) -> String {
     stderr
@@ -72,7 +61,7 @@ impl Setup {
         deckwatch_tests::write_private_key(&dir.path().join("mavlink.key"), &key);
         let state = dir.path().join("signing.state");
         Self {
-            port: free_udp_port(),
+            port: deckwatch_tests::free_udp_port(),
             key_hex: key.iter().map(|b| format!("{b:02x}")).collect(),
             state,
             dir,
@@ -122,7 +111,7 @@ impl Setup {
 
     fn attacker(&self, captured: &Path) -> PipelineGuard {
         PipelineGuard::spawn_peer(
-            Command::new(python())
+            Command::new(deckwatch_tests::pymavlink_python())
                 .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/attacker.py"))
                 .args(["--port", &self.port.to_string(), "--key-hex", &self.key_hex])
                 .args(["--kinds", "replay", "--start-after-s", "1.5", "--duration-s", "4"])
@@ -145,7 +134,7 @@ fn frames_captured_before_a_restart_are_refused_after_it_and_a_relay_takes_no_re
 
     // 1. The autopilot's flight, a relay beside it.
     let mut autopilot = PipelineGuard::spawn_peer(
-        Command::new(python())
+        Command::new(deckwatch_tests::pymavlink_python())
             .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/peers/autopilot.py"))
             .args([
                 "--port",

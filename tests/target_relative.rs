@@ -34,32 +34,6 @@ const CLOCK_OFFSET_S: f64 = 1234.5;
 const RATE_HZ: f64 = 10.0;
 const FRAMES: u32 = 100;
 
-fn python() -> PathBuf {
-    deckwatch_tests::peer_python("pymavlink")
-}
-
-fn free_udp_port() -> u16 {
-    std::net::UdpSocket::bind("127.0.0.1:0")
-        .and_then(|s| s.local_addr())
-        .expect("a free UDP port")
-        .port()
-}
-
-fn read_csv(path: &Path) -> Vec<HashMap<String, String>> {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut lines = text.lines();
-    let header: Vec<String> = lines.next().unwrap().split(',').map(str::to_string).collect();
-    lines
-        .map(|l| {
-            header
-                .iter()
-                .cloned()
-                .zip(l.split(',').map(str::to_string))
-                .collect()
-        })
-        .collect()
-}
-
 /// The development dialect's definition the link's mavlink crate is built from (its
 /// `message_definitions`, found with `cargo metadata`).
 fn development_xml() -> PathBuf {
@@ -139,8 +113,8 @@ struct Run {
 }
 
 fn run(dir: &Path, signed: bool, xml: &Path) -> Run {
-    let python = python();
-    let port = free_udp_port();
+    let python = deckwatch_tests::pymavlink_python();
+    let port = deckwatch_tests::free_udp_port();
     let domain = format!("t{}-trel{}", std::process::id(), signed as u8);
     let key: [u8; 32] = std::array::from_fn(|k| (k as u8).wrapping_mul(53).wrapping_add(7));
     let key_hex: String = key.iter().map(|b| format!("{b:02x}")).collect();
@@ -229,7 +203,7 @@ fn run(dir: &Path, signed: bool, xml: &Path) -> Run {
     Run {
         seen,
         attack,
-        decisions: read_csv(&decisions),
+        decisions: deckwatch_tests::read_csv_rows(&decisions),
         summary,
     }
 }

@@ -281,3 +281,37 @@ pub fn peer_rerun() -> std::path::PathBuf {
     );
     rerun
 }
+
+/// The interpreter with pymavlink (the MAVLink peers of the link's tests).
+pub fn pymavlink_python() -> std::path::PathBuf {
+    peer_python("pymavlink")
+}
+
+/// A UDP port free on the loopback now (the link's `udpin` in a test).
+pub fn free_udp_port() -> u16 {
+    std::net::UdpSocket::bind("127.0.0.1:0")
+        .and_then(|s| s.local_addr())
+        .expect("a free UDP port")
+        .port()
+}
+
+/// A CSV file without quoted fields (the decisions CSV) as rows of column -> value.
+pub fn read_csv_rows(path: &std::path::Path) -> Vec<std::collections::HashMap<String, String>> {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut lines = text.lines();
+    let header: Vec<String> = lines
+        .next()
+        .unwrap_or_default()
+        .split(',')
+        .map(str::to_string)
+        .collect();
+    lines
+        .map(|l| {
+            header
+                .iter()
+                .cloned()
+                .zip(l.split(',').map(str::to_string))
+                .collect()
+        })
+        .collect()
+}

@@ -28,6 +28,7 @@ RATE_STEP_S = 1e-3  # eval.rs `TrueDeckState::at`: true rates by central differe
 NEGLIGIBLE_Z = 9.0  # risk.rs: a tail beyond this many deviations counts as 0
 TILT_SPLITS = 12  # risk.rs: the tilt limit split 0, 1/12, ..., 12/12 between roll and pitch
 TAIL_Z = 3.09  # where the risk is judged: an honest normal band leaves 0.2 % beyond it
+Z95 = 1.959964  # a two-sided 95 % normal band's half-width, in deviations
 CHANNELS = ("roll", "pitch", "heave")
 # The quantities the clearing rule judges (the heave's value is not in the capacity).
 QUANTITIES = (("roll", 0), ("roll", 1), ("pitch", 0), ("pitch", 1), ("heave", 1))
@@ -291,16 +292,42 @@ def run_file(path, args, joint, rng):
     safe = safe_touchdowns(motion, decision_s + args.latency_ms / 1e3)
     starts, ends, safe_time_share = calm_windows(motion, decision_s[0], decision_s[-1] + TOUCHDOWN_S)
     out = []
-    for name, std in variants:
-        m = {q: mean[q][window] for q in QUANTITIES}
-        s = {q: args.band_scale * np.broadcast_to(std[q], mean[q].shape)[window] for q in QUANTITIES}
+    m = {q: mean[q][window] for q in QUANTITIES}
+    r = {q: residual[q][window] for q in QUANTITIES}
+    name_of = {q: f"{q[0]}{'_rate' if q[1] else ''}" for q in QUANTITIES}
+
+    def judged(name, s):
         clear = clears(m, s, args.risk, args.attitude_error_deg, args.vertical_speed_error_mps)
         result = judge(decision_s, clear, safe, (starts, ends), args)
-        tail = {
-            f"{c}{'_rate' if d else ''}": float(np.mean(np.abs(residual[c, d][window]) > TAIL_Z * s[c, d]))
-            for c, d in QUANTITIES
-        }
-        out.append(dict(result, band=name, safe_time_share=float(safe_time_share), tail_beyond_3_09=tail))
+        tail = {name_of[q]: float(np.mean(np.abs(r[q]) > TAIL_Z * s[q])) for q in QUANTITIES}
+        # As decide-eval's `at_clearances`: over each cleared touchdown, the truth inside the
+        # stated 95 % band at every instant.
+        held = {name_of[q]: float(np.mean(all_through[q](s)[clear])) if clear.any() else None for q in QUANTITIES}
+        return dict(
+            result,
+            band=name,
+            safe_time_share=float(safe_time_share),
+            tail_beyond_3_09=tail,
+            inside_95_all_through_at_clearances=held,
+        )
+
+    # Per decision and quantity, whether the truth stayed inside the band all through the touchdown.
+    all_through = {q: (lambda s, q=q: (np.abs(r[q]) <= Z95 * s[q]).all(axis=1)) for q in QUANTITIES}
+    for name, std in variants:
+        s = {q: args.band_scale * np.broadcast_to(std[q], mean[q].shape)[window] for q in QUANTITIES}
+        out.append(judged(name, s))
+        if args.all_through_coverage:
+            # The same band held to the decider's standard: widened per quantity (never
+            # narrowed) until the truth stays inside it all through the touchdown at this share
+            # of every decision, with hindsight over the whole file (optimistic, as a bound is).
+            widening = {
+                q: max(1.0, float(np.quantile(np.max(np.abs(r[q]) / (Z95 * s[q]), axis=1), args.all_through_coverage)))
+                for q in QUANTITIES
+            }
+            wide = {q: s[q] * widening[q] for q in QUANTITIES}
+            result = judged(f"{name}, all through {100 * args.all_through_coverage:g} %", wide)
+            result["widening"] = {name_of[q]: round(widening[q], 3) for q in QUANTITIES}
+            out.append(result)
     return out
 
 

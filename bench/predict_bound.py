@@ -38,7 +38,10 @@ the band both saw the file, so it is optimistic, and it is one band for a sea th
 calms. With `--local-band-s S`, each decision also gets a locally honest band: its own past
 residuals over the trailing S seconds (those whose truth has come by then), at least
 `--local-floor` of the global band. The bound is the larger of the two shares whose
-clearances stayed safe (the local one on the development files, by a little). The
+clearances stayed safe (the local one on the development files, by a little). Both bands are honest
+instant by instant, not all through a touchdown as decide-eval's `at_clearances` judges the
+decider (they held 85-87 % there on the held-out files); `--all-through-coverage 0.95` also
+judges each band widened per quantity, with hindsight, until it holds that share all through. The
 decider's stated reserves are added (`[decide]` defaults: 0.2 deg on the angles, 0.05 m/s on the
 heave rate). Decisions and arrivals start at `--start-s` (after the lags and the local span);
 windows are counted from there to the last decision's touchdown, each commitment judged from its
@@ -476,6 +479,14 @@ def main():
         help="motion files: also judge with each decision's band from its own trailing residuals over this span (s)",
     )
     p.add_argument("--local-floor", type=float, default=0.2, help="the local band is at least this share of the global one")
+    p.add_argument(
+        "--all-through-coverage",
+        type=float,
+        default=0.0,
+        help="motion files: also judge each band widened (per quantity, with hindsight) until the truth stays inside "
+        "it all through the touchdown at this share of the decisions (0.95: the standard decide-eval's at_clearances "
+        "holds the decider to)",
+    )
     p.add_argument(
         "--start-s", type=float, default=80.0, help="motion files: the first decision and arrival (s; after the lags and local band)"
     )

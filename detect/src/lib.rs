@@ -5,6 +5,7 @@
 
 pub mod detector;
 pub mod identify;
+pub mod printed_grid;
 
-pub use detector::{Detector, DetectorConfig, SearchCounts};
+pub use detector::{Detector, DetectorConfig, MeasuredDisc, SearchCounts};
 pub use identify::{identify, marker_pixels, Blob, IdentifyError};

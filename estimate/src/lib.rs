@@ -7,6 +7,7 @@
 //! - [`ellipse`]: the eq. (3) conic fit both use.
 //! - [`vehicle_height`]: the vehicle's height from the autopilot's height and vertical speed.
 
+pub mod circle_grid;
 pub mod config;
 pub mod deck_estimator;
 pub mod ellipse;

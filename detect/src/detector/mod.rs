@@ -25,7 +25,10 @@ use deckwatch_common::markers::{DetectionStatus, Marker, MarkerSet, RejectCounts
 use deckwatch_common::{CameraModel, DeckLayout};
 
 mod assemble;
+mod discs;
 mod measure;
+
+pub use discs::MeasuredDisc;
 
 /// Samples at or above this level are taken as saturated (glints, not markers).
 const SATURATED: usize = 248;
@@ -292,8 +295,26 @@ impl Detector {
         &mut self,
         frame: GrayView<'_>,
         threshold: f64,
-        (x0, y0, x1, y1): (usize, usize, usize, usize),
+        window: (usize, usize, usize, usize),
     ) -> MarkerSet {
+        let Some(rejected) = self.search_discs(frame, threshold, window) else {
+            self.previous = None;
+            return MarkerSet::default();
+        };
+        let set = self.assemble(rejected, false);
+        self.remember(&set);
+        set
+    }
+
+    /// The full search's candidates at one global threshold over a region (x0, y0, x1, y1):
+    /// every blob of the coarse scan measured into `self.candidates`, with the counts of the
+    /// rejected ones; None when too much of the region is bright to be a frame of markers.
+    fn search_discs(
+        &mut self,
+        frame: GrayView<'_>,
+        threshold: f64,
+        (x0, y0, x1, y1): (usize, usize, usize, usize),
+    ) -> Option<RejectCounts> {
         let mut rejected = RejectCounts::default();
         self.candidates.clear();
         let (w, h) = (frame.width(), frame.height());
@@ -329,8 +350,7 @@ impl Detector {
         // Too many bright cells: not a frame of markers (e.g. over-exposed).
         let max_cells = 64 * MAX_MARKERS * (self.config.max_radius_px / step as f64).powi(2).ceil() as usize;
         if self.seeds.len() > max_cells {
-            self.previous = None;
-            return MarkerSet::default();
+            return None;
         }
         for i in 0..self.seeds.len() {
             let s = self.seeds[i] as usize;
@@ -374,9 +394,7 @@ impl Detector {
                 Err(Rejection::Border) => rejected.border += 1,
             }
         }
-        let set = self.assemble(rejected, false);
-        self.remember(&set);
-        set
+        Some(rejected)
     }
 
     /// The full search's coarse grid step (px): dense enough to hit the smallest disc.

@@ -13,7 +13,7 @@ use deckwatch_common::{CameraModel, DeckLayout};
 use deckwatch_detect::printed_grid::find_printed_discs;
 use deckwatch_detect::{Detector, DetectorConfig};
 use deckwatch_estimate::circle_grid::{
-    calibrate, fit_homography, order_grid, perspective_bias_px, GridLayout,
+    calibrate, fit_view_homography, order_grid, perspective_bias_px, GridLayout,
 };
 use deckwatch_formats::recording::decode_gray_png;
 use std::path::{Path, PathBuf};
@@ -117,13 +117,7 @@ fn judge(views: &[Vec<[f64; 2]>]) -> (Judged, deckwatch_estimate::circle_grid::G
     let homography = views
         .iter()
         .map(|v| {
-            let (t, m): (Vec<[f64; 2]>, Vec<[f64; 2]>) = target
-                .iter()
-                .zip(v)
-                .filter(|(_, m)| m[0].is_finite())
-                .map(|(t, m)| (*t, *m))
-                .unzip();
-            let fit = fit_homography(&t, &m).expect("homography");
+            let fit = fit_view_homography(&target, v).expect("homography");
             (fit.rms_px, fit.max_px)
         })
         .collect();

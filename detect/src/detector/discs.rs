@@ -20,6 +20,19 @@ pub struct MeasuredDisc {
     pub centre_std_px: f64,
 }
 
+impl MeasuredDisc {
+    fn of(c: &super::Candidate) -> Self {
+        Self {
+            u_px: c.u,
+            v_px: c.v,
+            radius_px: c.radius,
+            contrast_dn: c.contrast,
+            roundness: c.roundness,
+            centre_std_px: c.centre_std_px,
+        }
+    }
+}
+
 impl Detector {
     /// The disc in a region (x0, y0, x1, y1), half-open, of the frame, bright on a darker
     /// background, measured as marker detection measures each candidate (the region must
@@ -34,14 +47,7 @@ impl Detector {
         if roi.0 >= roi.2 || roi.1 >= roi.3 {
             return None;
         }
-        self.measure(frame, roi).ok().map(|c| MeasuredDisc {
-            u_px: c.u,
-            v_px: c.v,
-            radius_px: c.radius,
-            contrast_dn: c.contrast,
-            roundness: c.roundness,
-            centre_std_px: c.centre_std_px,
-        })
+        self.measure(frame, roi).ok().map(|c| MeasuredDisc::of(&c))
     }
 
     /// The discs (bright on a darker background) that the full-frame search finds and measures
@@ -78,17 +84,7 @@ impl Detector {
             self.candidates.clear();
             return Vec::new();
         }
-        self.candidates
-            .drain(..)
-            .map(|c| MeasuredDisc {
-                u_px: c.u,
-                v_px: c.v,
-                radius_px: c.radius,
-                contrast_dn: c.contrast,
-                roundness: c.roundness,
-                centre_std_px: c.centre_std_px,
-            })
-            .collect()
+        self.candidates.drain(..).map(|c| MeasuredDisc::of(&c)).collect()
     }
 }
 

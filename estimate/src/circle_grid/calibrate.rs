@@ -3,7 +3,7 @@
 //! on every parameter at once over the pixel residuals (OpenCV's distortion model: k1, k2,
 //! p1, p2; k3 fixed at 0).
 
-use super::{fit_homography, lm, point_distances, rms, GridError, GridLayout};
+use super::{fit_view_homography, lm, point_distances, rms, GridError, GridLayout};
 use deckwatch_common::camera::Distortion;
 use deckwatch_common::homography;
 use nalgebra::{DVector, Matrix3, Rotation3, SMatrix, SVector, Vector3};
@@ -61,15 +61,7 @@ pub fn calibrate(
     }
     let hs = views
         .iter()
-        .map(|v| {
-            let (t, m): (Vec<[f64; 2]>, Vec<[f64; 2]>) = target
-                .iter()
-                .zip(v)
-                .filter(|(_, m)| m[0].is_finite())
-                .map(|(t, m)| (*t, *m))
-                .unzip();
-            fit_homography(&t, &m).map(|f| f.h)
-        })
+        .map(|v| fit_view_homography(&target, v).map(|f| f.h))
         .collect::<Result<Vec<_>, _>>()?;
     let k = closed_form_intrinsics(&hs, width, height)?;
     let mut start = vec![k[(0, 0)], k[(1, 1)], k[(0, 2)], k[(1, 2)], 0.0, 0.0, 0.0, 0.0];

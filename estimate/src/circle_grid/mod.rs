@@ -96,6 +96,18 @@ pub fn fit_homography(target_mm: &[[f64; 2]], image_px: &[[f64; 2]]) -> Result<H
     })
 }
 
+/// [`fit_homography`] of one view whose points are in the target's order, NaN where a point was
+/// not measured: on the points measured.
+pub fn fit_view_homography(target_mm: &[[f64; 2]], view_px: &[[f64; 2]]) -> Result<HomographyFit, GridError> {
+    let (t, m): (Vec<[f64; 2]>, Vec<[f64; 2]>) = target_mm
+        .iter()
+        .zip(view_px)
+        .filter(|(_, m)| m[0].is_finite())
+        .map(|(t, m)| (*t, *m))
+        .unzip();
+    fit_homography(&t, &m)
+}
+
 /// The distances of stacked (du, dv) residual pairs.
 fn point_distances(r: &DVector<f64>) -> Vec<f64> {
     r.as_slice().chunks(2).map(|d| d[0].hypot(d[1])).collect()

@@ -37,7 +37,7 @@ fn rasterise(svg: &str, px_per_mm: f64, [x0, y0, w, h]: [f64; 4]) -> GrayImage {
     let mut image = GrayImage::new(width as usize, height as usize);
     for (out, p) in image.data.iter_mut().zip(pixmap.data().chunks_exact(4)) {
         // Opaque (a white sheet under everything): premultiplied is plain.
-        *out = ((77 * u32::from(p[0]) + 150 * u32::from(p[1]) + 29 * u32::from(p[2]) + 128) >> 8) as u8;
+        *out = deckwatch_common::image::luma_bt601(p[0], p[1], p[2]);
     }
     image
 }

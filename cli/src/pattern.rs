@@ -292,10 +292,6 @@ fn read_photo(path: &Path) -> Result<GrayImage, String> {
     }
 }
 
-fn luma(r: u8, g: u8, b: u8) -> u8 {
-    ((77 * u32::from(r) + 150 * u32::from(g) + 29 * u32::from(b) + 128) >> 8) as u8
-}
-
 /// Grey from packed pixels of `channels` bytes each (grey, grey + alpha, RGB, RGBA).
 fn to_grey(pixels: &[u8], channels: usize, width: usize, height: usize) -> Result<GrayImage, String> {
     let mut image = GrayImage::new(width, height);
@@ -305,7 +301,7 @@ fn to_grey(pixels: &[u8], channels: usize, width: usize, height: usize) -> Resul
     for (out, p) in image.data.iter_mut().zip(pixels.chunks_exact(channels)) {
         *out = match channels {
             1 | 2 => p[0],
-            _ => luma(p[0], p[1], p[2]),
+            _ => deckwatch_common::image::luma_bt601(p[0], p[1], p[2]),
         };
     }
     Ok(image)
@@ -333,22 +329,9 @@ fn decode_png(bytes: &[u8]) -> Result<GrayImage, String> {
 }
 
 fn decode_jpeg(bytes: &[u8]) -> Result<GrayImage, String> {
-    let mut decoder = jpeg_decoder::Decoder::new(bytes);
-    decoder
-        .read_info()
-        .map_err(|e| format!("not a readable JPEG: {e}"))?;
-    let info = decoder.info().ok_or("no JPEG header")?;
-    deckwatch_common::camera::check_image_size(u32::from(info.width), u32::from(info.height))?;
-    decoder.set_max_decoding_buffer_size(3 * deckwatch_common::camera::MAX_IMAGE_PIXELS as usize);
-    let pixels = decoder.decode().map_err(|e| format!("corrupt JPEG data: {e}"))?;
-    let (width, height) = (usize::from(info.width), usize::from(info.height));
-    match info.pixel_format {
-        jpeg_decoder::PixelFormat::L8 => to_grey(&pixels, 1, width, height),
-        jpeg_decoder::PixelFormat::RGB24 => to_grey(&pixels, 3, width, height),
-        // Big-endian 16-bit grey: its high bytes.
-        jpeg_decoder::PixelFormat::L16 => to_grey(&pixels, 2, width, height),
-        f => Err(format!("{f:?} JPEG (deckwatch reads grey and RGB)")),
-    }
+    let (width, height, grey) =
+        deckwatch_common::jpeg::decode_to_gray(bytes).map_err(|e| format!("JPEG: {e}"))?;
+    to_grey(&grey, 1, width as usize, height as usize)
 }
 
 /// A dimension's name as the table prints it.
@@ -483,7 +466,10 @@ mod tests {
         assert_eq!((image.width, image.height), (2, 2));
         assert_eq!(image.data, vec![77, 149, 29, 200]); // Rec. 601: 0.299, 0.587, 0.114
         let rgba = png_bytes(png::ColorType::Rgba, 1, &[10, 20, 30, 255, 255, 255, 255, 0]);
-        assert_eq!(decode_png(&rgba).unwrap().data, vec![luma(10, 20, 30), 255]);
+        assert_eq!(
+            decode_png(&rgba).unwrap().data,
+            vec![deckwatch_common::image::luma_bt601(10, 20, 30), 255]
+        );
         let grey = png_bytes(png::ColorType::Grayscale, 3, &[0, 128, 255]);
         assert_eq!(decode_png(&grey).unwrap().data, vec![0, 128, 255]);
         let grey_alpha = png_bytes(png::ColorType::GrayscaleAlpha, 1, &[90, 255]);

@@ -51,6 +51,12 @@ fn check(len: usize, width: usize, height: usize, stride: usize) -> Result<(), I
     Ok(())
 }
 
+/// The grey of an RGB pixel: BT.601's weights in 1/256ths (77 + 150 + 29 = 256), rounded; what
+/// a camera's RGB frames and a colour photograph become.
+pub fn luma_bt601(r: u8, g: u8, b: u8) -> u8 {
+    ((77 * u32::from(r) + 150 * u32::from(g) + 29 * u32::from(b) + 128) >> 8) as u8
+}
+
 /// A read-only 8-bit grayscale image.
 #[derive(Debug, Clone, Copy)]
 pub struct GrayView<'a> {

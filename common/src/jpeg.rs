@@ -40,9 +40,58 @@ pub fn decode_gray(data: &[u8]) -> Result<(u32, u32, Vec<u8>), JpegError> {
     Ok((u32::from(info.width), u32::from(info.height), pixels))
 }
 
+/// A photograph's width, height and grey rows: an 8-bit grey JPEG as it is, an RGB one by
+/// [`crate::image::luma_bt601`], a 16-bit grey one by its high bytes; the size checked as in
+/// [`decode_gray`].
+pub fn decode_to_gray(data: &[u8]) -> Result<(u32, u32, Vec<u8>), JpegError> {
+    let mut decoder = jpeg_decoder::Decoder::new(data);
+    decoder.read_info().map_err(|e| JpegError(e.to_string()))?;
+    let header = decoder.info().ok_or_else(|| JpegError("no header".into()))?;
+    crate::camera::check_image_size(u32::from(header.width), u32::from(header.height)).map_err(JpegError)?;
+    decoder.set_max_decoding_buffer_size(3 * crate::camera::MAX_IMAGE_PIXELS as usize);
+    let pixels = decoder.decode().map_err(|e| JpegError(e.to_string()))?;
+    let info = decoder.info().ok_or_else(|| JpegError("no header".into()))?;
+    let grey = match info.pixel_format {
+        jpeg_decoder::PixelFormat::L8 => pixels,
+        jpeg_decoder::PixelFormat::RGB24 => pixels
+            .chunks_exact(3)
+            .map(|p| crate::image::luma_bt601(p[0], p[1], p[2]))
+            .collect(),
+        // Big-endian: the high byte first.
+        jpeg_decoder::PixelFormat::L16 => pixels.chunks_exact(2).map(|p| p[0]).collect(),
+        f => return Err(JpegError(format!("{f:?} (deckwatch reads grey and RGB)"))),
+    };
+    Ok((u32::from(info.width), u32::from(info.height), grey))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A colour photograph becomes its luma; a grey one stays as it is; a recording's decoder
+    /// still refuses the colour one.
+    #[test]
+    fn a_colour_jpeg_becomes_its_luma() {
+        let red: Vec<u8> = [200u8, 30, 60].repeat(16 * 16);
+        let mut rgb = Vec::new();
+        jpeg_encoder::Encoder::new(&mut rgb, 100)
+            .encode(&red, 16, 16, jpeg_encoder::ColorType::Rgb)
+            .unwrap();
+        let (w, h, grey) = decode_to_gray(&rgb).unwrap();
+        let expected = crate::image::luma_bt601(200, 30, 60);
+        assert_eq!((w, h, grey.len()), (16, 16, 256));
+        assert!(
+            grey.iter().all(|v| v.abs_diff(expected) <= 3),
+            "{grey:?} vs {expected}"
+        );
+        assert!(decode_gray(&rgb).is_err());
+        let flat = encode_gray(&[90; 64], 8, 8, 100).unwrap();
+        assert!(decode_to_gray(&flat)
+            .unwrap()
+            .2
+            .iter()
+            .all(|v| v.abs_diff(90) <= 1));
+    }
 
     #[test]
     fn a_gray_frame_goes_there_and_back() {

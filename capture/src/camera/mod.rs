@@ -451,9 +451,7 @@ impl LumaLayout {
                 }
                 Self::Rgb { bytes, r, g, b } => {
                     for (o, px) in o.iter_mut().zip(s.chunks_exact(bytes)) {
-                        // BT.601 weights in 1/256ths (77 + 150 + 29 = 256), rounded.
-                        let y = 77 * px[r] as u32 + 150 * px[g] as u32 + 29 * px[b] as u32;
-                        *o = ((y + 128) >> 8) as u8;
+                        *o = deckwatch_common::image::luma_bt601(px[r], px[g], px[b]);
                     }
                 }
             }

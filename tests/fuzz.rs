@@ -300,9 +300,13 @@ fn decider_holds(n: u32) {
             50..200,
         ),
     );
-    // How many CLEAR decisions the fault phases had (on good frames): the streams must reach
-    // a clearance, or the faults were never tested against one.
+    // How many CLEAR decisions the fault phases had (on good frames), and how many streams met
+    // their faults cleared (a commitment the faults must take down or ride through): together
+    // they must be some, or the faults were never tested against a clearance. (Clearances among
+    // the faults alone are rare since the band holds all through the touchdown: 0 to 7 in 200
+    // streams, none in a quarter of the runs.)
     let cleared = std::sync::atomic::AtomicU64::new(0);
+    let entered_cleared = std::sync::atomic::AtomicU64::new(0);
     fuzz(
         "decider streams",
         n,
@@ -320,10 +324,14 @@ fn decider_holds(n: u32) {
             let mut t = 0.0;
             // The last input the decider was given (a repeat of it is a frozen input).
             let mut last = sea(t);
+            let mut state = DecisionState::NoDeck;
             while t < 30.0 {
                 last = sea(t);
-                d.update_at_capture(t, Some(last), 0.005);
+                state = d.update_at_capture(t, Some(last), 0.005).state;
                 t += 0.1;
+            }
+            if state == DecisionState::ClearToLand {
+                entered_cleared.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
             }
             // How many times in a row the same input came (a repeat of the previous one adds one).
             let mut run = 1u32;
@@ -451,9 +459,11 @@ fn decider_holds(n: u32) {
             Ok(())
         },
     );
-    let cleared = cleared.into_inner();
-    println!("decider streams: {cleared} CLEAR decisions on good frames among the faults");
-    assert!(cleared > 0, "no stream reached a clearance");
+    let (cleared, entered) = (cleared.into_inner(), entered_cleared.into_inner());
+    println!(
+        "decider streams: {cleared} CLEAR decisions on good frames among the faults; {entered} streams met their faults cleared"
+    );
+    assert!(cleared + entered > 0, "no stream reached a clearance");
 }
 
 #[test]

@@ -518,7 +518,7 @@ fn wild_u32() -> impl Strategy<Value = u32> {
 /// counts at their extremes, non-finite numbers, payloads shorter than the header says. No
 /// panic; decide never clears on an invalid or non-finite attitude.
 fn stages_hold(n: u32) {
-    use deckwatch_common::messages::{AttitudeMessage, FrameHeader, MarkerMessage};
+    use deckwatch_common::messages::{AttitudeMessage, FrameHeader, MarkerMessage, PipelineStage};
     use deckwatch_common::{CameraModel, DeckLayout, Rpy};
     use deckwatch_runtime::stage::Stage;
     use deckwatch_runtime::stages::{DecideStage, DetectStage, EstimateStage};
@@ -552,7 +552,7 @@ fn stages_hold(n: u32) {
             hd.context.deck = DeckLayout::paper();
             hd.stamp.seq = seq;
             hd.stamp.drops.capture = drops;
-            hd.stamp.drops.detect = drops;
+            hd.stamp.drops[PipelineStage::Detect] = drops;
             let (m, _) = stage.process(&hd, &pixels, 0);
             let reached = m.markers.status != deckwatch_common::DetectionStatus::BadFrame;
             detected.set(detected.get() + u32::from(reached));
@@ -617,7 +617,7 @@ fn stages_hold(n: u32) {
             };
             a.stamp.times.captured_ns = captured;
             a.context.source_timestamp_ns = source;
-            a.stamp.drops.estimate = drops;
+            a.stamp.drops[PipelineStage::Estimate] = drops;
             a.stamp.drops.capture = drops;
             let d = stage.process(&a, received);
             stage.after_outputs();

@@ -85,10 +85,10 @@ impl Counters {
     }
 }
 
-/// The processes of a run by name (the stages, then the launcher).
+/// The processes of a run by name (the stages in the topology's order, then the launcher).
 fn processes(domain: &str, launcher: u32) -> Vec<(String, u32)> {
     let mut p = deckwatch_runtime::stage::stage_processes(domain);
-    let order = ["capture", "detect", "estimate", "decide", "link", "record"];
+    let order = deckwatch_runtime::stages::PROCESSES.map(|p| p.name);
     p.sort_by_key(|(n, _)| order.iter().position(|o| o == n).unwrap_or(order.len()));
     p.push(("launcher".into(), launcher));
     p

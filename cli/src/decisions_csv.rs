@@ -2,15 +2,22 @@
 //! landing decision with its stage timestamps, attitude, truth and drop counts. Angles are
 //! written in full (shortest round-trip form), so two runs can be compared bit for bit.
 
-use deckwatch_common::messages::LandingDecision;
+use deckwatch_common::messages::{DropCounts, LandingDecision, StageTimes};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-pub const HEADER: &str = "seq,source_index,captured_ns,published_ns,detect_received_ns,detect_finished_ns,\
-estimate_received_ns,estimate_finished_ns,decide_received_ns,decide_finished_ns,state,reason,valid,\
-roll_deg,pitch_deg,yaw_deg,truth_roll_deg,truth_pitch_deg,truth_yaw_deg,markers,\
-drops_capture,drops_bad,drops_detect,drops_estimate,drops_decide,calm_start_s,calm_length_s,watchdog,\
-deck_height_m,truth_heave_m,heave_rate_mps";
+/// The columns: the stage times and the drop counts named from the stage table
+/// (`StageTimes::NAMES`; `drops_<name>` of `DropCounts::NAMES`, the bad frames' `drops_bad`).
+pub fn header() -> String {
+    let drops = DropCounts::NAMES.map(|n| format!("drops_{}", n.strip_suffix("_frames").unwrap_or(n)));
+    format!(
+        "seq,source_index,{},state,reason,valid,roll_deg,pitch_deg,yaw_deg,truth_roll_deg,truth_pitch_deg,\
+         truth_yaw_deg,markers,{},calm_start_s,calm_length_s,watchdog,deck_height_m,truth_heave_m,\
+         heave_rate_mps",
+        StageTimes::NAMES.join(","),
+        drops.join(",")
+    )
+}
 
 /// A decisions CSV being written.
 pub struct DecisionsCsv {
@@ -22,7 +29,7 @@ impl DecisionsCsv {
     pub fn create(path: &Path) -> Result<Self, String> {
         let f = std::fs::File::create(path).map_err(|e| format!("{}: cannot create: {e}", path.display()))?;
         let mut out = std::io::BufWriter::new(f);
-        writeln!(out, "{HEADER}").map_err(|e| format!("{}: {e}", path.display()))?;
+        writeln!(out, "{}", header()).map_err(|e| format!("{}: {e}", path.display()))?;
         Ok(Self {
             path: path.to_path_buf(),
             out,
@@ -31,25 +38,26 @@ impl DecisionsCsv {
 
     /// Appends a decision's row (flushed: a crash loses nothing written before it).
     pub fn write(&mut self, d: &LandingDecision) -> Result<(), String> {
-        let (a, dr, t, tr) = (&d.attitude, d.stamp.drops, d.stamp.times, &d.context.truth);
+        self.write_row(d)
+            .and_then(|_| self.out.flush())
+            .map_err(|e| format!("{}: {e}", self.path.display()))
+    }
+
+    fn write_row(&mut self, d: &LandingDecision) -> std::io::Result<()> {
+        let (a, tr) = (&d.attitude, &d.context.truth);
         let [r, p, y] = if a.valid.get() {
             a.rpy.to_degrees()
         } else {
             [f64::NAN; 3]
         };
-        writeln!(
-            self.out,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{r},{p},{y},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
-            d.stamp.seq,
-            d.context.source_index,
-            t.captured_ns,
-            t.published_ns,
-            t.detect_received_ns,
-            t.detect_finished_ns,
-            t.estimate_received_ns,
-            t.estimate_finished_ns,
-            t.decide_received_ns,
-            t.decide_finished_ns,
+        let out = &mut self.out;
+        write!(out, "{},{}", d.stamp.seq, d.context.source_index)?;
+        for t in d.stamp.times.values() {
+            write!(out, ",{t}")?;
+        }
+        write!(
+            out,
+            ",{},{},{},{r},{p},{y},{},{},{},{}",
             d.state.get().name(),
             d.reason.get().name(),
             a.valid.get() as u8,
@@ -57,11 +65,13 @@ impl DecisionsCsv {
             tr.pitch_deg,
             tr.yaw_deg,
             a.markers_used,
-            dr.capture,
-            dr.bad_frames,
-            dr.detect,
-            dr.estimate,
-            dr.decide,
+        )?;
+        for n in d.stamp.drops.values() {
+            write!(out, ",{n}")?;
+        }
+        writeln!(
+            out,
+            ",{},{},{},{},{},{}",
             d.calm_window_start_s,
             d.calm_window_length_s,
             d.watchdog.get() as u8,
@@ -69,8 +79,6 @@ impl DecisionsCsv {
             tr.deck_heave_m,
             d.heave_rate_mps
         )
-        .and_then(|_| self.out.flush())
-        .map_err(|e| format!("{}: {e}", self.path.display()))
     }
 }
 
@@ -102,5 +110,18 @@ mod tests {
             assert_eq!(col(name).parse::<f64>().unwrap().to_bits(), v.to_bits(), "{name}");
         }
         assert_eq!(col("state"), "NO-DECK");
+    }
+
+    /// The columns spelled from the stage table are the ones tools read.
+    #[test]
+    fn the_header_is_the_one_tools_read() {
+        assert_eq!(
+            header(),
+            "seq,source_index,captured_ns,published_ns,detect_received_ns,detect_finished_ns,\
+estimate_received_ns,estimate_finished_ns,decide_received_ns,decide_finished_ns,state,reason,valid,\
+roll_deg,pitch_deg,yaw_deg,truth_roll_deg,truth_pitch_deg,truth_yaw_deg,markers,\
+drops_capture,drops_bad,drops_detect,drops_estimate,drops_decide,calm_start_s,calm_length_s,watchdog,\
+deck_height_m,truth_heave_m,heave_rate_mps"
+        );
     }
 }

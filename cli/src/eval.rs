@@ -5,7 +5,7 @@
 //! runs the pipeline's stage chain (`deckwatch_runtime::chain`) on each recording.
 
 use deckwatch_capture::source::ReplayConfig;
-use deckwatch_common::messages::{EstimatorKind, FrameSource};
+use deckwatch_common::messages::{EstimatorKind, FrameSource, PipelineStage};
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::{ErrorStats, Percentiles};
 use deckwatch_common::vehicle::Compensation;
@@ -132,7 +132,8 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
             let markers = &out.markers;
             let f = &markers.context;
             let truth = f.truth.attitude();
-            let mut results = vec![(out.attitude, out.cost[2].as_secs_f64() * 1e6)];
+            let cost = out.cost_of(PipelineStage::Estimate);
+            let mut results = vec![(out.attitude, cost.as_secs_f64() * 1e6)];
             for stage in &mut others {
                 let clock = Instant::now();
                 let a = stage.step(markers, 0);

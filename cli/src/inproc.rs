@@ -6,7 +6,7 @@
 
 use crate::decisions_csv::DecisionsCsv;
 use deckwatch_common::markers::DetectionStatus;
-use deckwatch_common::messages::{DecisionState, EstimatorKind, FrameSource};
+use deckwatch_common::messages::{DecisionState, EstimatorKind, FrameSource, PipelineStage, SOURCE, STAGES};
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::{ErrorStats, Percentiles};
 use deckwatch_estimate::paper::PaperVariant;
@@ -82,7 +82,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
         camera.height,
         config.estimate.estimator.name()
     );
-    let mut costs: [Vec<f64>; 4] = Default::default();
+    let mut costs: [Vec<f64>; 1 + STAGES] = Default::default();
     let mut accuracy = ErrorStats::default();
     let mut leaving = 0;
     let (mut frames, mut ok, mut partial, mut no_deck, mut tracked, mut estimated, mut false_attitudes) =
@@ -177,7 +177,8 @@ pub fn run(a: RunArgs) -> Result<(), String> {
     if false_attitudes > 0 {
         println!("WARNING: {false_attitudes} attitudes on frames without a deck in view");
     }
-    for (stage, times) in ["capture", "detect", "estimate", "decide"].iter().zip(&mut costs) {
+    let places = std::iter::once(SOURCE).chain(PipelineStage::ALL.map(PipelineStage::name));
+    for (stage, times) in places.zip(&mut costs) {
         if let Some(p) = Percentiles::of(times) {
             println!(
                 "{stage:>9}: p50 {:8.3} ms  p90 {:8.3} ms  p99 {:8.3} ms  max {:8.3} ms",

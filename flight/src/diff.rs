@@ -4,6 +4,7 @@
 
 use crate::json::JsonField;
 use crate::reader::FlightMessages;
+use deckwatch_common::messages::PipelineStage;
 use serde_json::Value;
 use std::collections::BTreeMap;
 
@@ -53,9 +54,14 @@ pub struct DiffOptions {
 /// Compares the stages' outputs of two recordings.
 pub fn diff(a: &FlightMessages, b: &FlightMessages, options: DiffOptions) -> Vec<StageDiff> {
     vec![
-        diff_stage("detect", &a.markers, &b.markers, options),
-        diff_stage("estimate", &a.attitudes, &b.attitudes, options),
-        diff_stage("decide", &a.decisions, &b.decisions, options),
+        diff_stage(PipelineStage::Detect.name(), &a.markers, &b.markers, options),
+        diff_stage(
+            PipelineStage::Estimate.name(),
+            &a.attitudes,
+            &b.attitudes,
+            options,
+        ),
+        diff_stage(PipelineStage::Decide.name(), &a.decisions, &b.decisions, options),
     ]
 }
 
@@ -172,7 +178,7 @@ mod tests {
             let mut m = AttitudeMessage::default();
             m.stamp.seq = seq;
             m.rpy.roll = seq as f64 * 0.01;
-            m.stamp.times.estimate_finished_ns = 100 + seq;
+            m.stamp.times[PipelineStage::Estimate].finished_ns = 100 + seq;
             a.attitudes.push(m);
             let mut d = LandingDecision::default();
             d.stamp.seq = seq;
@@ -180,7 +186,7 @@ mod tests {
         }
         let mut b = a.clone();
         // Other times only: no difference.
-        b.attitudes[1].stamp.times.estimate_finished_ns = 7;
+        b.attitudes[1].stamp.times[PipelineStage::Estimate].finished_ns = 7;
         assert!(diff(&a, &b, DiffOptions::default()).iter().all(StageDiff::same));
         assert!(!diff(&a, &b, DiffOptions { with_times: true })[1].same());
         b.attitudes[3].rpy.roll += 1e-9;

@@ -244,6 +244,46 @@ fn schema_of<S, T: JsonField>(_field: fn(&S) -> &T) -> Value {
 // Every message and part, from the one list of their fields.
 deckwatch_common::message_fields!(json_struct);
 
+/// `JsonField` for a value per place of the pipeline (`StageTimes`, `DropCounts`): one integer
+/// field per name of `NAMES`, spelled from the stage table, in its order; every one required.
+macro_rules! json_per_stage {
+    ($($ty:ty),+) => {$(
+        impl JsonField for $ty {
+            fn to_json(&self) -> Value {
+                let mut m = Map::new();
+                for (name, n) in self.named() {
+                    m.insert(name.to_string(), n.to_json());
+                }
+                Value::Object(m)
+            }
+
+            fn from_json(v: &Value) -> Result<Self, FieldError> {
+                let m = v.as_object().ok_or_else(|| FieldError::expected("an object", v))?;
+                let mut values = Self::default().values();
+                for (n, name) in values.iter_mut().zip(<$ty>::NAMES) {
+                    *n = field(m, name)?;
+                }
+                Ok(Self::from_values(values))
+            }
+
+            fn json_schema() -> Value {
+                let properties: Map<String, Value> = <$ty>::NAMES
+                    .iter()
+                    .map(|name| (name.to_string(), u64::json_schema()))
+                    .collect();
+                let required = <$ty>::NAMES;
+                json!({
+                    "type": "object",
+                    "properties": Value::Object(properties),
+                    "required": required,
+                })
+            }
+        }
+    )+};
+}
+
+json_per_stage!(StageTimes, DropCounts);
+
 /// A MAVLink frame: its bytes as hex (pymavlink and any MAVLink parser read them), the name
 /// and id for a reader without one.
 impl JsonField for LinkTraffic {
@@ -396,5 +436,52 @@ mod tests {
         assert_eq!(s["properties"]["stamp"]["properties"]["seq"]["type"], "integer");
         assert!(s["properties"]["valid"]["type"][0] == "boolean");
         assert_eq!(s["required"].as_array().unwrap().len(), 18);
+    }
+
+    /// The stage times and drop counts, indexed by the stage table, are written under the names
+    /// their fields had (what the Python reader and older recordings have), every one required,
+    /// and read back; one missing is named.
+    #[test]
+    fn the_stamp_keeps_its_names() {
+        let stamp = FrameStamp {
+            seq: 9,
+            times: StageTimes::from_values([1, 2, 3, 4, 5, 6, 7, 8]),
+            drops: DropCounts::from_values([10, 11, 12, 13, 14]),
+        };
+        let v = stamp.to_json();
+        assert_eq!(
+            v,
+            json!({
+                "seq": 9,
+                "times": {
+                    "captured_ns": 1,
+                    "published_ns": 2,
+                    "detect_received_ns": 3,
+                    "detect_finished_ns": 4,
+                    "estimate_received_ns": 5,
+                    "estimate_finished_ns": 6,
+                    "decide_received_ns": 7,
+                    "decide_finished_ns": 8,
+                },
+                "drops": {"capture": 10, "bad_frames": 11, "detect": 12, "estimate": 13, "decide": 14},
+            })
+        );
+        assert_eq!(FrameStamp::from_json(&v).unwrap(), stamp);
+        let schema = FrameStamp::json_schema();
+        assert_eq!(
+            schema["properties"]["times"]["required"],
+            json!(StageTimes::NAMES)
+        );
+        assert_eq!(
+            schema["properties"]["drops"]["properties"]["bad_frames"],
+            json!({"type": "integer"})
+        );
+        let mut cut = v.clone();
+        cut["times"]
+            .as_object_mut()
+            .unwrap()
+            .remove("estimate_finished_ns");
+        let e = FrameStamp::from_json(&cut).unwrap_err();
+        assert_eq!(e.to_string(), "times.estimate_finished_ns: missing");
     }
 }

@@ -32,7 +32,7 @@ pub use reader::{FlightMessages, FlightReader, FlightRecord, RecordedFrame};
 pub use writer::{FlightWriter, WriterOptions};
 
 use deckwatch_common::messages::{
-    AttitudeMessage, Channel, FrameHeader, LandingDecision, MarkerMessage, VehicleSample,
+    AttitudeMessage, Channel, FrameHeader, LandingDecision, MarkerMessage, PipelineStage, VehicleSample,
 };
 use std::path::{Path, PathBuf};
 
@@ -118,21 +118,21 @@ impl FlightMessage for FrameHeader {
 impl FlightMessage for MarkerMessage {
     const SCHEMA: &'static str = "deckwatch.MarkerMessage";
     fn produced_ns(&self) -> u64 {
-        self.stamp.times.detect_finished_ns
+        self.stamp.times[PipelineStage::Detect].finished_ns
     }
 }
 
 impl FlightMessage for AttitudeMessage {
     const SCHEMA: &'static str = "deckwatch.AttitudeMessage";
     fn produced_ns(&self) -> u64 {
-        self.stamp.times.estimate_finished_ns
+        self.stamp.times[PipelineStage::Estimate].finished_ns
     }
 }
 
 impl FlightMessage for LandingDecision {
     const SCHEMA: &'static str = "deckwatch.LandingDecision";
     fn produced_ns(&self) -> u64 {
-        self.stamp.times.decide_finished_ns
+        self.stamp.times[PipelineStage::Decide].finished_ns
     }
 }
 

@@ -1,15 +1,18 @@
 //! The pipeline in one process: the same stages as the processes of `deckwatch run`, called in
-//! a row on each frame (capture -> detect -> estimate -> decide) with no transport in between.
-//! `deckwatch inproc` and `deckwatch eval` run it; for the same frames it gives the same
-//! attitudes and decisions as the processes (a test in `tests/` holds it to that, bit for bit).
+//! a row on each frame (capture, then the stages of [`FrameStages`] in pipeline order: detect ->
+//! estimate -> decide) with no transport in between. `deckwatch inproc` and `deckwatch eval` run
+//! it; for the same frames it gives the same attitudes and decisions as the processes (a test in
+//! `tests/` holds it to that, bit for bit).
 
 use crate::config::PipelineConfig;
+use crate::row::StageRow;
 use crate::stage::{Frame, RunError, Stage};
 use crate::stages::capture::{complete_header, new_header};
-use crate::stages::{DecideStage, DetectStage, EstimateStage};
+use crate::stages::FrameStages;
 use deckwatch_capture::source::{CaptureSource, SourceError};
 use deckwatch_common::messages::{
     monotonic_ns, AttitudeMessage, DropCounts, FrameHeader, FrameSource, LandingDecision, MarkerMessage,
+    PipelineStage, VehicleSample, STAGES,
 };
 use std::time::{Duration, Instant};
 
@@ -19,17 +22,23 @@ pub struct ChainOutput {
     pub markers: MarkerMessage,
     pub attitude: AttitudeMessage,
     pub decision: LandingDecision,
-    /// Capture (render, decode or copy), detect, estimate, decide.
-    pub cost: [Duration; 4],
+    /// Capture (render, decode or copy), then each stage in pipeline order ([`Self::cost_of`]).
+    pub cost: [Duration; 1 + STAGES],
+}
+
+impl ChainOutput {
+    /// What `stage` took.
+    pub fn cost_of(&self, stage: PipelineStage) -> Duration {
+        self.cost[1 + stage.index()]
+    }
 }
 
 /// The stages of a pipeline configuration, chained in one process.
 pub struct StageChain {
     source: CaptureSource,
     pixels: Vec<u8>,
-    pub detect: DetectStage,
-    pub estimate: EstimateStage,
-    pub decide: DecideStage,
+    /// The stages, in pipeline order.
+    pub stages: FrameStages,
     /// The source's next frame, and the next sequence number (bad frames get none).
     next_frame: u64,
     next_seq: u64,
@@ -57,9 +66,7 @@ impl StageChain {
         Ok(Self {
             pixels: vec![0; source.frame_bytes()],
             source,
-            detect: DetectStage::from_config(config, false)?,
-            estimate: EstimateStage::from_config(config, false)?,
-            decide: DecideStage::from_config(config, false)?,
+            stages: FrameStages::from_config(config, false)?,
             next_frame: 0,
             next_seq: 0,
             drops: DropCounts::default(),
@@ -78,6 +85,12 @@ impl StageChain {
     /// Frames the source could not deliver (counted and skipped).
     pub fn drops(&self) -> DropCounts {
         self.drops
+    }
+
+    /// A vehicle attitude sample from the autopilot, to the stages that follow the vehicle
+    /// stream (estimate), as their processes are handed it.
+    pub fn vehicle_sample(&mut self, sample: &VehicleSample) {
+        self.stages.vehicle_sample(sample);
     }
 }
 
@@ -140,29 +153,37 @@ impl StageChain {
             header: &header,
             pixels: &self.pixels,
         };
-        let markers = self.detect.step(frame, header.stamp.times.published_ns);
-        let t2 = Instant::now();
-        let attitude = self
-            .estimate
-            .step(&markers, now(1, markers.stamp.times.detect_finished_ns));
-        let t3 = Instant::now();
-        let decision = self
-            .decide
-            .step(&attitude, now(2, attitude.stamp.times.estimate_finished_ns));
-        let t4 = Instant::now();
+        let mut cost = [Duration::ZERO; 1 + STAGES];
+        cost[0] = t1 - t0;
+        let (mut lap_start, mut next) = (t1, 1);
+        let mut lap = || {
+            let t = Instant::now();
+            if let Some(c) = cost.get_mut(next) {
+                *c = t - lap_start;
+            }
+            (lap_start, next) = (t, next + 1);
+        };
+        // Each stage after the first receives its input when the one before finished it.
+        let (markers, attitude, decision) = self.stages.step(
+            frame,
+            header.stamp.times.published_ns,
+            &mut |k, finished_ns| now(k as u64, finished_ns),
+            &mut lap,
+        );
         // As the processes do once a decision is published (not counted in its cost).
-        self.decide.after_outputs();
+        self.stages.after_outputs();
         Some(Ok(Some(ChainOutput {
             markers,
             attitude,
             decision,
-            cost: [t1 - t0, t2 - t1, t3 - t2, t4 - t3],
+            cost,
         })))
     }
 
     /// How often decide's watchdog looks while no attitude comes (s), as the process's tick.
     pub fn watchdog_period_s(&self) -> f64 {
-        self.decide
+        self.stages
+            .last()
             .tick_period()
             .map_or(f64::INFINITY, |p| p.as_secs_f64())
     }
@@ -170,7 +191,7 @@ impl StageChain {
     /// What decide says when no attitude came for a while (its watchdog), at `now_ns` on the
     /// chain's clock.
     pub fn watchdog(&mut self, now_ns: u64) -> Option<LandingDecision> {
-        self.decide.tick(now_ns)
+        self.stages.last_mut().tick(now_ns)
     }
 }
 
@@ -209,7 +230,17 @@ mod tests {
             assert!(out.attitude.valid.get(), "frame {n}: {:?}", out.attitude.failure);
             assert_eq!(out.decision.state, DecisionState::Hold);
             let t = out.decision.stamp.times;
-            assert!(t.captured_ns <= t.published_ns && t.published_ns <= t.decide_finished_ns);
+            let decided_ns = t[PipelineStage::Decide].finished_ns;
+            assert!(t.captured_ns <= t.published_ns && t.published_ns <= decided_ns);
+            // Every stage of the row stamped the frame, each receiving it as the one before
+            // finished it.
+            let mut before_ns = t.published_ns;
+            for s in PipelineStage::ALL {
+                assert_eq!(t[s].received_ns, before_ns, "{}", s.name());
+                assert!(t[s].finished_ns >= t[s].received_ns, "{}", s.name());
+                before_ns = t[s].finished_ns;
+            }
+            assert_eq!(out.cost.len(), 1 + STAGES);
             n += 1;
         }
         assert_eq!(n, 5);

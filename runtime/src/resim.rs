@@ -18,7 +18,7 @@
 use crate::config::PipelineConfig;
 use crate::stage::{Frame, RunError, Stage};
 use crate::stages::{DecideStage, DetectStage, EstimateStage};
-use deckwatch_common::messages::{AttitudeMessage, LandingDecision, MarkerMessage};
+use deckwatch_common::messages::{AttitudeMessage, LandingDecision, MarkerMessage, PipelineStage};
 use deckwatch_flight::reader::{FlightMessages, FlightReader, FlightRecord};
 use deckwatch_flight::{topics, FlightError};
 use std::collections::HashMap;
@@ -76,7 +76,7 @@ pub fn resimulate(
                     header: &header,
                     pixels: &pixels,
                 };
-                let mut markers = detect.step(frame, rec.stamp.times.detect_received_ns);
+                let mut markers = detect.step(frame, rec.stamp.times[PipelineStage::Detect].received_ns);
                 markers.stamp.times = rec.stamp.times;
                 done.insert(header.stamp.seq);
                 out.markers.push(markers);
@@ -99,7 +99,7 @@ pub fn resimulate(
         let Some(rec) = recorded_attitudes.get(&m.stamp.seq) else {
             continue;
         };
-        let received = rec.stamp.times.estimate_received_ns;
+        let received = rec.stamp.times[PipelineStage::Estimate].received_ns;
         while let Some(s) = vehicle.next_if(|s| s.received_ns <= received) {
             estimate.observe_vehicle(s);
         }
@@ -112,7 +112,7 @@ pub fn resimulate(
     let new_attitudes: HashMap<u64, &AttitudeMessage> =
         out.attitudes.iter().map(|a| (a.stamp.seq, a)).collect();
     for rec in &recorded.decisions {
-        let received = rec.stamp.times.decide_received_ns;
+        let received = rec.stamp.times[PipelineStage::Decide].received_ns;
         let d = if rec.watchdog.get() {
             decide.tick(received)
         } else {

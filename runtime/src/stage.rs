@@ -10,9 +10,11 @@
 //! process is up ([`start_order`]); every binary is [`main`]. A [`Stage`] is a process through
 //! [`run`]; the source and the sinks implement [`Process`] with loops of their own.
 //!
-//! Adding a stage (three files; ARCHITECTURE.md): implement [`Stage`] in `stages/<name>.rs`,
-//! add `src/bin/deckwatch-<name>.rs` calling [`main`], and in `stages/mod.rs` declare the module
-//! and list it in [`crate::stages::PROCESSES`].
+//! Adding a stage (ARCHITECTURE.md): implement [`Stage`] in `stages/<name>.rs`, add
+//! `src/bin/deckwatch-<name>.rs` calling [`main`], and in `stages/mod.rs` declare the module and
+//! put it in its place in [`crate::stages::FrameStages`] (its place in the stage table,
+//! [`PipelineStage`], is its [`Stage::PLACE`]); a process other than a stage goes in
+//! [`crate::stages::PROCESSES`].
 
 use crate::bus::{
     event_loop, quiet_logging, Bus, BusError, Flow, FrameSubscriber, Listener, Message, MessagePublisher,
@@ -20,7 +22,8 @@ use crate::bus::{
 };
 use crate::config::{ConfigError, PipelineConfig, DEFAULTS};
 use deckwatch_common::messages::{
-    monotonic_ns, Channel, FrameHeader, LandingDecision, StageHeartbeat, VehicleSample,
+    monotonic_ns, Channel, FrameHeader, LandingDecision, PipelineStage, StageHeartbeat, StageLog,
+    VehicleSample,
 };
 use deckwatch_viz::{Item, Logger};
 use std::path::PathBuf;
@@ -37,8 +40,10 @@ pub struct Frame<'a> {
 
 /// One step of the pipeline.
 pub trait Stage: Sized {
-    /// The stage's name: its node, its binary (`deckwatch-<NAME>`), its log lines.
-    const NAME: &'static str;
+    /// Its place in the pipeline (the stage table, [`PipelineStage`]): its name (its node, its
+    /// binary `deckwatch-<name>`, its log lines) and the index of the times and the drop count
+    /// it stamps on its output.
+    const PLACE: PipelineStage;
     /// What it consumes: [`Frames`] or a [`Message`] type.
     type Input: Input;
     type Output: Message;
@@ -208,7 +213,7 @@ pub trait Process {
 }
 
 impl<S: Stage> Process for S {
-    const NAME: &'static str = <S as Stage>::NAME;
+    const NAME: &'static str = S::PLACE.name();
     const OUTPUTS: &'static [&'static str] = &[<S::Output as Channel>::SERVICE];
     const SIDE_INPUTS: &'static [&'static str] = <S as Stage>::SIDE_INPUTS;
     fn inputs(_config: &PipelineConfig) -> Vec<&'static str> {
@@ -253,6 +258,9 @@ pub const fn process<P: Process>() -> ProcessInfo {
 /// What the launcher subscribes to before it starts anything: the decisions it follows, and
 /// the heartbeats.
 pub const LAUNCHER_INPUTS: [&str; 2] = [LandingDecision::SERVICE, StageHeartbeat::SERVICE];
+
+/// What the launcher publishes: the stages' log lines (while a recorder runs).
+pub const LAUNCHER_OUTPUTS: [&str; 1] = [StageLog::SERVICE];
 
 /// When the launcher starts a process and when it counts it as up: once `ready_service` has
 /// `ready_subscribers` subscribers (None: a process that takes nothing in, the source).
@@ -528,8 +536,9 @@ impl Heartbeat {
 /// The stage's life in its process: until SIGINT/SIGTERM, wake on input (or the tick), step,
 /// publish, log.
 pub fn run<S: Stage>(config: PipelineConfig, args: &StageArgs) -> Result<String, RunError> {
+    let name = S::PLACE.name();
     // The subscriber side does not size frames; 1 is a placeholder the publisher never sees.
-    let (logger, bus) = setup(S::NAME, &config, 1)?;
+    let (logger, bus) = setup(name, &config, 1)?;
     let mut stage = S::from_config(&config, args.restarted)?;
     let input = S::Input::subscribe(&bus)?;
     let output = bus.publisher::<S::Output>()?;
@@ -549,8 +558,7 @@ pub fn run<S: Stage>(config: PipelineConfig, args: &StageArgs) -> Result<String,
     // The topology says which stages may follow the vehicle stream: one that does must say so.
     debug_assert!(
         !stage.wants_vehicle() || S::SIDE_INPUTS.contains(&VehicleSample::SERVICE),
-        "{} follows the vehicle stream but does not list it in Stage::SIDE_INPUTS",
-        S::NAME
+        "{name} follows the vehicle stream but does not list it in Stage::SIDE_INPUTS"
     );
     let vehicle = if stage.wants_vehicle() {
         Some(bus.subscriber::<VehicleSample>()?)
@@ -585,7 +593,7 @@ pub fn run<S: Stage>(config: PipelineConfig, args: &StageArgs) -> Result<String,
             },
             |(o, warning, items)| {
                 if let Some(w) = warning {
-                    deckwatch_common::say!("deckwatch-{}: {w}", S::NAME);
+                    deckwatch_common::say!("deckwatch-{name}: {w}");
                 }
                 output.send(&o)?;
                 log(items);
@@ -596,7 +604,7 @@ pub fn run<S: Stage>(config: PipelineConfig, args: &StageArgs) -> Result<String,
         let rejections = std::iter::once(input.rejections()).chain(vehicle.as_ref().map(|v| v.rejections()));
         for r in rejections {
             if let Some(line) = r.report(monotonic_ns()) {
-                deckwatch_common::say!("deckwatch-{}: {line}", S::NAME);
+                deckwatch_common::say!("deckwatch-{name}: {line}");
             }
         }
         Ok::<Flow, BusError>(Flow::Continue)

@@ -6,7 +6,7 @@ use crate::{Item, ItemKind};
 use deckwatch_common::markers::MarkerSet;
 use deckwatch_common::messages::{
     AttitudeMessage, DecisionReason, DecisionState, EstimatorKind, LandingDecision, LatencyInterval,
-    MarkerMessage, Truth,
+    MarkerMessage, PipelineStage, Truth,
 };
 use deckwatch_common::scene::{SceneGeometry, Viewpoint};
 
@@ -481,7 +481,7 @@ impl DecisionView {
         let (state, reason) = (d.state.get(), d.reason.get());
         let watchdog = d.watchdog.get();
         let (frame, time_ns) = if watchdog {
-            (None, d.stamp.times.decide_received_ns)
+            (None, d.stamp.times[PipelineStage::Decide].received_ns)
         } else {
             (Some(d.stamp.seq), d.stamp.times.captured_ns)
         };
@@ -498,14 +498,7 @@ impl DecisionView {
                     scalars.push((latency_path(interval), ns as f64 / 1e6));
                 }
             }
-            let drops = &d.stamp.drops;
-            for (name, n) in [
-                ("capture", drops.capture),
-                ("bad_frames", drops.bad_frames),
-                ("detect", drops.detect),
-                ("estimate", drops.estimate),
-                ("decide", drops.decide),
-            ] {
+            for (name, n) in d.stamp.drops.named() {
                 scalars.push((format!("{DROPS}/{name}"), n as f64));
             }
         }
@@ -604,10 +597,7 @@ mod tests {
         assert!(MARKERS.starts_with(IMAGE) && DECISION_STATE.starts_with(DECISION));
         assert_eq!(crop_entity(MARKERS).as_deref(), Some("camera/deck/markers"));
         assert_eq!(crop_entity(IMAGE), None);
-        assert_eq!(
-            latency_path(LatencyInterval::CaptureToDetect),
-            "latency/capture_to_detect"
-        );
+        assert_eq!(latency_path(LatencyInterval::Hop), "latency/capture_to_detect");
         assert_eq!(latency_path(LatencyInterval::EndToEnd), "latency/end_to_end");
         let mut truth = Truth::UNKNOWN;
         assert!(truth_items(0, 0, &truth).is_empty());
@@ -686,7 +676,7 @@ mod tests {
         d.calm_window_length_s = f64::NAN;
         d.state = DecisionState::NoDeck.into();
         d.reason = DecisionReason::StaleData.into();
-        d.stamp.times.decide_received_ns = 12_000_000_000;
+        d.stamp.times[PipelineStage::Decide].received_ns = 12_000_000_000;
         let items = view.items(&d);
         assert!(items
             .iter()

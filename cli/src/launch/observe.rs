@@ -4,7 +4,9 @@
 
 use super::report::{DropReport, LatencyRow, RunReport};
 use crate::decisions_csv::DecisionsCsv;
-use deckwatch_common::messages::{DecisionState, DropCounts, GapCounter, LandingDecision, LatencyInterval};
+use deckwatch_common::messages::{
+    DecisionState, DropCounts, GapCounter, LandingDecision, LatencyInterval, DROP_VALUES,
+};
 use deckwatch_common::rotation::rpy_error_deg;
 use deckwatch_common::stats::ErrorStats;
 use hdrhistogram::Histogram;
@@ -28,33 +30,20 @@ impl RestartingCounter {
     }
 }
 
-/// Drop counts of the stream, summed across the restarts of the stages that count them.
+/// Drop counts of the stream, summed across the restarts of the stages that count them (one
+/// counter per count of [`DropCounts`], in its order).
 #[derive(Debug, Default, Clone, Copy)]
-pub struct DropTotals {
-    capture: RestartingCounter,
-    bad_frames: RestartingCounter,
-    detect: RestartingCounter,
-    estimate: RestartingCounter,
-    decide: RestartingCounter,
-}
+pub struct DropTotals([RestartingCounter; DROP_VALUES]);
 
 impl DropTotals {
     pub fn update(&mut self, d: &DropCounts) {
-        self.capture.update(d.capture);
-        self.bad_frames.update(d.bad_frames);
-        self.detect.update(d.detect);
-        self.estimate.update(d.estimate);
-        self.decide.update(d.decide);
+        for (counter, n) in self.0.iter_mut().zip(d.values()) {
+            counter.update(n);
+        }
     }
 
     pub fn totals(&self) -> DropCounts {
-        DropCounts {
-            capture: self.capture.total,
-            bad_frames: self.bad_frames.total,
-            detect: self.detect.total,
-            estimate: self.estimate.total,
-            decide: self.decide.total,
-        }
+        DropCounts::from_values(self.0.map(|c| c.total))
     }
 }
 
@@ -245,14 +234,21 @@ impl Observer {
             }
             None => "no decision yet".into(),
         };
+        // Every interval, by its short name: `capture`, `hop`, each stage's, `e2e`.
+        let p50: Vec<String> = LatencyInterval::ALL
+            .iter()
+            .map(|&i| {
+                let name = match i {
+                    LatencyInterval::Hop => "hop",
+                    LatencyInterval::EndToEnd => "e2e",
+                    i => i.name(),
+                };
+                format!("{name} {:.2}", h.p50_ms(i))
+            })
+            .collect();
         let line = format!(
-            "[{elapsed:7.1} s] {fps:5.1} fps | p50 ms: capture {:.2} hop {:.2} detect {:.2} estimate {:.2} decide {:.2} e2e {:.2} | drops {} | {decision}",
-            h.p50_ms(LatencyInterval::Capture),
-            h.p50_ms(LatencyInterval::CaptureToDetect),
-            h.p50_ms(LatencyInterval::Detect),
-            h.p50_ms(LatencyInterval::Estimate),
-            h.p50_ms(LatencyInterval::Decide),
-            h.p50_ms(LatencyInterval::EndToEnd),
+            "[{elapsed:7.1} s] {fps:5.1} fps | p50 ms: {} | drops {} | {decision}",
+            p50.join(" "),
             self.drops.totals().total().saturating_add(self.observer_missed),
         );
         self.recent.reset();
@@ -291,7 +287,7 @@ impl Observer {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use deckwatch_common::messages::{DecisionReason, Truth};
+    use deckwatch_common::messages::{DecisionReason, PipelineStage, StageSpan, Truth};
     use deckwatch_common::Rpy;
 
     #[test]
@@ -317,10 +313,12 @@ mod tests {
         d.stamp.drops.capture = capture_drops;
         d.stamp.times.captured_ns = 1_000;
         d.stamp.times.published_ns = 2_000;
-        d.stamp.times.detect_received_ns = 2_500;
-        d.stamp.times.detect_finished_ns = 3_000_000;
-        d.stamp.times.estimate_finished_ns = 4_000_000;
-        d.stamp.times.decide_finished_ns = 5_000_000;
+        d.stamp.times[PipelineStage::Detect] = StageSpan {
+            received_ns: 2_500,
+            finished_ns: 3_000_000,
+        };
+        d.stamp.times[PipelineStage::Estimate].finished_ns = 4_000_000;
+        d.stamp.times[PipelineStage::Decide].finished_ns = 5_000_000;
         d.attitude.valid = true.into();
         d.attitude.rpy = Rpy::from_degrees(1.0, 2.0, 3.0);
         d.context.truth = Truth {
@@ -354,5 +352,22 @@ mod tests {
         assert!((r.rmse_deg.unwrap()[0] - 0.5).abs() < 1e-9);
         let line = o.status_line(1.0, 1.0);
         assert!(line.contains("3.0 fps") && line.contains("NO-DECK"), "{line}");
+        assert!(
+            line.contains(
+                "| p50 ms: capture 0.00 hop 0.00 detect 3.00 estimate 1.00 decide 1.00 e2e 5.00 | drops 2 |"
+            ),
+            "{line}"
+        );
+        let drops: Vec<_> = r.drops.counts.named().into_iter().collect();
+        assert_eq!(
+            drops,
+            [
+                ("capture", 1),
+                ("bad_frames", 0),
+                ("detect", 0),
+                ("estimate", 0),
+                ("decide", 0)
+            ]
+        );
     }
 }

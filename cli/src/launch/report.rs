@@ -66,14 +66,15 @@ pub fn print_report(r: &RunReport) {
         );
     }
     let d = &r.drops.counts;
+    let by_place: Vec<String> = d
+        .named()
+        .iter()
+        .map(|(name, n)| format!("{} {n}", name.replace('_', " ")))
+        .collect();
     println!(
-        "drops: {} (capture {}, bad frames {}, detect {}, estimate {}, decide {}); decisions missed by the launcher: {}",
+        "drops: {} ({}); decisions missed by the launcher: {}",
         d.total(),
-        d.capture,
-        d.bad_frames,
-        d.detect,
-        d.estimate,
-        d.decide,
+        by_place.join(", "),
         r.drops.observer
     );
     let states: Vec<String> = r.states.iter().map(|(n, c)| format!("{n} {c}")).collect();

@@ -244,7 +244,7 @@ struct ChainPipeline<'a> {
 
 impl ClosedLoopPipeline for ChainPipeline<'_> {
     fn observe_vehicle(&mut self, sample: &VehicleSample) {
-        self.chain.estimate.observe_vehicle(sample);
+        self.chain.vehicle_sample(sample);
     }
 
     fn next_frame(&mut self, t_s: f64, inject: &mut dyn FnMut(&mut [u8]) -> bool) -> FrameStep {

@@ -126,7 +126,7 @@ fn fly_with(
         .open_sim_with(Box::new(world.scene(path.clone())))
         .map_err(|e| e.to_string())?;
     // Join once the launcher has started its stages (it refuses a domain with live nodes), and
-    // publish once detect listens.
+    // publish once the first stage (detect) listens.
     let domain = &config.bus.domain;
     let deadline = monotonic_ns() + 20_000_000_000;
     let bus = loop {
@@ -136,7 +136,7 @@ fn fly_with(
         let nodes = Bus::live_nodes(domain).map_err(|e| e.to_string())?;
         if nodes
             .iter()
-            .any(|n| n == <deckwatch_runtime::stages::DetectStage as deckwatch_runtime::stage::Stage>::NAME)
+            .any(|n| n == deckwatch_common::messages::PipelineStage::FIRST.name())
         {
             break Bus::join(&config.bus.settings(source.frame_bytes()), "trials-camera")
                 .map_err(|e| e.to_string())?;

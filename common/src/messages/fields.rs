@@ -8,7 +8,9 @@
 /// recording's JSON (`deckwatch-flight`) are generated from this one list. Both take each
 /// struct apart or build it whole, so a field missing here is a compile error in both.
 /// (`StageLog`, `LinkTraffic` and `StageHeartbeat` are not here: their recording is of their
-/// own, a Foxglove log, hex bytes, nothing; their wire checks list their fields the same way.)
+/// own, a Foxglove log, hex bytes, nothing; their wire checks list their fields the same way.
+/// Nor are `StageTimes` and `DropCounts`: a value per stage, whose names in a recording are
+/// spelled from the stage table, `NAMES`.)
 #[macro_export]
 macro_rules! message_fields {
     ($callback:ident) => {
@@ -37,23 +39,6 @@ macro_rules! message_fields {
             marker_radius_m,
             bow_marker_radius_m,
             n_ring
-        });
-        $callback!(StageTimes {
-            captured_ns,
-            published_ns,
-            detect_received_ns,
-            detect_finished_ns,
-            estimate_received_ns,
-            estimate_finished_ns,
-            decide_received_ns,
-            decide_finished_ns,
-        });
-        $callback!(DropCounts {
-            capture,
-            bad_frames,
-            detect,
-            estimate,
-            decide
         });
         $callback!(FrameStamp { seq, times, drops });
         $callback!(Truth {

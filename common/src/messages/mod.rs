@@ -14,6 +14,7 @@ mod diagnostics;
 mod fields;
 mod frame;
 mod pipeline;
+mod stages;
 mod time;
 mod wire_checks;
 
@@ -21,6 +22,7 @@ pub use channels::Channel;
 pub use diagnostics::*;
 pub use frame::*;
 pub use pipeline::*;
+pub use stages::{PipelineStage, SOURCE, STAGES};
 pub use time::*;
 
 use crate::camera::CameraModel;
@@ -84,18 +86,94 @@ mod tests {
 
     #[test]
     fn intervals_need_both_ends() {
-        let t = StageTimes {
+        let mut t = StageTimes {
             captured_ns: 100,
             published_ns: 150,
-            detect_received_ns: 160,
-            detect_finished_ns: 200,
             ..Default::default()
         };
+        t[PipelineStage::Detect] = StageSpan {
+            received_ns: 160,
+            finished_ns: 200,
+        };
         assert_eq!(t.interval_ns(LatencyInterval::Capture), Some(50));
-        assert_eq!(t.interval_ns(LatencyInterval::CaptureToDetect), Some(10));
-        assert_eq!(t.interval_ns(LatencyInterval::Detect), Some(40));
-        assert_eq!(t.interval_ns(LatencyInterval::Estimate), None);
+        assert_eq!(t.interval_ns(LatencyInterval::Hop), Some(10));
+        assert_eq!(
+            t.interval_ns(LatencyInterval::Stage(PipelineStage::Detect)),
+            Some(40)
+        );
+        assert_eq!(
+            t.interval_ns(LatencyInterval::Stage(PipelineStage::Estimate)),
+            None
+        );
         assert_eq!(t.interval_ns(LatencyInterval::EndToEnd), None);
+        t[PipelineStage::Estimate].finished_ns = 260;
+        t[PipelineStage::Decide].finished_ns = 300;
+        assert_eq!(
+            t.interval_ns(LatencyInterval::Stage(PipelineStage::Estimate)),
+            Some(60)
+        );
+        assert_eq!(
+            t.interval_ns(LatencyInterval::Stage(PipelineStage::Decide)),
+            Some(40)
+        );
+        assert_eq!(t.interval_ns(LatencyInterval::EndToEnd), Some(150));
+    }
+
+    /// The names a user reads, spelled from the stage table, are the ones the fields had; the
+    /// values are in the order of the bytes (the layout of `deckwatch.StageTimes.v1` and
+    /// `deckwatch.DropCounts.v1`: a `u64` per name).
+    #[test]
+    fn per_stage_values_are_named_from_the_table_in_the_order_of_their_bytes() {
+        assert_eq!(
+            StageTimes::NAMES,
+            [
+                "captured_ns",
+                "published_ns",
+                "detect_received_ns",
+                "detect_finished_ns",
+                "estimate_received_ns",
+                "estimate_finished_ns",
+                "decide_received_ns",
+                "decide_finished_ns",
+            ]
+        );
+        assert_eq!(
+            DropCounts::NAMES,
+            ["capture", "bad_frames", "detect", "estimate", "decide"]
+        );
+        let names: Vec<&str> = LatencyInterval::ALL.iter().map(|i| i.name()).collect();
+        assert_eq!(
+            names,
+            [
+                "capture",
+                "capture->detect",
+                "detect",
+                "estimate",
+                "decide",
+                "end-to-end"
+            ]
+        );
+        let values: [u64; TIME_VALUES] = std::array::from_fn(|i| 1 + i as u64);
+        let t = StageTimes::from_values(values);
+        assert_eq!(
+            *bytemuck::from_bytes::<StageTimes>(bytemuck::bytes_of(&values)),
+            t
+        );
+        assert_eq!(t.values(), values);
+        assert_eq!(t[PipelineStage::Estimate].finished_ns, 6);
+        assert_eq!(t.named()[3], ("detect_finished_ns", 4));
+        let counts: [u64; DROP_VALUES] = std::array::from_fn(|i| 10 + i as u64);
+        let d = DropCounts::from_values(counts);
+        assert_eq!(
+            *bytemuck::from_bytes::<DropCounts>(bytemuck::bytes_of(&counts)),
+            d
+        );
+        assert_eq!((d.capture, d.bad_frames, d[PipelineStage::Decide]), (10, 11, 14));
+        assert_eq!(d.total(), 60);
+        assert_eq!(
+            serde_json::to_string(&d).unwrap(),
+            r#"{"capture":10,"bad_frames":11,"detect":12,"estimate":13,"decide":14}"#
+        );
     }
 
     #[test]

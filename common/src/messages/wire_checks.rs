@@ -8,6 +8,21 @@ use crate::markers::{Marker, RejectCounts};
 crate::message_fields!(wire_check_struct);
 
 use crate::wire_check_struct;
+// A value per stage (`NAMES` names them): numbers, which hold any bytes.
+wire_check_struct!(StageSpan {
+    received_ns,
+    finished_ns
+});
+wire_check_struct!(StageTimes {
+    captured_ns,
+    published_ns,
+    stages
+});
+wire_check_struct!(DropCounts {
+    capture,
+    bad_frames,
+    stages
+});
 wire_check_struct!(StageHeartbeat { pid, seq, sent_ns });
 wire_check_struct!(StageLog {
     time_ns,

@@ -14,6 +14,7 @@ use crate::stage::{setup, Heartbeat, Process, RunError, StageArgs};
 use deckwatch_capture::source::{CaptureSource, CapturedFrame, SourceError};
 use deckwatch_common::messages::{
     monotonic_ns, Channel, DropCounts, FrameContext, FrameHeader, FrameStamp, PixelFormat, StageTimes, Truth,
+    SOURCE,
 };
 use std::time::Duration;
 
@@ -21,7 +22,7 @@ use std::time::Duration;
 pub struct Capture;
 
 impl Process for Capture {
-    const NAME: &'static str = "capture";
+    const NAME: &'static str = SOURCE;
     const OUTPUTS: &'static [&'static str] = &[FrameHeader::SERVICE];
     fn inputs(_config: &PipelineConfig) -> Vec<&'static str> {
         Vec::new()

@@ -9,7 +9,9 @@
 
 use crate::config::{ConfigError, PipelineConfig};
 use crate::stage::Stage;
-use deckwatch_common::messages::{monotonic_ns, AttitudeMessage, GapCounter, LandingDecision};
+use deckwatch_common::messages::{
+    monotonic_ns, AttitudeMessage, GapCounter, LandingDecision, PipelineStage, StageSpan,
+};
 use deckwatch_decide::{DecisionConfig, FrameInput, LandingDecider};
 use deckwatch_viz::Item;
 use std::time::Duration;
@@ -64,9 +66,11 @@ impl DecideStage {
             heave_rate_mps: d.heave_rate_mps,
             watchdog: false.into(),
         };
-        out.stamp.drops.decide = self.dropped;
-        out.stamp.times.decide_received_ns = received_ns;
-        out.stamp.times.decide_finished_ns = monotonic_ns();
+        out.stamp.drops[Self::PLACE] = self.dropped;
+        out.stamp.times[Self::PLACE] = StageSpan {
+            received_ns,
+            finished_ns: monotonic_ns(),
+        };
         self.last = Some(out);
         out
     }
@@ -84,15 +88,17 @@ impl DecideStage {
         out.calm_window_length_s = f64::NAN;
         out.heave_rate_mps = f64::NAN;
         out.watchdog = true.into();
-        out.stamp.times.decide_received_ns = now_ns;
-        out.stamp.times.decide_finished_ns = monotonic_ns();
+        out.stamp.times[Self::PLACE] = StageSpan {
+            received_ns: now_ns,
+            finished_ns: monotonic_ns(),
+        };
         self.watchdog_decisions += 1;
         Some(out)
     }
 }
 
 impl Stage for DecideStage {
-    const NAME: &'static str = "decide";
+    const PLACE: PipelineStage = PipelineStage::Decide;
     type Input = AttitudeMessage;
     type Output = LandingDecision;
 

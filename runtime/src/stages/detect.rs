@@ -5,7 +5,9 @@
 use crate::config::{ConfigError, PipelineConfig};
 use crate::stage::{Frame, Frames, Stage};
 use deckwatch_common::markers::{DetectionStatus, MarkerSet};
-use deckwatch_common::messages::{monotonic_ns, FrameHeader, GapCounter, MarkerMessage, PixelFormat};
+use deckwatch_common::messages::{
+    monotonic_ns, FrameHeader, GapCounter, MarkerMessage, PipelineStage, PixelFormat, StageSpan,
+};
 use deckwatch_common::GrayView;
 use deckwatch_common::InvalidField;
 use deckwatch_detect::{Detector, DetectorConfig};
@@ -30,7 +32,7 @@ pub struct DetectStage {
 }
 
 impl Stage for DetectStage {
-    const NAME: &'static str = "detect";
+    const PLACE: PipelineStage = PipelineStage::Detect;
     type Input = Frames;
     type Output = MarkerMessage;
 
@@ -118,9 +120,11 @@ impl DetectStage {
             }
         };
         let mut stamp = header.stamp;
-        stamp.drops.detect = self.dropped;
-        stamp.times.detect_received_ns = received_ns;
-        stamp.times.detect_finished_ns = monotonic_ns();
+        stamp.drops[Self::PLACE] = self.dropped;
+        stamp.times[Self::PLACE] = StageSpan {
+            received_ns,
+            finished_ns: monotonic_ns(),
+        };
         let message = MarkerMessage {
             stamp,
             context: header.context,
@@ -212,8 +216,8 @@ mod tests {
         assert_eq!(s.bad_frames, 2);
         // Frames 3 and 4 never arrived.
         let (m, _) = s.process(&header(5, 64, 48), &px, 4);
-        assert_eq!(m.stamp.drops.detect, 2);
-        assert_eq!(m.stamp.times.detect_received_ns, 4);
-        assert!(m.stamp.times.detect_finished_ns >= 4);
+        assert_eq!(m.stamp.drops[PipelineStage::Detect], 2);
+        assert_eq!(m.stamp.times[PipelineStage::Detect].received_ns, 4);
+        assert!(m.stamp.times[PipelineStage::Detect].finished_ns >= 4);
     }
 }

@@ -6,7 +6,8 @@
 use crate::config::{ConfigError, PipelineConfig};
 use crate::stage::Stage;
 use deckwatch_common::messages::{
-    monotonic_ns, AttitudeMessage, Channel, GapCounter, MarkerMessage, VehicleSample,
+    monotonic_ns, AttitudeMessage, Channel, GapCounter, MarkerMessage, PipelineStage, StageSpan,
+    VehicleSample,
 };
 use deckwatch_common::vehicle::VehicleConfig;
 use deckwatch_estimate::{DeckEstimator, EstimateConfig};
@@ -47,9 +48,11 @@ impl EstimateStage {
         self.dropped += self.gaps.observe(m.stamp.seq, m.stamp.drops.total());
         self.processed += 1;
         let mut out = self.estimator.estimate(m);
-        out.stamp.drops.estimate = self.dropped;
-        out.stamp.times.estimate_received_ns = received_ns;
-        out.stamp.times.estimate_finished_ns = monotonic_ns();
+        out.stamp.drops[Self::PLACE] = self.dropped;
+        out.stamp.times[Self::PLACE] = StageSpan {
+            received_ns,
+            finished_ns: monotonic_ns(),
+        };
         out
     }
 
@@ -60,7 +63,7 @@ impl EstimateStage {
 }
 
 impl Stage for EstimateStage {
-    const NAME: &'static str = "estimate";
+    const PLACE: PipelineStage = PipelineStage::Estimate;
     type Input = MarkerMessage;
     type Output = AttitudeMessage;
     const SIDE_INPUTS: &'static [&'static str] = &[VehicleSample::SERVICE];
@@ -145,8 +148,8 @@ mod tests {
         assert_ne!(out[0].failure, AttitudeFailure::FrozenImage);
         assert_eq!(out[1].failure, AttitudeFailure::FrozenImage, "the first repeat");
         assert_eq!(out[2].failure, AttitudeFailure::FrozenImage);
-        assert_eq!(out[1].stamp.times.estimate_received_ns, 1001);
-        assert!(out[1].stamp.times.estimate_finished_ns > 0);
+        assert_eq!(out[1].stamp.times[PipelineStage::Estimate].received_ns, 1001);
+        assert!(out[1].stamp.times[PipelineStage::Estimate].finished_ns > 0);
         assert_eq!((s.processed, s.estimator().frozen), (3, 2));
         let mut d =
             crate::stages::DecideStage::new(deckwatch_decide::DecisionConfig::default(), false).unwrap();

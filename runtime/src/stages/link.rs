@@ -13,7 +13,9 @@
 use crate::bus::{event_loop, Bus, BusError, Flow, MessagePublisher, Wake};
 use crate::config::PipelineConfig;
 use crate::stage::{setup, Heartbeat, Process, RunError, StageArgs};
-use deckwatch_common::messages::{monotonic_ns, Channel, LandingDecision, LinkTraffic, VehicleSample};
+use deckwatch_common::messages::{
+    monotonic_ns, Channel, LandingDecision, LinkTraffic, PipelineStage, VehicleSample,
+};
 use deckwatch_common::stats::Percentiles;
 use deckwatch_common::vehicle::VehicleStateSample;
 use deckwatch_estimate::vehicle_track::VehicleTrack;
@@ -488,7 +490,7 @@ fn run(config: PipelineConfig) -> Result<String, RunError> {
                 received
             };
             newest_decision = Some((d, aged_from));
-            let made = d.stamp.times.decide_finished_ns;
+            let made = d.stamp.times[PipelineStage::Decide].finished_ns;
             if made != 0 && !d.watchdog.get() {
                 let since = |t: u64| t.saturating_sub(made) as f64;
                 hop_ns.push(since(received));

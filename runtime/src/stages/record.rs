@@ -8,15 +8,17 @@
 //! the recorder drops frames (their headers are still recorded) and counts them; a frame the
 //! recorder never saw (its queue overflowed) is counted too.
 
-use crate::bus::{event_loop, Bus, BusError, Flow, FrameSample};
+use crate::bus::{
+    event_loop, Bus, BusError, Flow, FrameSample, Listener, Message, MessageSubscriber, Rejections,
+};
 use crate::config::PipelineConfig;
-use crate::stage::{Heartbeat, Process, RunError, StageArgs};
+use crate::stage::{Heartbeat, Process, RunError, StageArgs, LAUNCHER_OUTPUTS};
 use crossbeam_channel::{bounded, Receiver, Sender, TrySendError};
 use deckwatch_common::messages::{
     monotonic_ns, AttitudeMessage, Channel, FrameHeader, GapCounter, LandingDecision, LinkTraffic,
     MarkerMessage, StageLog, VehicleSample,
 };
-use deckwatch_flight::{FlightWriter, FrameEncoding, RecordConfig, RecorderStats, TimeBase, WriterOptions};
+use deckwatch_flight::{FlightWriter, RecordConfig, RecorderStats, TimeBase, WriterOptions};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -29,21 +31,10 @@ pub struct Recorder;
 impl Process for Recorder {
     const NAME: &'static str = "record";
     const OUTPUTS: &'static [&'static str] = &[];
-    /// Markers first: the recorder is up when it follows them (it subscribes to the frames, when
-    /// it records them, before).
+    /// Every service of the topology ([`recorded_services`]): the first, markers, says the
+    /// recorder is up (it subscribes to the frames, when it records them, before).
     fn inputs(config: &PipelineConfig) -> Vec<&'static str> {
-        let frames = config.record.records_frames().then_some(FrameHeader::SERVICE);
-        [MarkerMessage::SERVICE]
-            .into_iter()
-            .chain(frames)
-            .chain([
-                AttitudeMessage::SERVICE,
-                LandingDecision::SERVICE,
-                VehicleSample::SERVICE,
-                StageLog::SERVICE,
-                LinkTraffic::SERVICE,
-            ])
-            .collect()
+        recorded_services(config)
     }
     fn runs(config: &PipelineConfig) -> bool {
         config.record.enabled()
@@ -55,6 +46,93 @@ impl Process for Recorder {
 
 /// The process's name: its node, its binary (`deckwatch-record`), its log lines.
 pub const NAME: &str = <Recorder as Process>::NAME;
+
+/// What the recorder takes in under `config`, from the topology: every service a process of
+/// [`super::PROCESSES`] puts out and the launcher's ([`LAUNCHER_OUTPUTS`]), each once, in the
+/// topology's order; the frames only when their pixels are recorded, and then after the first
+/// of the others (the first stage's output, markers), which says that the recorder is up.
+pub fn recorded_services(config: &PipelineConfig) -> Vec<&'static str> {
+    let mut services: Vec<&'static str> = Vec::new();
+    let outputs = super::PROCESSES.iter().flat_map(|p| p.outputs.iter());
+    for &service in outputs.chain(LAUNCHER_OUTPUTS.iter()) {
+        if service != FrameHeader::SERVICE && !services.contains(&service) {
+            services.push(service);
+        }
+    }
+    if config.record.records_frames() {
+        services.insert(services.len().min(1), FrameHeader::SERVICE);
+    }
+    services
+}
+
+/// A message the recorder writes: the writer's item for it.
+trait Recorded: Message {
+    fn item(self) -> Item;
+}
+
+macro_rules! recorded {
+    ($($ty:ty => $variant:ident),+ $(,)?) => {$(
+        impl Recorded for $ty {
+            fn item(self) -> Item {
+                Item::$variant(self)
+            }
+        }
+    )+};
+}
+
+recorded!(
+    MarkerMessage => Markers,
+    AttitudeMessage => Attitude,
+    LandingDecision => Decision,
+    VehicleSample => Vehicle,
+    LinkTraffic => Link,
+    StageLog => Log,
+);
+
+/// A message service the recorder follows.
+trait Followed {
+    fn listener(&self) -> &Listener;
+    /// Its messages skipped for a bad enum or boolean.
+    fn rejections(&self) -> &Rejections;
+    /// Its next message, as the writer's item.
+    fn receive(&self) -> Result<Option<Item>, BusError>;
+}
+
+impl<M: Recorded> Followed for MessageSubscriber<M> {
+    fn listener(&self) -> &Listener {
+        MessageSubscriber::listener(self)
+    }
+
+    fn rejections(&self) -> &Rejections {
+        MessageSubscriber::rejections(self)
+    }
+
+    fn receive(&self) -> Result<Option<Item>, BusError> {
+        Ok(MessageSubscriber::receive(self)?.map(M::item))
+    }
+}
+
+/// How the recorder subscribes to a service.
+type Subscribe = fn(&Bus) -> Result<Box<dyn Followed>, BusError>;
+
+fn follow<M: Recorded>(bus: &Bus) -> Result<Box<dyn Followed>, BusError> {
+    Ok(Box::new(bus.subscriber::<M>()?))
+}
+
+/// How the recorder follows a message service of the topology (None: one whose messages it has
+/// no writer for; a test holds every service of the topology to having one).
+fn subscriber_for(service: &str) -> Option<Subscribe> {
+    let subscribe: Subscribe = match service {
+        MarkerMessage::SERVICE => follow::<MarkerMessage>,
+        AttitudeMessage::SERVICE => follow::<AttitudeMessage>,
+        LandingDecision::SERVICE => follow::<LandingDecision>,
+        VehicleSample::SERVICE => follow::<VehicleSample>,
+        LinkTraffic::SERVICE => follow::<LinkTraffic>,
+        StageLog::SERVICE => follow::<StageLog>,
+        _ => return None,
+    };
+    Some(subscribe)
+}
 
 /// What the writer thread is handed.
 enum Item {
@@ -116,17 +194,18 @@ fn run(config: PipelineConfig, args: &StageArgs) -> Result<String, RunError> {
     unsafe { libc::setpriority(libc::PRIO_PROCESS, 0, RECORDER_NICE) };
     crate::bus::quiet_logging();
     let bus = Bus::join(&config.bus.settings(1), NAME)?;
-    let frames = if rc.frames != FrameEncoding::None {
+    let services = recorded_services(&config);
+    let frames = if services.contains(&FrameHeader::SERVICE) {
         Some(bus.frame_subscriber()?)
     } else {
         None
     };
-    let markers = bus.subscriber::<MarkerMessage>()?;
-    let attitudes = bus.subscriber::<AttitudeMessage>()?;
-    let decisions = bus.subscriber::<LandingDecision>()?;
-    let vehicle = bus.subscriber::<VehicleSample>()?;
-    let logs = bus.subscriber::<StageLog>()?;
-    let link = bus.subscriber::<LinkTraffic>()?;
+    let mut channels: Vec<Box<dyn Followed>> = Vec::with_capacity(services.len());
+    for &service in services.iter().filter(|&&s| s != FrameHeader::SERVICE) {
+        let subscribe = subscriber_for(service)
+            .ok_or_else(|| RunError::Record(format!("no writer for the messages of `{service}`")))?;
+        channels.push(subscribe(&bus)?);
+    }
 
     let started_ns = monotonic_ns();
     let time_base = TimeBase::measure();
@@ -160,14 +239,7 @@ fn run(config: PipelineConfig, args: &StageArgs) -> Result<String, RunError> {
     heartbeat.beat();
     let mut next_stats_ns = monotonic_ns() + 1_000_000_000;
     let mut writer_gone = false;
-    let mut listeners = vec![
-        markers.listener(),
-        attitudes.listener(),
-        decisions.listener(),
-        vehicle.listener(),
-        logs.listener(),
-        link.listener(),
-    ];
+    let mut listeners: Vec<&Listener> = channels.iter().map(|c| c.listener()).collect();
     if let Some(f) = &frames {
         listeners.push(f.listener());
     }
@@ -226,9 +298,21 @@ fn run(config: PipelineConfig, args: &StageArgs) -> Result<String, RunError> {
             }
         };
         let mut ok = true;
-        while let Some(m) = markers.receive()? {
-            detect_done = Some(m.stamp.seq);
-            ok &= send_message(Item::Markers(m), &mut stats);
+        let drain = |channel: &dyn Followed, stats: &mut RecorderStats, detect_done: &mut Option<u64>| {
+            let mut ok = true;
+            while let Some(item) = channel.receive()? {
+                if let Item::Markers(m) = &item {
+                    *detect_done = Some(m.stamp.seq);
+                }
+                ok &= send_message(item, stats);
+            }
+            Ok::<bool, BusError>(ok)
+        };
+        // The first service (markers, from the stage that takes the frames in) before the
+        // frames: a frame is held until detect has done with it.
+        let (first, rest) = channels.split_at(channels.len().min(1));
+        for channel in first {
+            ok &= drain(channel.as_ref(), &mut stats, &mut detect_done)?;
         }
         if let Some(f) = &frames {
             let now = monotonic_ns();
@@ -253,20 +337,8 @@ fn run(config: PipelineConfig, args: &StageArgs) -> Result<String, RunError> {
                 }
             }
         }
-        while let Some(m) = attitudes.receive()? {
-            ok &= send_message(Item::Attitude(m), &mut stats);
-        }
-        while let Some(m) = decisions.receive()? {
-            ok &= send_message(Item::Decision(m), &mut stats);
-        }
-        while let Some(m) = vehicle.receive()? {
-            ok &= send_message(Item::Vehicle(m), &mut stats);
-        }
-        while let Some(m) = logs.receive()? {
-            ok &= send_message(Item::Log(m), &mut stats);
-        }
-        while let Some(m) = link.receive()? {
-            ok &= send_message(Item::Link(m), &mut stats);
+        for channel in rest {
+            ok &= drain(channel.as_ref(), &mut stats, &mut detect_done)?;
         }
         let now = monotonic_ns();
         if now >= next_stats_ns {
@@ -290,17 +362,8 @@ fn run(config: PipelineConfig, args: &StageArgs) -> Result<String, RunError> {
         .join()
         .map_err(|_| RunError::Record("the writer thread panicked".into()))?;
     let bytes = result.map_err(|e| RunError::Record(e.to_string()))?;
-    let rejected: u64 = [
-        markers.rejections().count(),
-        attitudes.rejections().count(),
-        decisions.rejections().count(),
-        vehicle.rejections().count(),
-        logs.rejections().count(),
-        link.rejections().count(),
-        frames.as_ref().map_or(0, |f| f.rejections().count()),
-    ]
-    .iter()
-    .sum();
+    let rejected: u64 = channels.iter().map(|c| c.rejections().count()).sum::<u64>()
+        + frames.as_ref().map_or(0, |f| f.rejections().count());
     let _ = end;
     let elapsed_s = (monotonic_ns().saturating_sub(started_ns)) as f64 / 1e9;
     let (user_s, system_s) = cpu_seconds();
@@ -453,4 +516,53 @@ fn write_item(
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use deckwatch_common::messages::StageHeartbeat;
+    use deckwatch_flight::FrameEncoding;
+
+    fn recording(frames: FrameEncoding) -> PipelineConfig {
+        let mut c = PipelineConfig::default();
+        c.record.path = Some("flight.mcap".into());
+        c.record.frames = frames;
+        c
+    }
+
+    /// The recorder follows what the topology puts out, every service once and each with a
+    /// writer: every process's outputs and the launcher's log lines; the frames only when their
+    /// pixels are recorded, behind the markers, which say that it is up. Not the heartbeats.
+    #[test]
+    fn the_recorder_follows_every_service_of_the_topology() {
+        let with_frames = recorded_services(&recording(FrameEncoding::Raw));
+        assert_eq!(
+            with_frames,
+            [
+                MarkerMessage::SERVICE,
+                FrameHeader::SERVICE,
+                AttitudeMessage::SERVICE,
+                LandingDecision::SERVICE,
+                VehicleSample::SERVICE,
+                LinkTraffic::SERVICE,
+                StageLog::SERVICE,
+            ]
+        );
+        let headers_only = recorded_services(&recording(FrameEncoding::None));
+        let without_frames: Vec<_> = with_frames
+            .iter()
+            .copied()
+            .filter(|&s| s != FrameHeader::SERVICE)
+            .collect();
+        assert_eq!(headers_only, without_frames);
+        let produced = super::super::PROCESSES.iter().flat_map(|p| p.outputs.iter());
+        for service in produced.chain(LAUNCHER_OUTPUTS.iter()) {
+            assert!(with_frames.contains(service), "{service} is not recorded");
+        }
+        for service in &without_frames {
+            assert!(subscriber_for(service).is_some(), "no writer for {service}");
+        }
+        assert!(!with_frames.contains(&StageHeartbeat::SERVICE));
+    }
 }

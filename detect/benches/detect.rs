@@ -1,6 +1,8 @@
 //! Detector speed on 3280x2464 simulator frames (rpi-v2, realistic noise and blur, ship motion),
 //! one thread: `cargo bench -p deckwatch-detect --bench detect`. Tracked detection also at
-//! 640x480 (a Pi's 30 fps stream), where the discs are small (radius about 5 px from 5 m).
+//! 640x480 (a Pi's 30 fps stream), where the discs are small (radius about 5 px from 5 m), and
+//! there through a lens blurred to a deviation of 2.5 px (the discs measured by their blurred
+//! pass, `measure/blurred.rs`).
 //!
 //! Criterion measures full-frame and tracked detection; then, in the same run, a plain timing
 //! loop measures the detector and the OpenCV baseline (`opencv_baseline.py`: threshold +
@@ -16,7 +18,11 @@ use deckwatch_sim::{FrameSimulator, RenderOptions, Renderer, Scenario};
 use std::time::Instant;
 
 fn render_frames(cam: CameraModel, n: u64) -> Vec<GrayImage> {
-    let r = Renderer::new(cam, DeckLayout::paper(), RenderOptions::realistic(), 3).unwrap();
+    render_frames_with(cam, n, RenderOptions::realistic())
+}
+
+fn render_frames_with(cam: CameraModel, n: u64, options: RenderOptions) -> Vec<GrayImage> {
+    let r = Renderer::new(cam, DeckLayout::paper(), options, 3).unwrap();
     let mut sim = FrameSimulator::new(Scenario::Ship.profile(3, 1.0), r, 1.0, 0.0, 1, 3).unwrap();
     (0..n)
         .map(|k| {
@@ -55,6 +61,18 @@ fn main() {
     c.bench_function("detect_640x480/tracked", |b| {
         let mut k = 0;
         b.iter_custom(|iters| tracked(&mut small_det, &small_frames, &mut k, iters))
+    });
+    let blurred_frames = render_frames_with(
+        small_cam,
+        8,
+        RenderOptions {
+            optical_blur_px: 2.5,
+            ..RenderOptions::realistic()
+        },
+    );
+    c.bench_function("detect_640x480_blurred/tracked", |b| {
+        let mut k = 0;
+        b.iter_custom(|iters| tracked(&mut small_det, &blurred_frames, &mut k, iters))
     });
     let mut group = c.benchmark_group("detect_3280x2464");
     let mut k = 0;

@@ -3,6 +3,13 @@
 
 use super::*;
 
+mod blurred;
+mod coverage;
+
+use blurred::BlurredCentre;
+pub(super) use blurred::{BLURRED_EDGE_SIGMA_PX, SAME_DISC_PX};
+use coverage::{Coverage, RowCoverage};
+
 impl Detector {
     /// Measures the blob in a region (x0, y0, x1, y1), half-open.
     ///
@@ -14,6 +21,17 @@ impl Detector {
         &mut self,
         frame: GrayView<'_>,
         roi: (usize, usize, usize, usize),
+    ) -> Result<Candidate, Rejection> {
+        self.measure_in(frame, roi, true)
+    }
+
+    /// [`Self::measure`]; `may_grow`: a blurred disc whose tail the region cuts is measured
+    /// again, once, in a region that holds it (see [`Self::blurred_centre`]).
+    fn measure_in(
+        &mut self,
+        frame: GrayView<'_>,
+        roi: (usize, usize, usize, usize),
+        may_grow: bool,
     ) -> Result<Candidate, Rejection> {
         let (x0, y0, x1, y1) = roi;
         let (rw, rh) = (x1 - x0, y1 - y0);
@@ -209,25 +227,48 @@ impl Detector {
         if small {
             window = self.window_centre(frame, &disc, (window.u, window.v))?;
         }
-        let WindowCentre {
-            u,
-            v,
-            coverage: cw,
-            weighed,
-            edge_sigma_px,
-        } = window;
         let plateau = p_at(seed.0, seed.1);
         let contrast = plateau - b_at(seed.0, seed.1);
+        let std_of = |w: &WindowCentre| centre_std_px(w.weighed, [w.u, w.v], w.coverage, noise_dn / contrast);
+        let mut centre = [window.u, window.v, std_of(&window)];
+        if small && window.edge_sigma_px > BLURRED_EDGE_SIGMA_PX {
+            match self.blurred_centre(frame, &disc, &window, a, roundness) {
+                BlurredCentre::Measured(wide) => {
+                    // Only the centre and the blur's width: the area stays the banded
+                    // window's, which identification's size check is measured on (the wide
+                    // window's sum follows the tone curve's lift of the tail: a filmic curve
+                    // left no pattern identified).
+                    centre = blurred::combined_centre(centre, [wide.u, wide.v, std_of(&wide)]);
+                    window.edge_sigma_px = wide.edge_sigma_px;
+                }
+                BlurredCentre::Cut(grown) if may_grow => {
+                    // Its centre measured again in a region that holds the blur's tail, its
+                    // border (the background) beyond it (the rest as measured here, as
+                    // identification knows it); where that finds no disc (another one in the
+                    // region), the banded window's centre stands.
+                    match self.measure_in(frame, grown, false) {
+                        // The same disc (the grown region's brightest may be another's).
+                        Ok(c) if (c.u - centre[0]).hypot(c.v - centre[1]) < SAME_DISC_PX => {
+                            centre = [c.u, c.v, c.centre_std_px];
+                            window.edge_sigma_px = c.edge_sigma_px;
+                        }
+                        _ => {}
+                    }
+                }
+                BlurredCentre::Cut(_) => {}
+            }
+        }
+        let [u, v, centre_std_px] = centre;
         Ok(Candidate {
             u,
             v,
-            area: cw,
+            area: window.coverage,
             plateau,
             contrast,
             roundness,
             radius: (area / std::f64::consts::PI).sqrt(),
-            centre_std_px: centre_std_px(weighed, [u, v], cw, noise_dn / contrast),
-            edge_sigma_px,
+            centre_std_px,
+            edge_sigma_px: window.edge_sigma_px,
         })
     }
 
@@ -397,65 +438,6 @@ fn floor_at_most(v: f64, max: usize) -> Option<usize> {
     match v < max as f64 {
         true => (v >= 0.0).then_some(v as usize),
         false => Some(max),
-    }
-}
-
-/// A pixel's coverage, `(I - background) / (plateau - background)` (at most 1), both planes
-/// known: the reciprocal of their difference, which changes little across a disc, taken to
-/// first order about the disc's centre (relative error the square of the difference's
-/// change over the window, below 1e-4 for a 1 % change), so that no pixel needs a division.
-struct Coverage {
-    bg: [f64; 3],
-    /// The reciprocal at the centre, and its change per pixel in x and y.
-    inv: [f64; 3],
-    centre: (f64, f64),
-}
-
-impl Coverage {
-    /// `bg`: the background plane in frame coordinates; `plateau`: the plateau's, about the
-    /// region's corner `(x0, y0)`; `centre`: the disc's centre.
-    fn new(bg: [f64; 3], plateau: [f64; 3], (x0, y0): (usize, usize), centre: (f64, f64)) -> Self {
-        let (cx, cy) = centre;
-        let span = plateau[0] + plateau[1] * (cx - x0 as f64) + plateau[2] * (cy - y0 as f64)
-            - (bg[0] + bg[1] * cx + bg[2] * cy);
-        let i0 = 1.0 / span;
-        Self {
-            bg,
-            inv: [
-                i0,
-                -(plateau[1] - bg[1]) * i0 * i0,
-                -(plateau[2] - bg[2]) * i0 * i0,
-            ],
-            centre,
-        }
-    }
-
-    fn row(&self, y: usize) -> RowCoverage {
-        let yf = y as f64;
-        RowCoverage {
-            b0: self.bg[0] + self.bg[2] * yf,
-            b1: self.bg[1],
-            i0: self.inv[0] + self.inv[2] * (yf - self.centre.1),
-            i1: self.inv[1],
-            cx: self.centre.0,
-        }
-    }
-}
-
-/// [`Coverage`] on one row.
-struct RowCoverage {
-    b0: f64,
-    b1: f64,
-    i0: f64,
-    i1: f64,
-    cx: f64,
-}
-
-impl RowCoverage {
-    #[inline(always)]
-    fn at(&self, x: usize, pixel: u8) -> f64 {
-        let xf = x as f64;
-        ((pixel as f64 - self.b0 - self.b1 * xf) * (self.i0 + self.i1 * (xf - self.cx))).min(1.0)
     }
 }
 

@@ -68,6 +68,28 @@ def rmse(errs, i):
     return math.sqrt(sum(e[i] ** 2 for e in errs) / len(errs)) if errs else float("nan")
 
 
+def full_pose_errors(eval_csv):
+    """The full pose's rows of a `deckwatch eval --csv` file: (errors, estimates, frames missed,
+    errors within 2 stated deviations per angle, rows with a finite deviation); angles roll,
+    pitch, yaw (deg)."""
+    errors, estimates, missed, inside, counted = [], [], 0, [0, 0, 0], 0
+    for r in csv.DictReader(open(eval_csv)):
+        if r["estimator"] != "full-pose":
+            continue
+        if r["valid"] != "1":
+            missed += 1
+            continue
+        e = [float(r[c]) for c in ("err_roll_deg", "err_pitch_deg", "err_yaw_deg")]
+        sd = [float(r[c]) for c in ("std_roll_deg", "std_pitch_deg", "std_yaw_deg")]
+        errors.append(e)
+        estimates.append([float(r[c]) for c in ("roll_deg", "pitch_deg", "yaw_deg")])
+        if all(math.isfinite(x) for x in sd):
+            counted += 1
+            for i in range(3):
+                inside[i] += abs(e[i]) <= 2 * sd[i]
+    return errors, estimates, missed, inside, counted
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("binary")
@@ -93,20 +115,7 @@ def main():
                     check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
             eval_csv = rec + "-eval.csv"
             subprocess.run([a.binary, "eval", rec, "--csv", eval_csv], check=True, stdout=subprocess.DEVNULL)
-            ours, missed, inside, counted = [], 0, [0, 0, 0], 0
-            for r in csv.DictReader(open(eval_csv)):
-                if r["estimator"] != "full-pose":
-                    continue
-                if r["valid"] != "1":
-                    missed += 1
-                    continue
-                e = [float(r[c]) for c in ("err_roll_deg", "err_pitch_deg", "err_yaw_deg")]
-                sd = [float(r[c]) for c in ("std_roll_deg", "std_pitch_deg", "std_yaw_deg")]
-                ours.append(e)
-                if all(math.isfinite(x) for x in sd):
-                    counted += 1
-                    for i in range(3):
-                        inside[i] += abs(e[i]) <= 2 * sd[i]
+            ours, _, missed, inside, counted = full_pose_errors(eval_csv)
             base_csv = rec + "-opencv.csv"
             with open(base_csv, "w", newline="") as f:
                 opencv_pose_baseline.evaluate(rec, csv.writer(f))

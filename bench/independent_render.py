@@ -82,6 +82,10 @@ import sys
 import cv2
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+# The baseline's elementary rotations (CONVENTIONS.md §2), the one other implementation here.
+from opencv_pose_baseline import rot  # noqa: E402
+
 cv2.setNumThreads(1)
 
 R_CW = np.array([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
@@ -91,15 +95,6 @@ DISC_LEVEL = 0.80  # the discs'
 
 # ---------------------------------------------------------------------------------------------
 # Geometry (CONVENTIONS.md §2, §3, §5)
-
-
-def rot(axis, a):
-    c, s = math.cos(a), math.sin(a)
-    if axis == "x":
-        return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
-    if axis == "y":
-        return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
-    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
 
 
 def rpy_matrix_deg(roll, pitch, yaw):
@@ -450,28 +445,13 @@ def slope_pct(x, y):
 
 
 def measure_one(binary, rec):
-    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     import opencv_pose_baseline  # noqa: E402
-    from imaging_models import rmse  # noqa: E402
+    from imaging_models import full_pose_errors, rmse  # noqa: E402
 
     eval_csv = rec.rstrip("/") + "-eval.csv"
     subprocess.run([binary, "eval", rec, "--csv", eval_csv], check=True, stdout=subprocess.DEVNULL)
-    ours, truth, missed, inside, counted = [], [], 0, [0, 0, 0], 0
-    for r in csv.DictReader(open(eval_csv)):
-        if r["estimator"] != "full-pose":
-            continue
-        if r["valid"] != "1":
-            missed += 1
-            continue
-        e = [float(r[c]) for c in ("err_roll_deg", "err_pitch_deg", "err_yaw_deg")]
-        est = [float(r[c]) for c in ("roll_deg", "pitch_deg", "yaw_deg")]
-        sd = [float(r[c]) for c in ("std_roll_deg", "std_pitch_deg", "std_yaw_deg")]
-        ours.append(e)
-        truth.append([est[i] - e[i] for i in range(3)])
-        if all(math.isfinite(x) for x in sd):
-            counted += 1
-            for i in range(3):
-                inside[i] += abs(e[i]) <= 2 * sd[i]
+    ours, estimates, missed, inside, counted = full_pose_errors(eval_csv)
+    truth = [[est[i] - e[i] for i in range(3)] for e, est in zip(ours, estimates)]
     base_csv = rec.rstrip("/") + "-opencv.csv"
     with open(base_csv, "w", newline="") as f:
         opencv_pose_baseline.evaluate(rec, csv.writer(f))

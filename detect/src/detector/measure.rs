@@ -6,8 +6,7 @@ use super::*;
 mod blurred;
 mod coverage;
 
-use blurred::BlurredCentre;
-pub(super) use blurred::{BLURRED_EDGE_SIGMA_PX, SAME_DISC_PX};
+use blurred::{BlurredCentre, BLURRED_EDGE_SIGMA_PX, SAME_DISC_PX};
 use coverage::{Coverage, RowCoverage};
 
 impl Detector {

@@ -7,7 +7,7 @@ use deckwatch_common::image::GrayView;
 
 /// An edge blurred beyond this deviation (px) is measured by [`Detector::blurred_centre`]: the
 /// banded window reaches 2 deviations up to 1.5 px.
-pub(in crate::detector) const BLURRED_EDGE_SIGMA_PX: f64 = 1.5;
+pub(super) const BLURRED_EDGE_SIGMA_PX: f64 = 1.5;
 /// How far beyond the edge a blurred disc's window reaches, in deviations of the edge's blur:
 /// a Gaussian edge's coverage is 0.13 % at 3.
 const BLURRED_REACH_PER_EDGE_SIGMA: f64 = 3.0;
@@ -17,7 +17,7 @@ const BLURRED_CONVERGED_PX: f64 = 3e-3;
 const BLURRED_MAX_PASSES: usize = 4;
 /// A blurred disc measured again in a grown region is the same disc if its centre is within
 /// this of the first measurement's (px).
-pub(in crate::detector) const SAME_DISC_PX: f64 = 0.5;
+pub(super) const SAME_DISC_PX: f64 = 0.5;
 /// A blurred disc's window grows with the spread its second moments measure, up to this many
 /// times the edge's (the banded window's measure falls short of a wide blur: 2 for 3 px; the
 /// moments of a large disc's wide window carry its background's errors).

@@ -105,7 +105,8 @@ impl Detector {
     /// alike). The ring alone is symmetric: the sizes are what tells the bow apart when
     /// perspective makes a near ring disc look large (low over a tilted deck), and a wrong
     /// slot when four markers fit any homography. Small discs' areas are uncertain by about
-    /// twice their radius' (a pixel of edge), so the tolerance widens for them.
+    /// twice their radius' (a pixel of edge), so the tolerance widens for them; blurred discs'
+    /// common scale by the edge's blur.
     pub(super) fn consistency(&self, assigned: &[(usize, Candidate)]) -> Option<f64> {
         let (src, dst) = self.correspondences(assigned)?;
         let h = homography::fit(&src, &dst)?;
@@ -134,7 +135,14 @@ impl Detector {
             .fold(f64::INFINITY, f64::min);
         // Sizes within 35 % of one another (more for small discs), the common scale within 2x.
         let tolerance = 1.35f64.ln() + 2.0 / smallest_px.max(1.0);
-        (spread <= tolerance && median.abs() <= 2f64.ln()).then_some(spread + residual)
+        // A blurred edge's apparent place depends on the camera's tone curve (a filmic curve
+        // lifts the tail: twice the area at a 2.5 px blur on 5 px discs): the common scale
+        // may grow by an edge shift of twice the blur beyond a pixel's. The spread stays: it
+        // tells the bow marker apart.
+        let blur_px = assigned.iter().map(|(_, c)| c.edge_sigma_px).fold(0.0, f64::max);
+        let edge_shift_px = 2.0 * (blur_px - 1.0).max(0.0);
+        let scale_limit = 2f64.ln() + 2.0 * (1.0 + edge_shift_px / smallest_px.max(1.0)).ln();
+        (spread <= tolerance && median.abs() <= scale_limit).then_some(spread + residual)
     }
 
     /// RMS residual (pixels) of the deck-to-image homography through the assigned markers.

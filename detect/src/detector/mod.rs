@@ -558,6 +558,36 @@ mod tests {
         assert_eq!(det.searches().tracked, 1);
     }
 
+    /// A camera whose tone curve lifts a blurred edge (a filmic S-curve, after a 2.5 px blur at
+    /// 640x480) makes every disc measure about twice its area: the common scale is then beyond
+    /// 2x, which the size check allows for in proportion to the measured blur. Without that
+    /// the same frame lost most of its markers (the independent renderer's `filmic` model).
+    #[test]
+    fn a_tone_curve_that_grows_blurred_discs_keeps_them_identified() {
+        use deckwatch_common::GrayImage;
+        use deckwatch_sim::{FrameSimulator, RenderOptions, Renderer, Scenario};
+        let cam = CameraModel::rpi_v2().scaled_to(640, 480);
+        let deck = DeckLayout::paper();
+        let options = RenderOptions {
+            optical_blur_px: 2.5,
+            ..RenderOptions::default()
+        };
+        let r = Renderer::new(cam, deck, options, 3).unwrap();
+        let mut sim = FrameSimulator::new(Scenario::Ship.profile(3, 1.0), r, 1.0, 0.0, 1, 3).unwrap();
+        let mut frame = GrayImage::new(640, 480);
+        sim.render_frame(0, &mut frame.view_mut()).unwrap();
+        // A logistic in log2 exposure about middle grey, rescaled to keep 0 and 1.
+        let logistic = |x: f64| 1.0 / (1.0 + (-1.4 * (x.max(1e-6) / 0.18).log2()).exp());
+        let (lo, hi) = (logistic(1e-6), logistic(1.0));
+        for p in frame.data.iter_mut() {
+            let x = f64::from(*p) / 255.0;
+            *p = (255.0 * (logistic(x) - lo) / (hi - lo)).round().clamp(0.0, 255.0) as u8;
+        }
+        let mut det = Detector::new(cam, deck, DetectorConfig::for_camera(&cam, &deck));
+        let set = det.detect(frame.view());
+        assert_eq!(set.count, 9, "{:?}", set.status);
+    }
+
     #[test]
     fn subsets() {
         let mut all = Vec::new();

@@ -105,14 +105,18 @@ impl FlightPath {
 pub type SharedFlightPath = Arc<Mutex<FlightPath>>;
 
 /// The scene of one approach: the sea `sea_offset_s` into its motion (the approach's t = 0 is
-/// the vehicle's arrival over the deck), the camera `offset_m` from the deck centre, carried by
-/// a swaying vehicle at the flight path's height.
+/// when the landing is asked for, the vehicle over the deck), the camera `offset_m` from the
+/// deck centre, carried by a swaying vehicle at the flight path's height. The source's first
+/// frame is at the approach's `first_frame_s` (0, or before when the vehicle held over the deck
+/// before the landing was asked for): a frame at the source's `t` shows the approach's
+/// `t + first_frame_s`.
 pub struct ClosedLoopScene<P> {
     pub sea: P,
     pub sway: VehicleSway,
     pub path: SharedFlightPath,
     pub sea_offset_s: f64,
     pub offset_m: [f64; 2],
+    pub first_frame_s: f64,
 }
 
 impl<P: MotionProfile> ClosedLoopScene<P> {
@@ -125,19 +129,24 @@ impl<P: MotionProfile> ClosedLoopScene<P> {
 }
 
 impl<P: MotionProfile> MotionProfile for ClosedLoopScene<P> {
-    fn sample(&self, t_s: f64) -> MotionSample {
+    /// At the source's `source_t_s` (the sample keeps that time: the frame's).
+    fn sample(&self, source_t_s: f64) -> MotionSample {
+        let t_s = source_t_s + self.first_frame_s;
         let mut s = self.deck(t_s);
+        s.t_s = source_t_s;
         // A poisoned lock only means a panic elsewhere; the path itself is still whole.
         let path = self.path.lock().unwrap_or_else(|e| e.into_inner());
         let altitude_m = path.over_deck_m(t_s, s.deck_heave_m);
         s.viewpoint = Viewpoint::level(self.offset_m[0], self.offset_m[1], altitude_m)
-            .with_vehicle_attitude(self.vehicle_attitude(t_s));
+            .with_vehicle_attitude(self.vehicle_attitude(source_t_s));
         s
     }
 
-    /// The sway alone: the sea need not be summed for it.
-    fn vehicle_attitude(&self, t_s: f64) -> RotationMatrix {
-        self.sway.attitude(t_s + self.sea_offset_s).to_matrix()
+    /// The sway alone (the sea need not be summed for it), at the source's time.
+    fn vehicle_attitude(&self, source_t_s: f64) -> RotationMatrix {
+        self.sway
+            .attitude(source_t_s + self.first_frame_s + self.sea_offset_s)
+            .to_matrix()
     }
 }
 

@@ -27,19 +27,28 @@ pub enum PipelineRule {
 
 /// The approach's clock: frame k is captured at `EPOCH_NS + k / rate_hz` (simulated
 /// `CLOCK_MONOTONIC`), and each of capture, detect and estimate takes `stage_latency_ns`.
+/// The approach's t = 0 is when the landing is asked for; the vehicle may have held over the
+/// deck `watch_before_s` before that, its camera on and its decisions not acted on (frame 0 at
+/// t = -`watch_before_s`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ApproachTiming {
     pub rate_hz: f64,
     pub stage_latency_ns: u64,
+    pub watch_before_s: f64,
 }
 
-/// The simulated monotonic clock's reading at the approach's t = 0.
+/// The simulated monotonic clock's reading at the first frame.
 pub const EPOCH_NS: u64 = 1_000_000_000;
 
 impl ApproachTiming {
     /// The simulated clock's reading at the approach's `t_s`.
     pub fn time_ns(&self, t_s: f64) -> u64 {
-        EPOCH_NS.saturating_add((t_s.max(0.0) * 1e9) as u64)
+        EPOCH_NS.saturating_add(((t_s + self.watch_before_s).max(0.0) * 1e9) as u64)
+    }
+
+    /// The approach's time of frame `k`.
+    pub fn frame_s(&self, k: u64) -> f64 {
+        k as f64 / self.rate_hz - self.watch_before_s
     }
 
     /// Capture to the decision reaching the autopilot: three stages.
@@ -132,12 +141,12 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
     pipeline_for: impl FnOnce(ClosedLoopScene<TrialSea>) -> Result<P, E>,
 ) -> Result<ApproachOutcome, E> {
     let path: SharedFlightPath = Arc::new(Mutex::new(FlightPath::hover(model.hover_m)));
-    let mut pipeline = pipeline_for(world.scene(path.clone()))?;
+    let mut pipeline = pipeline_for(world.scene(path.clone(), timing.frame_s(0)))?;
     let reaction_s = timing.reaction_s();
     let mut autopilot = SimulatedAutopilot::new(*model, path.clone());
     let mut follow = DecisionFollower::default();
     let mut out = ApproachOutcome::default();
-    let mut next_vehicle_s = -0.05;
+    let mut next_vehicle_s = timing.frame_s(0) - 0.05;
     let mut vehicle_seq = 0;
     // When decide last spoke or its watchdog last looked (s, the approach's time).
     let mut last_looked_s = f64::NEG_INFINITY;
@@ -147,7 +156,7 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
         TouchdownVerdict::judge(&|t| world.truth(t), &r_d, &r_v, t, capacity, model)
     };
     for k in 0u64.. {
-        let t = k as f64 / timing.rate_hz;
+        let t = timing.frame_s(k);
         let t_decided = t + reaction_s;
         if let Some(contact) = autopilot.contact_s().filter(|&c| c <= t_decided) {
             out.touchdown = Some(TouchdownVerdict {
@@ -216,7 +225,7 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
                         if rule == PipelineRule::Deckwatch {
                             out.decisions += 1;
                             let c = follow_decision(&mut out, &mut follow, &autopilot, &d, look_s);
-                            if c != Command::Wait && look_s < t_decided {
+                            if c != Command::Wait && (0.0..t_decided).contains(&look_s) {
                                 // Acted on when it was said, not at the frame's time.
                                 act_and_note(
                                     &mut autopilot,
@@ -247,6 +256,9 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
                 }
             }
         };
+        // Before the landing is asked for the decisions are followed (a clearance seen then is
+        // not fresh after) but not acted on.
+        let command = if t_decided < 0.0 { Command::Wait } else { command };
         act_and_note(
             &mut autopilot,
             &mut pipeline,
@@ -315,7 +327,7 @@ mod tests {
             };
             attitude.vehicle.compensation = Compensation::Stream.into();
             attitude.stamp.seq = self.seq;
-            attitude.context.source_timestamp_ns = (t_s * 1e9) as u64;
+            attitude.context.source_timestamp_ns = ((t_s + self.timing.watch_before_s) * 1e9) as u64;
             attitude.stamp.times.captured_ns = self.timing.time_ns(t_s);
             self.seq += 1;
             let received_ns = attitude.stamp.times.captured_ns + 6_000_000;
@@ -372,26 +384,29 @@ mod tests {
         approach: Approach,
         faults: FrameFaultModel,
     ) -> ApproachOutcome {
-        fly_through(rule, capacity, approach, faults, None)
+        fly_through(rule, capacity, approach, faults, None, 0.0)
     }
 
     /// The same, the pipeline silent once `silent_after_clear` frames followed the first
-    /// clearance.
+    /// clearance, the vehicle over the deck `watch_before_s` before the landing is asked for.
     fn fly_through(
         rule: PipelineRule,
         capacity: DecisionConfig,
         approach: Approach,
         faults: FrameFaultModel,
         silent_after_clear: Option<u32>,
+        watch_before_s: f64,
     ) -> ApproachOutcome {
         let model = ApproachModel {
             max_approach_s: 90.0,
             ..ApproachModel::quadrotor(capacity.touchdown_s)
         };
-        let world = ApproachWorld::new(approach, None, 0.3, model.max_approach_s).unwrap();
+        let world =
+            ApproachWorld::watched(approach, None, 0.3, model.max_approach_s, watch_before_s).unwrap();
         let timing = ApproachTiming {
             rate_hz: 10.0,
             stage_latency_ns: 2_000_000,
+            watch_before_s,
         };
         let mut faults = FrameFaults::new(&faults, timing.rate_hz, approach.approach_seed());
         let mut noted = Vec::new();
@@ -432,6 +447,43 @@ mod tests {
             "{out:?}"
         );
         assert!(out.decisions_by_reason.keys().any(|k| k.starts_with("CLEAR")));
+    }
+
+    /// A vehicle that held over the deck before the landing was asked for: nothing was acted on
+    /// before the request, and the decider, warm by then, clears sooner than it could without
+    /// the watch (its warm-up alone is 8 s).
+    #[test]
+    fn a_vehicle_that_watched_the_deck_is_cleared_sooner_once_asked() {
+        let approach = Approach {
+            sea_state: 3,
+            seed: 101,
+            heading_deg: 40.0,
+            index: 0,
+        };
+        let cold = fly_through(
+            PipelineRule::Deckwatch,
+            DecisionConfig::default(),
+            approach,
+            FrameFaultModel::default(),
+            None,
+            0.0,
+        );
+        let warm = fly_through(
+            PipelineRule::Deckwatch,
+            DecisionConfig::default(),
+            approach,
+            FrameFaultModel::default(),
+            None,
+            60.0,
+        );
+        let (cold_s, warm_s) = (cold.touchdown.unwrap().t_s, warm.touchdown.as_ref().unwrap().t_s);
+        let touchdown_s = DecisionConfig::default().touchdown_s;
+        assert!(cold_s >= 8.0 + touchdown_s, "{cold_s}");
+        assert!(warm.touchdown.as_ref().unwrap().safe());
+        // Committed after the request (a descent takes the touchdown's time), sooner.
+        assert!(warm_s >= touchdown_s && warm_s < cold_s, "{warm_s} {cold_s}");
+        // Frames from 60 s before the request.
+        assert!(warm.frames as f64 >= 10.0 * (60.0 + warm_s) - 1.0, "{warm:?}");
     }
 
     /// The naive rule commits on the current angles: on a rough sea some of its touchdowns break
@@ -520,6 +572,7 @@ mod tests {
                 approach,
                 FrameFaultModel::default(),
                 Some(14),
+                0.0,
             );
             let rode = out.decisions_by_reason.contains_key("CLEAR ride-through");
             let around = out.abort_reasons.contains_key("gap");
@@ -557,11 +610,17 @@ mod tests {
             index: 2,
         };
         let world = ApproachWorld::new(approach, None, 0.3, 60.0).unwrap();
-        let scene = world.scene(Arc::new(Mutex::new(FlightPath::hover(3.0))));
+        let scene = world.scene(Arc::new(Mutex::new(FlightPath::hover(3.0))), 0.0);
         let [r, p, h] = world.truth(12.5);
         let s = scene.deck(12.5);
         let [sr, sp, _] = s.attitude.to_degrees();
         assert_eq!((r, p, h), (sr, sp, s.deck_heave_m));
+        // A source that starts 30 s before the request shows the approach's 12.5 s at its 42.5.
+        use deckwatch_sim::motion::MotionProfile;
+        let early = world.scene(Arc::new(Mutex::new(FlightPath::hover(3.0))), -30.0);
+        let s = early.sample(42.5);
+        let [er, ep, _] = s.attitude.to_degrees();
+        assert_eq!((er, ep, s.deck_heave_m, s.t_s), (r, p, h, 42.5));
         assert_eq!(
             ApproachWorld::new(
                 Approach {

@@ -5,7 +5,10 @@
 //! approaches up.
 //!
 //! An approach starts when the vehicle arrives in hover over the deck (the deck comes into
-//! view: the decider's warm-up starts then) and ends at contact or after `max_approach_s`.
+//! view: the decider's warm-up starts then) and ends at contact or after `max_approach_s`. A
+//! vehicle may also hold over the deck before the landing is asked for
+//! ([`fly::ApproachTiming::watch_before_s`]): the decider learns the motion then, nothing is
+//! acted on, and the approach's times count from the request.
 
 pub mod faults;
 pub mod fly;

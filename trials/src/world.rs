@@ -72,21 +72,35 @@ impl ApproachWorld {
         sway: f64,
         max_approach_s: f64,
     ) -> Result<Self, WorldError> {
+        Self::watched(approach, recorded, sway, max_approach_s, 0.0)
+    }
+
+    /// [`Self::new`] for a vehicle that holds over the deck `watch_before_s` before the landing
+    /// is asked for: the motion must hold the watch too, so an approach that would start
+    /// earlier into the motion than that starts that far in (the others where they would).
+    pub fn watched(
+        approach: Approach,
+        recorded: Option<&Arc<RecordedShipMotion>>,
+        sway: f64,
+        max_approach_s: f64,
+        watch_before_s: f64,
+    ) -> Result<Self, WorldError> {
         let sway = VehicleSway::hover(approach.seed.wrapping_mul(1000) + approach.index as u64, sway);
+        let watch_s = watch_before_s.max(0.0);
         if let Some(motion) = recorded {
             // Each approach needs its whole length (and the decision's look ahead) of motion.
             let needs_s = max_approach_s + LOOK_AHEAD_S;
             let usable_s = motion.duration_s() - needs_s;
-            if !(usable_s > 0.0) {
+            if !(usable_s > 0.0 && usable_s >= watch_s) {
                 return Err(WorldError::MotionTooShort {
                     holds_s: motion.duration_s(),
-                    needs_s,
+                    needs_s: needs_s + watch_s,
                 });
             }
             return Ok(Self {
                 sea: TrialSea::Recorded(motion.clone()),
                 sway,
-                sea_offset_s: (421.0 * approach.index as f64) % usable_s,
+                sea_offset_s: ((421.0 * approach.index as f64) % usable_s).max(watch_s),
             });
         }
         let sea = SpectrumShipMotion::sea_state_from(approach.sea_state, approach.seed, approach.heading_deg)
@@ -94,12 +108,13 @@ impl ApproachWorld {
         Ok(Self {
             sea: TrialSea::Spectrum(sea),
             sway,
-            sea_offset_s: 60.0 + 421.0 * approach.index as f64,
+            sea_offset_s: (60.0 + 421.0 * approach.index as f64).max(watch_s),
         })
     }
 
     /// What the camera sees from the vehicle flying `path`.
-    pub fn scene(&self, path: SharedFlightPath) -> ClosedLoopScene<TrialSea> {
+    /// The scene the camera sees, its first frame at the approach's `first_frame_s`.
+    pub fn scene(&self, path: SharedFlightPath, first_frame_s: f64) -> ClosedLoopScene<TrialSea> {
         ClosedLoopScene {
             sea: self.sea.clone(),
             sway: self.sway.clone(),
@@ -107,6 +122,7 @@ impl ApproachWorld {
             sea_offset_s: self.sea_offset_s,
             // Hovering a little off the centre, as a position hold does.
             offset_m: [0.08, -0.05],
+            first_frame_s,
         }
     }
 

@@ -80,9 +80,14 @@ pub struct TrialsArgs {
     /// With `--hold-height`: the least height of the camera over the deck's highest (m).
     #[arg(long, default_value_t = 2.5)]
     pub wait_clearance_m: f64,
-    /// The longest approach (s).
+    /// The longest approach (s), from when the landing is asked for.
     #[arg(long, default_value_t = 240.0)]
     pub max_approach_s: f64,
+    /// The vehicle holds over the deck this long before the landing is asked for (s): the
+    /// pipeline sees the deck and decides, nothing is acted on, and the approach's times
+    /// (`--max-approach-s`, the wait) count from the request. 0: asked for on arrival.
+    #[arg(long, default_value_t = 0.0)]
+    pub watch_before_s: f64,
     /// Each stage's time on the simulated clock (ms): capture -> decision is three of them.
     #[arg(long, default_value_t = 2.0)]
     pub stage_latency_ms: f64,
@@ -329,6 +334,7 @@ fn timing(a: &TrialsArgs) -> ApproachTiming {
     ApproachTiming {
         rate_hz: a.rate,
         stage_latency_ns: (a.stage_latency_ms * 1e6) as u64,
+        watch_before_s: a.watch_before_s,
     }
 }
 
@@ -351,11 +357,13 @@ fn world_of(
     a: &TrialsArgs,
     recorded: Option<&Arc<RecordedShipMotion>>,
 ) -> Result<ApproachWorld, String> {
-    ApproachWorld::new(job, recorded, a.sway, a.max_approach_s).map_err(|e| match (e, &a.motion_csv) {
-        (e @ WorldError::MotionTooShort { .. }, Some(path)) => {
-            format!("--motion-csv: {}: {e}", path.display())
+    ApproachWorld::watched(job, recorded, a.sway, a.max_approach_s, a.watch_before_s).map_err(|e| {
+        match (e, &a.motion_csv) {
+            (e @ WorldError::MotionTooShort { .. }, Some(path)) => {
+                format!("--motion-csv: {}: {e}", path.display())
+            }
+            (e, _) => format!("--sea-states: {e}"),
         }
-        (e, _) => format!("--sea-states: {e}"),
     })
 }
 
@@ -365,7 +373,7 @@ fn trial_pipeline(a: &TrialsArgs) -> Result<PipelineConfig, String> {
     let (mut p, file) = crate::pipeline::load(a.config.as_deref())?;
     p.source.kind = FrameSource::Simulator;
     p.sim.rate = a.rate;
-    p.sim.frames = (a.max_approach_s * a.rate).ceil() as usize + 10;
+    p.sim.frames = ((a.watch_before_s + a.max_approach_s) * a.rate).ceil() as usize + 10;
     p.image.width = Some(a.width);
     p.image.height = Some(a.height);
     if a.glints > 0 {
@@ -460,6 +468,13 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
     let shares_ok = a.sway >= 0.0 && a.rate > 0.0 && a.stage_latency_ms >= 0.0 && a.threads > 0;
     if !shares_ok {
         return Err("--sway, --stage-latency-ms must not be negative, --rate and --threads positive".into());
+    }
+    // An hour's watch is far beyond the decider's fit window; more only costs frames.
+    if !(0.0..=3600.0).contains(&a.watch_before_s) {
+        return Err(format!("--watch-before-s {}: must be 0-3600 s", a.watch_before_s));
+    }
+    if a.watch_before_s > 0.0 && a.processes > 0 {
+        return Err("--watch-before-s: the approaches through the processes (--processes) start on arrival; fly them without it".into());
     }
     for &ss in seas(&a).0.iter().filter(|&&ss| ss != 0) {
         if SpectrumShipMotion::sea_state(ss, 1).is_none() {

@@ -123,7 +123,7 @@ fn fly_with(
     let path: SharedFlightPath = Arc::new(Mutex::new(FlightPath::hover(model.hover_m)));
     let mut source = config
         .capture()
-        .open_sim_with(Box::new(world.scene(path.clone())))
+        .open_sim_with(Box::new(world.scene(path.clone(), 0.0)))
         .map_err(|e| e.to_string())?;
     // Join once the launcher has started its stages (it refuses a domain with live nodes), and
     // publish once the first stage (detect) listens.

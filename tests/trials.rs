@@ -297,3 +297,31 @@ fn landings_on_other_ship_motion_models_touch_down_safely() {
         );
     }
 }
+
+/// `--watch-before-s` is checked before anything flies: a negative or non-finite watch, and a
+/// watch with approaches through the processes (which start on arrival), are refused by name.
+#[test]
+fn a_watch_before_the_request_is_checked_before_anything_flies() {
+    for args in [
+        vec!["--watch-before-s=-1"],
+        vec!["--watch-before-s", "NaN"],
+        vec!["--watch-before-s", "30", "--processes", "1"],
+    ] {
+        let out = Command::new(workspace_binary("deckwatch"))
+            .args([
+                "trials",
+                "--rules",
+                "deckwatch",
+                "--seeds",
+                "1",
+                "--sea-states",
+                "3",
+            ])
+            .args(&args)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?}");
+        assert!(stderr.contains("--watch-before-s"), "{args:?}: {stderr}");
+    }
+}

@@ -144,7 +144,7 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
     let mut pipeline = pipeline_for(world.scene(path.clone(), timing.frame_s(0)))?;
     let reaction_s = timing.reaction_s();
     let mut autopilot = SimulatedAutopilot::new(*model, path.clone());
-    let mut follow = DecisionFollower::default();
+    let mut follow = DecisionFollower::new(capacity.touchdown_s);
     let mut out = ApproachOutcome::default();
     let mut next_vehicle_s = timing.frame_s(0) - 0.05;
     let mut vehicle_seq = 0;
@@ -201,7 +201,7 @@ pub fn fly_approach<P: ClosedLoopPipeline, E>(
                                d: &LandingDecision,
                                at_s: f64| {
             out.count_decision(d.state.get(), d.reason.get());
-            let c = follow.command(d.state.get());
+            let c = follow.command_on(d);
             if c == Command::GoAround && autopilot.contact_s().is_some() {
                 out.count_go_around_order(d.reason.get(), autopilot.can_go_around(at_s));
             }

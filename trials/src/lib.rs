@@ -19,7 +19,7 @@ pub use faults::{AttitudeStreamModel, Episodes, FrameFaultModel, FrameFaults, Ve
 pub use fly::{fly_approach, naive_command, ApproachTiming, ClosedLoopPipeline, FrameStep, PipelineRule};
 pub use world::{Approach, ApproachWorld, TrialSea, WorldError};
 
-use deckwatch_common::messages::DecisionState;
+use deckwatch_common::messages::{DecisionReason, DecisionState, LandingDecision};
 use deckwatch_common::RotationMatrix;
 use deckwatch_decide::eval::{TrueDeck, TrueDeckState};
 use deckwatch_decide::DecisionConfig;
@@ -125,17 +125,53 @@ pub enum Command {
 }
 
 /// The autopilot's reading of deckwatch's decision state as it arrives (`dw_state` over
-/// MAVLink, or the decision message): it commits on a fresh clearance only (a change into
-/// ClearToLand: a clearance that began while it could not act covers a touchdown that started
-/// earlier than its own would), goes around on Abort, and waits on anything else.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// MAVLink, or the decision message): it commits at the start of a commitment only, goes
+/// around on Abort, and waits on anything else. A clearance within a commitment holds only
+/// the go-around's risk and covers a touchdown that started earlier than one begun now would:
+/// never acted on. A commitment starts with a change into ClearToLand; on the decision message
+/// also while ClearToLand goes on, where the decider commits again (a vehicle that did not
+/// descend, say one that was not yet asked to land): at the first clearance on a frame a
+/// touchdown's time or more after the last start ([`Self::command_on`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DecisionFollower {
     previous: DecisionState,
+    touchdown_s: f64,
+    /// The frame time the current commitment started on (the decider's clock, s).
+    commitment_start_s: f64,
 }
 
 impl DecisionFollower {
+    /// For a decider whose touchdown lasts `touchdown_s` (`[decide] touchdown_s`).
+    pub fn new(touchdown_s: f64) -> Self {
+        Self {
+            previous: DecisionState::NoDeck,
+            touchdown_s,
+            commitment_start_s: f64::NEG_INFINITY,
+        }
+    }
+
+    /// The command on a decision state alone (`dw_state`): a change into ClearToLand commits.
     pub fn command(&mut self, state: DecisionState) -> Command {
-        let fresh = state == DecisionState::ClearToLand && self.previous != DecisionState::ClearToLand;
+        self.follow(state, None)
+    }
+
+    /// The command on a decision message, which also shows where a commitment starts while
+    /// ClearToLand goes on: the decider ends a commitment at its frame time plus `touchdown_s`
+    /// (the frame's capture time, `source_timestamp_ns` in seconds, the same sum here) and
+    /// judges the next frame afresh; a ride-through or a watchdog's decision never starts one.
+    pub fn command_on(&mut self, d: &LandingDecision) -> Command {
+        let frame_s = (!d.watchdog.get() && d.reason.get() != DecisionReason::RideThrough)
+            .then(|| d.attitude.context.source_timestamp_ns as f64 / 1e9);
+        self.follow(d.state.get(), frame_s)
+    }
+
+    fn follow(&mut self, state: DecisionState, frame_s: Option<f64>) -> Command {
+        let clear = state == DecisionState::ClearToLand;
+        let renewed = frame_s.is_some_and(|t| !(t < self.commitment_start_s + self.touchdown_s));
+        let fresh = clear && (self.previous != DecisionState::ClearToLand || renewed);
+        if fresh {
+            self.commitment_start_s = frame_s.unwrap_or(f64::NEG_INFINITY);
+        }
         self.previous = state;
         match state {
             DecisionState::ClearToLand if fresh => Command::Land,
@@ -617,12 +653,54 @@ mod tests {
     use deckwatch_sim::landing::FlightPath;
     use std::sync::{Arc, Mutex};
 
+    /// ClearToLand that goes on past a touchdown's time holds a new commitment, which a
+    /// follower of the decision message may take at its start (a vehicle not ready at the
+    /// first); never in between, on a ride-through or on the watchdog's word.
+    #[test]
+    fn a_clearance_that_goes_on_is_renewed_a_touchdown_later() {
+        let decision =
+            |state: DecisionState, reason: DecisionReason, frame_s: f64, watchdog: bool| LandingDecision {
+                state: state.into(),
+                reason: reason.into(),
+                attitude: deckwatch_common::messages::AttitudeMessage {
+                    context: deckwatch_common::messages::FrameContext {
+                        source_timestamp_ns: (frame_s * 1e9) as u64,
+                        ..Default::default()
+                    },
+                    ..Default::default()
+                },
+                watchdog: watchdog.into(),
+                ..Default::default()
+            };
+        let (clear, within) = (DecisionState::ClearToLand, DecisionReason::WithinCapacity);
+        let mut follow = DecisionFollower::new(2.0);
+        let commands: Vec<Command> = [
+            (DecisionState::Hold, DecisionReason::PredictedOutside, 9.9, false),
+            (clear, within, 10.0, false),
+            (clear, within, 11.9, false),
+            (clear, DecisionReason::RideThrough, 12.0, false),
+            (clear, within, 12.05, true),
+            (clear, within, 12.1, false),
+            (clear, within, 14.0, false),
+            (clear, within, 14.1, false),
+        ]
+        .into_iter()
+        .map(|(state, reason, t, watchdog)| follow.command_on(&decision(state, reason, t, watchdog)))
+        .collect();
+        use Command::{Land, Wait};
+        assert_eq!(commands, [Wait, Land, Wait, Wait, Wait, Land, Wait, Land]);
+        // On the state alone (`dw_state`), only a change into ClearToLand commits.
+        let mut follow = DecisionFollower::new(2.0);
+        assert_eq!(follow.command(clear), Land);
+        assert_eq!(follow.command(clear), Wait);
+    }
+
     #[test]
     fn the_autopilot_commits_on_a_fresh_clearance_and_goes_around_on_abort() {
         let model = ApproachModel::quadrotor(2.0);
         let path = Arc::new(Mutex::new(FlightPath::hover(model.hover_m)));
         let mut ap = SimulatedAutopilot::new(model, path.clone());
-        let mut follow = DecisionFollower::default();
+        let mut follow = DecisionFollower::new(2.0);
         assert_eq!(follow.command(DecisionState::Hold), Command::Wait);
         assert_eq!(follow.command(DecisionState::ClearToLand), Command::Land);
         assert!(ap.act(10.0, 0.0, Command::Land));

@@ -196,7 +196,7 @@ fn fly_with(
     let width = source.camera().width as usize;
     let mut frame = vec![0; source.frame_bytes()];
     let mut autopilot = SimulatedAutopilot::new(model, path.clone());
-    let mut follow = DecisionFollower::default();
+    let mut follow = DecisionFollower::new(config.decide.touchdown_s);
     let mut faults = FrameFaults::new(&fault_model(a), a.rate, job.approach_seed());
     let mut out = ApproachOutcome::default();
     let heave = |t: f64| world.heave_m(t);

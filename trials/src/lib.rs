@@ -170,7 +170,9 @@ impl DecisionFollower {
         let renewed = frame_s.is_some_and(|t| !(t < self.commitment_start_s + self.touchdown_s));
         let fresh = clear && (self.previous != DecisionState::ClearToLand || renewed);
         if fresh {
-            self.commitment_start_s = frame_s.unwrap_or(f64::NEG_INFINITY);
+            // A start whose frame time is not known is never renewed: only the next change
+            // into ClearToLand starts another.
+            self.commitment_start_s = frame_s.unwrap_or(f64::INFINITY);
         }
         self.previous = state;
         match state {
@@ -689,10 +691,15 @@ mod tests {
         .collect();
         use Command::{Land, Wait};
         assert_eq!(commands, [Wait, Land, Wait, Wait, Wait, Land, Wait, Land]);
-        // On the state alone (`dw_state`), only a change into ClearToLand commits.
+        // On the state alone (`dw_state`), only a change into ClearToLand commits; a start
+        // without a frame time (the watchdog's) is not renewed by the frames after it.
         let mut follow = DecisionFollower::new(2.0);
         assert_eq!(follow.command(clear), Land);
         assert_eq!(follow.command(clear), Wait);
+        assert_eq!(follow.command_on(&decision(clear, within, 20.0, false)), Wait);
+        let mut follow = DecisionFollower::new(2.0);
+        assert_eq!(follow.command_on(&decision(clear, within, 30.0, true)), Land);
+        assert_eq!(follow.command_on(&decision(clear, within, 33.0, false)), Wait);
     }
 
     #[test]

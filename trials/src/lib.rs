@@ -157,11 +157,11 @@ impl DecisionFollower {
 
     /// The command on a decision message, which also shows where a commitment starts while
     /// ClearToLand goes on: the decider ends a commitment at its frame time plus `touchdown_s`
-    /// (the frame's capture time, `source_timestamp_ns` in seconds, the same sum here) and
+    /// (the frame's time as the decider reads it, `FrameInput::from_attitude`) and
     /// judges the next frame afresh; a ride-through or a watchdog's decision never starts one.
     pub fn command_on(&mut self, d: &LandingDecision) -> Command {
         let frame_s = (!d.watchdog.get() && d.reason.get() != DecisionReason::RideThrough)
-            .then(|| d.attitude.context.source_timestamp_ns as f64 / 1e9);
+            .then(|| deckwatch_decide::FrameInput::from_attitude(&d.attitude, 0).t_s);
         self.follow(d.state.get(), frame_s)
     }
 

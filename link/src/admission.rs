@@ -174,6 +174,11 @@ impl RateLimit {
     }
 }
 
+/// Admitted frames an address must send before replies go to it on a listening UDP socket.
+pub const FRAMES_TO_TAKE_REPLIES: u8 = 3;
+/// Addresses counted at once while the reply address is chosen.
+const MAX_ADDRESSES_CHOOSING: usize = 4;
+
 /// The receiving checks of one link, and its reply address.
 pub struct Admission {
     signing: Option<Arc<Signing>>,
@@ -181,10 +186,14 @@ pub struct Admission {
     limit: RateLimit,
     /// A byte stream's bytes not yet a whole frame.
     pending: Vec<u8>,
-    /// Where replies go on a listening UDP socket: the autopilot's address, taken from its first
-    /// admitted frame; it moves only once it has been silent for the heartbeat timeout (a
-    /// restarted router's new port), never with a frame from elsewhere while it is heard.
+    /// Where replies go on a listening UDP socket: the autopilot's address, the first to send
+    /// [`FRAMES_TO_TAKE_REPLIES`] admitted frames; it moves only once it has been silent for the
+    /// heartbeat timeout (a restarted router's new port), never with a frame from elsewhere
+    /// while it is heard.
     peer: Option<SocketAddr>,
+    /// While no address holds the replies (at the start, or after the reply address fell
+    /// silent): the admitted frames each address sent so far.
+    choosing: Vec<(SocketAddr, u8)>,
     /// When the reply address last sent an admitted frame, and how long its silence may last
     /// before another address of the autopilot takes its place (`heartbeat_timeout_ms`).
     peer_heard_ns: Option<u64>,
@@ -213,6 +222,7 @@ impl Admission {
             limit: RateLimit::new(config.sender_rate_hz),
             pending: Vec::new(),
             peer: None,
+            choosing: Vec::new(),
             peer_heard_ns: None,
             peer_timeout_ns: (config.heartbeat_timeout_ms * 1e6) as u64,
             refused: RefusalCounts::default(),
@@ -226,6 +236,47 @@ impl Admission {
     /// The address replies go to on a listening socket: the autopilot's, once it was heard.
     pub fn reply_address(&self) -> Option<SocketAddr> {
         self.peer
+    }
+
+    /// An admitted frame from `sender`: where the replies go. The address that first sends
+    /// [`FRAMES_TO_TAKE_REPLIES`] of the autopilot's frames takes them, not merely the first
+    /// frame's: a relay or a second route that forwards some of its frames (authentic and
+    /// fresh) may deliver the first one the link reads, and would otherwise hold the replies
+    /// for the whole flight. Once taken, a frame from elsewhere while the address is heard
+    /// does not move them (relayed, or replayed through another host); silent for the
+    /// heartbeat timeout (a restarted router's new port), the choice starts again, the
+    /// replies staying where they were until another address has sent enough.
+    fn heard_from(&mut self, sender: SocketAddr, now_ns: u64) {
+        if self.peer == Some(sender) {
+            self.peer_heard_ns = Some(now_ns);
+            self.choosing.clear();
+            return;
+        }
+        let silent = self
+            .peer_heard_ns
+            .is_none_or(|t| now_ns.saturating_sub(t) > self.peer_timeout_ns);
+        if !silent {
+            self.from_other_address += 1;
+            return;
+        }
+        let count = match self.choosing.iter().position(|(a, _)| *a == sender) {
+            Some(k) => {
+                self.choosing[k].1 += 1;
+                self.choosing[k].1
+            }
+            // Only authentic frames are counted, so few addresses compete; beyond a handful a
+            // newcomer waits until the choice is made.
+            None if self.choosing.len() < MAX_ADDRESSES_CHOOSING => {
+                self.choosing.push((sender, 1));
+                1
+            }
+            None => 0,
+        };
+        if count >= FRAMES_TO_TAKE_REPLIES {
+            self.peer = Some(sender);
+            self.peer_heard_ns = Some(now_ns);
+            self.choosing.clear();
+        }
     }
 
     /// Every frame of one datagram from `sender` (UDP: a frame never spans two datagrams).
@@ -356,20 +407,8 @@ impl Admission {
         }
         match verdict.result {
             Ok(admitted) => {
-                // The reply address: the autopilot's first frame; later, any of its frames once
-                // the address in use has been silent for the heartbeat timeout (a restarted
-                // router's new port). A signed frame from elsewhere while it is heard does not
-                // move it: replayed or relayed through another host, it would take the replies.
                 if let Some(s) = sender {
-                    let silent = self
-                        .peer_heard_ns
-                        .is_none_or(|t| now_ns.saturating_sub(t) > self.peer_timeout_ns);
-                    if self.peer.is_none() || silent || self.peer == Some(s) {
-                        self.peer = Some(s);
-                        self.peer_heard_ns = Some(now_ns);
-                    } else {
-                        self.from_other_address += 1;
-                    }
+                    self.heard_from(s, now_ns);
                 }
                 self.admitted += 1;
                 out.push(admitted);
@@ -573,11 +612,22 @@ mod tests {
         let mut a = Admission::new(&signed_config(), Some(ours));
         // The autopilot signs with the same key on its own side (its own timestamp state).
         let autopilot = Signing::new(KEY, 3);
+        // A relay forwarding some of the autopilot's frames delivers the first one read.
+        let relayed = frame(header(1, 1), &attitude(), Some(&autopilot));
+        assert_eq!(a.datagram(&relayed, addr(5001), 0).len(), 1);
+        assert_eq!(a.reply_address(), None, "one frame takes no replies");
         let good = frame(header(1, 1), &attitude(), Some(&autopilot));
         let got = a.datagram(&good, addr(5000), 0);
         assert_eq!(got.len(), 1);
         assert_eq!(got[0].frame, good, "the frame as received, signature included");
+        for _ in 1..FRAMES_TO_TAKE_REPLIES {
+            assert_eq!(a.reply_address(), None);
+            let next = frame(header(1, 1), &attitude(), Some(&autopilot));
+            assert_eq!(a.datagram(&next, addr(5000), 0).len(), 1);
+        }
+        // The address that sent the autopilot's frames first takes the replies, not the relay.
         assert_eq!(a.reply_address(), Some(addr(5000)));
+        assert_eq!(a.from_other_address, 0, "counted only once an address holds them");
 
         let cases: [(Vec<u8>, Refusal); 5] = [
             (frame(header(1, 1), &attitude(), None).to_vec(), Refusal::Unsigned),
@@ -621,10 +671,16 @@ mod tests {
         assert_eq!(a.datagram(&next, addr(5001), 2_000).len(), 1);
         assert_eq!(a.reply_address(), Some(addr(5000)));
         assert_eq!(a.from_other_address, 1);
-        // Silent past the heartbeat timeout: the autopilot's new address takes the replies.
-        let later = frame(header(1, 1), &attitude(), Some(&autopilot));
-        assert_eq!(a.datagram(&later, addr(5001), 4_000_000_000).len(), 1);
+        // Silent past the heartbeat timeout: the autopilot's new address takes the replies once
+        // it has sent enough; until then they stay where they were.
+        for k in 0..FRAMES_TO_TAKE_REPLIES {
+            assert_eq!(a.reply_address(), Some(addr(5000)));
+            let later = frame(header(1, 1), &attitude(), Some(&autopilot));
+            let now_ns = 4_000_000_000 + u64::from(k) * 1_000;
+            assert_eq!(a.datagram(&later, addr(5001), now_ns).len(), 1);
+        }
         assert_eq!(a.reply_address(), Some(addr(5001)));
+        assert_eq!(a.from_other_address, 1);
     }
 
     #[test]
@@ -667,8 +723,11 @@ mod tests {
         a.datagram(&flagged, addr(3), 2_000);
         assert_eq!(a.reply_address(), Some(addr(1)));
         // Silent past the heartbeat timeout (3 s): the autopilot's new address (a restarted
-        // router) takes its place.
-        a.datagram(&good, addr(2), 4_000_000_000);
+        // router) takes its place once it has sent enough frames.
+        for k in 0..u64::from(FRAMES_TO_TAKE_REPLIES) {
+            assert_eq!(a.reply_address(), Some(addr(1)));
+            a.datagram(&good, addr(2), 4_000_000_000 + k);
+        }
         assert_eq!(a.reply_address(), Some(addr(2)));
     }
 

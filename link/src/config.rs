@@ -11,7 +11,7 @@ pub struct LinkConfig {
     pub enabled: bool,
     /// Where the autopilot is: `udpin:HOST:PORT` (listen, on the loopback unless
     /// `listen_beyond_loopback`: mavlink-router or MAVProxy `--out` pointed at it; replies go to
-    /// `peer`, or to the autopilot's own address once its first frame passed every check),
+    /// `peer`, or to the autopilot's own address once three of its frames passed every check),
     /// `udpout:HOST:PORT` (a socket connected to it), `tcpout:HOST:PORT`,
     /// `serial:/dev/ttyAMA0:921600`.
     pub address: String,

@@ -33,24 +33,30 @@ fn main() {
         }
         (120.0 * RATE_HZ) as u64
     };
-    let mut decider = LandingDecider::new(DecisionConfig::default()).expect("default configuration");
-    let mut k = warm(&mut decider);
-    group.bench_function("per_attitude_30hz", |b| {
-        b.iter(|| {
-            k += 1;
-            let t = k as f64 / RATE_HZ;
-            decider.update(t, Some(black_box(deck_at(t))), t)
-        })
-    });
+    // The default (each channel may read the others' lags: `forecast::joint`) beside every
+    // channel alone (`cross_order = 0`, the default before), in one run.
+    let mut channels_alone = DecisionConfig::default();
+    channels_alone.ar_mut().cross_order = 0;
+    for (name, config) in [
+        ("per_attitude_30hz", DecisionConfig::default()),
+        ("per_attitude_30hz_channels_alone", channels_alone.clone()),
+    ] {
+        let mut decider = LandingDecider::new(config).expect("a valid configuration");
+        let mut k = warm(&mut decider);
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                k += 1;
+                let t = k as f64 / RATE_HZ;
+                decider.update(t, Some(black_box(deck_at(t))), t)
+            })
+        });
+    }
     // The attitude that refits the motion model: a fresh decider warmed to just before a refit
     // is not reachable from outside, so every attitude of a second is timed and the slowest
-    // kept. Warmed over its whole fit window (the default's, and 120 s, the default before, in
-    // one run): the refit's cost grows with the window.
-    let mut window_120s = DecisionConfig::default();
-    window_120s.ar_mut().window_s = 120.0;
+    // kept. Warmed over its whole fit window.
     for (name, config) in [
         ("slowest_attitude_of_a_second", DecisionConfig::default()),
-        ("slowest_attitude_of_a_second_window_120s", window_120s),
+        ("slowest_attitude_of_a_second_channels_alone", channels_alone),
     ] {
         let window_s = config.ar().window_s;
         let mut decider = LandingDecider::new(config).expect("a valid configuration");
@@ -131,6 +137,37 @@ fn main() {
             )
         })
     });
+    // A refit of all three channels on the default window (240 s at 10 Hz), each alone and
+    // with the other channels' lags (`cross_order`: `forecast::joint`).
+    let t: Vec<f64> = (0..2400).map(|k| k as f64 * 0.1).collect();
+    let decks: Vec<DeckObservation> = t.iter().map(|&t| deck_at(t)).collect();
+    let channels: [Vec<f64>; 3] = [
+        decks.iter().map(|d| d.roll_deg).collect(),
+        decks.iter().map(|d| d.pitch_deg).collect(),
+        decks.iter().map(|d| d.height_m).collect(),
+    ];
+    let y: Vec<&[f64]> = channels.iter().map(Vec::as_slice).collect();
+    for cross_order in [0, 24] {
+        let forecaster = deckwatch_decide::forecast::ArForecaster {
+            order,
+            cross_order,
+            grid_step_s: 0.2,
+            max_bridge_s: 0.5,
+        };
+        group.bench_function(
+            format!("refit_three_channels_240s_cross_order_{cross_order}"),
+            |b| {
+                b.iter(|| {
+                    deckwatch_decide::forecast::Forecaster::fit(
+                        &forecaster,
+                        black_box(&t),
+                        black_box(&y),
+                        25.0,
+                    )
+                })
+            },
+        );
+    }
     group.finish();
     c.final_summary();
 }

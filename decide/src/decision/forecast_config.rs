@@ -31,6 +31,10 @@ pub struct ArForecastConfig {
     /// 46.9 % of the calm windows on the development seas and landed more often at sea state 6
     /// (docs/history.md).
     pub order: usize,
+    /// Lags of the other channels each channel's recursion may read (on the same grid; at
+    /// most `order`; 0: every channel alone). A channel keeps them only where they explain
+    /// more than their number costs (docs/ALGORITHMS.md, "The joint autoregression").
+    pub cross_order: usize,
     /// History the fit estimates its coefficients on (s). 97 coefficients on 120 s (600 rows on
     /// the 5 Hz grid) carry enough of their own error to widen the band; 240 s used 40.7 -> 42.9 %
     /// of the calm windows on the development ship-motion files (400 s: 43.4 %, at twice the
@@ -76,6 +80,7 @@ impl Default for ArForecastConfig {
     fn default() -> Self {
         Self {
             order: 96,
+            cross_order: 24,
             window_s: 240.0,
             min_history_s: 8.0,
             refit_interval_s: 1.0,
@@ -208,6 +213,12 @@ impl ArForecastConfig {
             return Err(invalid(
                 "forecast.order",
                 format!("must be 2..=100, got {}", self.order),
+            ));
+        }
+        if self.cross_order > self.order {
+            return Err(invalid(
+                "forecast.cross_order",
+                format!("must be at most order ({}), got {}", self.order, self.cross_order),
             ));
         }
         if self.min_history_s > self.window_s {

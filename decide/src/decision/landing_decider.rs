@@ -20,6 +20,7 @@ impl LandingDecider {
         let ForecastConfig::Ar(ar) = &config.forecast;
         let forecaster = ArForecaster {
             order: ar.order,
+            cross_order: ar.cross_order,
             grid_step_s: FIT_SPACING_S,
             max_bridge_s: config.max_gap_ms / 1e3,
         };

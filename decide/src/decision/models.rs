@@ -343,9 +343,10 @@ impl<F: Forecaster> Tracking<F> {
     /// One forecast per channel on the thinned samples `t`, `y` (the first `t.len()` of each),
     /// forecasting `horizon_s`; None when a channel cannot be fitted.
     fn fit_channels(&self, t: &[f64], y: &[Vec<f64>], horizon_s: f64) -> Option<Vec<F::Channel>> {
-        y.iter()
-            .map(|yk| self.forecaster.fit(t, &yk[..t.len()], horizon_s))
-            .collect()
+        let y: Vec<&[f64]> = y.iter().map(|yk| &yk[..t.len()]).collect();
+        self.forecaster
+            .fit(t, &y, horizon_s)
+            .filter(|f| f.len() == y.len())
     }
 
     fn fit(&mut self, c: &DecisionConfig, history: &History, channels: usize) -> Option<Models<F::Channel>> {
@@ -429,8 +430,11 @@ impl<F: Forecaster> Tracking<F> {
             .count();
         let start = samples.len() - recent;
         let t: Vec<f64> = samples.range(start..).map(|h| h.0).collect();
-        for (k, track) in m.forecasts.iter_mut().enumerate() {
-            let y: Vec<f64> = samples.range(start..).map(|h| h.1[k]).collect();
+        let y: Vec<Vec<f64>> = (0..m.forecasts.len())
+            .map(|k| samples.range(start..).map(|h| h.1[k]).collect())
+            .collect();
+        let y: Vec<&[f64]> = y.iter().map(Vec::as_slice).collect();
+        for track in m.forecasts.iter_mut() {
             if let Some(next) = track.advanced(&t, &y) {
                 *track = next;
             }

@@ -7,7 +7,7 @@ use super::risk::{
     exceedance_risk, outside_probability, predicted_within, tilt_outside_probability, Judgement, STEP_S,
 };
 use super::*;
-use crate::forecast::ArModel;
+use crate::forecast::ArChannel;
 use crate::frame::FrameInput;
 use std::f64::consts::TAU;
 
@@ -1045,7 +1045,7 @@ fn scales(d: &LandingDecider) -> ([f64; 3], [f64; 3], bool) {
 
 /// A decider after 60 s of a calm sea, its models with honest bands (scales 1) and rates'
 /// spreads of 0.1 deg/s and 0.5 m/s, and the capacity's limits in `exceedance_risk`'s order.
-fn calm_sea_models() -> (LandingDecider, Models<ArModel>, [f64; 6]) {
+fn calm_sea_models() -> (LandingDecider, Models<ArChannel>, [f64; 6]) {
     let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
     run(&mut d, 0.0, 60.0, |t| Some(sea(t, 0.3)));
     let mut m = d.tracking.models.clone().expect("fitted");
@@ -1189,8 +1189,9 @@ fn a_new_commitment_widens_an_unreliable_angle_band() {
         let widest = times().map(|t| track.std(t)).fold(0.0, f64::max);
         tight[k] = largest + 4.0 * unreliable * widest;
     }
-    let risk =
-        |m: &Models<ArModel>, judgement: Judgement| exceedance_risk(&d.config, m, times(), &tight, judgement);
+    let risk = |m: &Models<ArChannel>, judgement: Judgement| {
+        exceedance_risk(&d.config, m, times(), &tight, judgement)
+    };
     for k in [ROLL, PITCH] {
         m.band_scale = [1.0; 3];
         m.band_scale[k] = MAX_BAND_SCALE;
@@ -1233,7 +1234,7 @@ fn a_new_commitment_takes_an_unreliable_channels_rate_as_far_off_as_its_value() 
         tight[..3].fill(1e3);
         tight[3 + k] = largest + 4.0 * widest;
         m.rate_miss_std[k] = 0.0;
-        let risk = |m: &Models<ArModel>, judgement: Judgement| {
+        let risk = |m: &Models<ArChannel>, judgement: Judgement| {
             exceedance_risk(&d.config, m, times(), &tight, judgement)
         };
         m.band_scale[k] = MAX_BAND_SCALE;
@@ -1784,6 +1785,7 @@ fn no_configuration_switches_a_safety_check_off() {
             "max_plausible_rate_dps",
         ),
         (tuned(|f| f.horizon_s = 1.0), "forecast.horizon_s"),
+        (tuned(|f| f.cross_order = 97), "forecast.cross_order"),
         (
             DecisionConfig {
                 frozen_input_count: MAX_FROZEN_INPUT_COUNT + 1,
@@ -1817,7 +1819,7 @@ fn no_configuration_switches_a_safety_check_off() {
 /// [`exceedance_risk`] with bands judged as measured (every judgement's but a new commitment's).
 fn exceedance_risk_as_measured(
     c: &DecisionConfig,
-    m: &Models<ArModel>,
+    m: &Models<ArChannel>,
     times: impl Iterator<Item = f64>,
     limits: &[f64; 6],
 ) -> f64 {
@@ -1841,6 +1843,7 @@ struct HeldForecaster;
 
 #[derive(Debug, Clone)]
 struct Held {
+    channel: usize,
     t0: f64,
     value: f64,
     rate: f64,
@@ -1864,7 +1867,8 @@ impl crate::forecast::ChannelForecast for Held {
     fn rate_std(&self, t: f64) -> f64 {
         self.std(t) / self.step_s
     }
-    fn advanced(&self, t: &[f64], y: &[f64]) -> Option<Self> {
+    fn advanced(&self, t: &[f64], y: &[&[f64]]) -> Option<Self> {
+        let y = y.get(self.channel)?;
         let n = t.len();
         (n >= 2).then(|| Held {
             t0: t[n - 1],
@@ -1877,22 +1881,26 @@ impl crate::forecast::ChannelForecast for Held {
 
 impl crate::forecast::Forecaster for HeldForecaster {
     type Channel = Held;
-    fn fit(&self, t: &[f64], y: &[f64], _horizon_s: f64) -> Option<Held> {
+    fn fit(&self, t: &[f64], y: &[&[f64]], _horizon_s: f64) -> Option<Vec<Held>> {
         let n = t.len();
         if n < 3 {
             return None;
         }
-        let steps: Vec<f64> = y.windows(3).map(|w| w[2] - 2.0 * w[1] + w[0]).collect();
-        let step_std = (steps.iter().map(|s| s * s).sum::<f64>() / steps.len() as f64).sqrt();
-        let step_s = (t[n - 1] - t[0]) / (n - 1) as f64;
-        Held {
-            t0: t[n - 1],
-            value: y[n - 1],
-            rate: 0.0,
-            step_std,
-            step_s,
-        }
-        .advanced(t, y)
+        let fit_one = |channel: usize, yk: &[f64]| {
+            let steps: Vec<f64> = yk.windows(3).map(|w| w[2] - 2.0 * w[1] + w[0]).collect();
+            let step_std = (steps.iter().map(|s| s * s).sum::<f64>() / steps.len() as f64).sqrt();
+            let step_s = (t[n - 1] - t[0]) / (n - 1) as f64;
+            Held {
+                channel,
+                t0: t[n - 1],
+                value: yk[n - 1],
+                rate: 0.0,
+                step_std,
+                step_s,
+            }
+            .advanced(t, y)
+        };
+        y.iter().enumerate().map(|(k, yk)| fit_one(k, yk)).collect()
     }
     fn state_span_s(&self) -> f64 {
         1.0

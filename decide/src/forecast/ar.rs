@@ -2,9 +2,10 @@
 //! channel, fitted on the recent history, run forward, and stating its own uncertainty.
 
 use super::ar_numerics::{
-    design_row, gap_rows, normal_equations, propagate, resample, truncated_solve,
-    with_roots_within_max_radius, GAP_FILTER_EXTRA_STEPS, MEASUREMENT_SHARE,
+    design_row, gap_rows, normal_equations, propagate, resample, with_roots_within_max_radius,
+    TruncatedInverse, GAP_FILTER_EXTRA_STEPS, MEASUREMENT_SHARE,
 };
+use super::joint::ArChannel;
 use nalgebra::{DMatrix, DVector};
 
 /// Rows of the fit per coefficient an autoregression over a history with gaps keeps at least
@@ -55,6 +56,69 @@ pub struct ArModel {
     pub max_bridge_s: f64,
 }
 
+/// The least-squares system an [`ArModel`] was fitted by, kept for the joint fit, which
+/// extends it by the other channels' lags ([`super::joint`]).
+#[derive(Debug, Clone)]
+pub(super) struct OwnSystem {
+    /// The channel on the fit's grid, and which of its points were not measured.
+    pub x: Vec<f64>,
+    pub unmeasured: Vec<bool>,
+    /// The rows (target `r + order`) left out for a grid point in a gap, increasing.
+    pub gap_rows: Vec<usize>,
+    /// The normal equations' truncated pseudo-inverse: columns the lags 1..=order, then the
+    /// intercept.
+    pub inverse: TruncatedInverse,
+    pub atb: DVector<f64>,
+    /// The residuals' sum of squares over the rows kept, before the roots were pulled in.
+    pub resid_sq: f64,
+}
+
+impl OwnSystem {
+    /// The least squares of the autoregression of `order` on the grid `x`, the rows
+    /// `gap_rows` (those with a point in `unmeasured`, increasing) left out: the system, and
+    /// its solution (lags 1..=order, then the intercept). None when it is not finite or its
+    /// decomposition fails.
+    pub(super) fn solve(
+        x: Vec<f64>,
+        unmeasured: Vec<bool>,
+        gap_rows: Vec<usize>,
+        order: usize,
+    ) -> Option<(Self, DVector<f64>)> {
+        let (mut ata, mut atb) = normal_equations(&x, order);
+        // Each such row taken back out: a rank-one downdate in place, one row vector reused.
+        let mut row = DVector::zeros(order + 1);
+        for &r in &gap_rows {
+            design_row(&x, order, r, &mut row);
+            ata.ger(-1.0, &row, &row, 1.0);
+            atb.axpy(-x[r + order], &row, 1.0);
+        }
+        // Least squares with the directions the data do not fix left out (see `AR_CUTOFF`):
+        // the eigen-decomposition of the normal equations (the singular values squared: a
+        // decomposition of (order + 1)^2 instead of one of the whole design, ten times cheaper).
+        if !atb.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        let inverse = TruncatedInverse::new(ata)?;
+        let coef = inverse.apply(&atb);
+        let resid_sq: f64 = (0..x.len() - order)
+            .filter(|r| gap_rows.binary_search(r).is_err())
+            .map(|r| {
+                let predicted = coef[order] + (0..order).map(|i| coef[i] * x[r + order - 1 - i]).sum::<f64>();
+                (x[r + order] - predicted).powi(2)
+            })
+            .sum();
+        let system = Self {
+            x,
+            unmeasured,
+            gap_rows,
+            inverse,
+            atb,
+            resid_sq,
+        };
+        Some((system, coef))
+    }
+}
+
 impl ArModel {
     /// Fits on samples `t` (increasing, s), resampled every `dt`, and predicts `horizon_s`: of
     /// `order`, or lower when the history is short (None below order 2). Samples more than
@@ -67,6 +131,18 @@ impl ArModel {
         horizon_s: f64,
         max_bridge_s: f64,
     ) -> Option<Self> {
+        Self::fit_keeping_system(t, y, order, dt, horizon_s, max_bridge_s).map(|(model, _)| model)
+    }
+
+    /// [`Self::fit`], and the least-squares system it solved (the joint fit extends it).
+    pub(super) fn fit_keeping_system(
+        t: &[f64],
+        y: &[f64],
+        order: usize,
+        dt: f64,
+        horizon_s: f64,
+        max_bridge_s: f64,
+    ) -> Option<(Self, OwnSystem)> {
         let n_in = t.len();
         if n_in < 2 || n_in != y.len() || !(dt > 0.0) || order == 0 || !(max_bridge_s > 0.0) {
             return None;
@@ -96,25 +172,8 @@ impl ArModel {
             return None;
         }
         let rows = n - order - gap_rows.len();
-        let (mut ata, mut atb) = normal_equations(&x, order);
-        // Each such row taken back out: a rank-one downdate in place, one row vector reused.
-        let mut row = DVector::zeros(order + 1);
-        for &r in &gap_rows {
-            design_row(&x, order, r, &mut row);
-            ata.ger(-1.0, &row, &row, 1.0);
-            atb.axpy(-x[r + order], &row, 1.0);
-        }
-        // Least squares with the directions the data do not fix left out (see `AR_CUTOFF`):
-        // the eigen-decomposition of the normal equations (the singular values squared: a
-        // decomposition of (order + 1)^2 instead of one of the whole design, ten times cheaper).
-        let mut coef = truncated_solve(ata, &atb)?;
-        let resid_sq: f64 = (0..n - order)
-            .filter(|r| gap_rows.binary_search(r).is_err())
-            .map(|r| {
-                let predicted = coef[order] + (0..order).map(|i| coef[i] * x[r + order - 1 - i]).sum::<f64>();
-                (x[r + order] - predicted).powi(2)
-            })
-            .sum();
+        let (system, mut coef) = OwnSystem::solve(x, unmeasured, gap_rows, order)?;
+        let (x, unmeasured, resid_sq) = (&system.x, &system.unmeasured, system.resid_sq);
         let fit_rms = (resid_sq / rows as f64).sqrt();
         // A fit whose recursion grows (a root on or outside the unit circle) would forecast
         // without bound: its roots are pulled inside (a_i scaled by r^i moves every root z to
@@ -165,7 +224,8 @@ impl ArModel {
             max_bridge_s,
         };
         let newest = n.saturating_sub(2 * order + GAP_FILTER_EXTRA_STEPS);
-        model.forecast_from(&x[newest..], &unmeasured[newest..], t[n_in - 1])
+        let model = model.forecast_from(&x[newest..], &unmeasured[newest..], t[n_in - 1])?;
+        Some((model, system))
     }
 
     /// The same coefficients and stated variance, run forward from the newest samples (`t`
@@ -400,19 +460,27 @@ impl ArModel {
 }
 
 /// The autoregressive forecaster as the decider uses it: recursions of `order` lags on a grid
-/// of `grid_step_s`, samples more than `max_bridge_s` apart a gap.
+/// of `grid_step_s`, samples more than `max_bridge_s` apart a gap; with `cross_order` above 0,
+/// each channel's recursion may read that many lags of the others too ([`super::joint`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ArForecaster {
     pub order: usize,
+    pub cross_order: usize,
     pub grid_step_s: f64,
     pub max_bridge_s: f64,
 }
 
 impl super::Forecaster for ArForecaster {
-    type Channel = ArModel;
+    type Channel = ArChannel;
 
-    fn fit(&self, t: &[f64], y: &[f64], horizon_s: f64) -> Option<ArModel> {
-        ArModel::fit(t, y, self.order, self.grid_step_s, horizon_s, self.max_bridge_s)
+    fn fit(&self, t: &[f64], y: &[&[f64]], horizon_s: f64) -> Option<Vec<ArChannel>> {
+        let own = y
+            .iter()
+            .map(|yk| {
+                ArModel::fit_keeping_system(t, yk, self.order, self.grid_step_s, horizon_s, self.max_bridge_s)
+            })
+            .collect::<Option<Vec<_>>>()?;
+        Some(ArChannel::fitted(t, y, own, self.cross_order, horizon_s))
     }
 
     fn state_span_s(&self) -> f64 {
@@ -420,36 +488,41 @@ impl super::Forecaster for ArForecaster {
     }
 }
 
-impl super::ChannelForecast for ArModel {
+impl super::ChannelForecast for ArChannel {
     fn t0(&self) -> f64 {
-        self.t0
+        self.active().t0
     }
     fn value(&self, t: f64) -> f64 {
-        ArModel::value(self, t)
+        self.active().value(t)
     }
     fn rate(&self, t: f64) -> f64 {
-        ArModel::rate(self, t)
+        self.active().rate(t)
     }
     fn std(&self, t: f64) -> f64 {
-        ArModel::std(self, t)
+        self.active().std(t)
     }
     fn rate_std(&self, t: f64) -> f64 {
-        ArModel::rate_std(self, t)
+        self.active().rate_std(t)
     }
-    fn advanced(&self, t: &[f64], y: &[f64]) -> Option<Self> {
+    fn advanced(&self, t: &[f64], y: &[&[f64]]) -> Option<Self> {
         self.advance(t, y)
     }
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use std::f64::consts::TAU;
 
     /// `n` values of the AR(2) process `x_k = a_1 x_{k-1} + a_2 x_{k-2} + sigma e_k`, its
     /// Gaussian innovations from a fixed stream (Box-Muller over SplitMix64's output function
     /// of the index plus `offset`: independent-looking values for consecutive indices).
-    fn ar2_process(n: usize, [a1, a2]: [f64; 2], sigma: f64, offset: u64) -> Vec<f64> {
+    pub(in crate::forecast) fn ar2_process(
+        n: usize,
+        [a1, a2]: [f64; 2],
+        sigma: f64,
+        offset: u64,
+    ) -> Vec<f64> {
         let uniform = |k: u64| {
             let mut z = (k + offset).wrapping_mul(0x9E37_79B9_7F4A_7C15);
             z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);

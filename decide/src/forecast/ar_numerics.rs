@@ -105,24 +105,62 @@ pub(super) const MAX_ROOT_RADIUS: f64 = 0.999;
 /// with the directions whose eigenvalue is below `AR_CUTOFF^2` of the largest left out; None
 /// if they are not finite or the decomposition does not converge.
 pub(super) fn truncated_solve(ata: DMatrix<f64>, atb: &DVector<f64>) -> Option<DVector<f64>> {
-    if !ata.iter().chain(atb.iter()).all(|v| v.is_finite()) {
+    if !atb.iter().all(|v| v.is_finite()) {
         return None;
     }
-    let eigen = nalgebra::linalg::SymmetricEigen::try_new(ata, f64::EPSILON, 1000)?;
-    let largest = eigen.eigenvalues.max();
-    if !(largest > 0.0) {
-        return None;
-    }
-    let projected = eigen.eigenvectors.tr_mul(atb);
-    let scaled = DVector::from_fn(atb.len(), |i, _| {
-        let l = eigen.eigenvalues[i];
-        if l > AR_CUTOFF * AR_CUTOFF * largest {
-            projected[i] / l
-        } else {
-            0.0
+    Some(TruncatedInverse::new(ata)?.apply(atb))
+}
+
+/// The pseudo-inverse of normal equations (symmetric, positive semi-definite) with the
+/// directions whose eigenvalue is below `AR_CUTOFF^2` of the largest left out, kept as its
+/// eigen-decomposition: applied to several right-hand sides (the joint fit's Schur complement)
+/// without decomposing again.
+#[derive(Debug, Clone)]
+pub(super) struct TruncatedInverse {
+    vectors: DMatrix<f64>,
+    /// The eigenvalues, None where left out.
+    values: Vec<Option<f64>>,
+}
+
+impl TruncatedInverse {
+    /// None if `ata` is not finite, has no positive eigenvalue, or does not converge.
+    pub(super) fn new(ata: DMatrix<f64>) -> Option<Self> {
+        if !ata.iter().all(|v| v.is_finite()) {
+            return None;
         }
-    });
-    Some(&eigen.eigenvectors * scaled)
+        let eigen = nalgebra::linalg::SymmetricEigen::try_new(ata, f64::EPSILON, 1000)?;
+        let largest = eigen.eigenvalues.max();
+        if !(largest > 0.0) {
+            return None;
+        }
+        let values = eigen
+            .eigenvalues
+            .iter()
+            .map(|&l| (l > AR_CUTOFF * AR_CUTOFF * largest).then_some(l))
+            .collect();
+        Some(Self {
+            vectors: eigen.eigenvectors,
+            values,
+        })
+    }
+
+    /// The pseudo-inverse times `b` (a vector or the columns of a matrix).
+    pub(super) fn apply<S: nalgebra::Dim, St: nalgebra::storage::Storage<f64, nalgebra::Dyn, S>>(
+        &self,
+        b: &nalgebra::Matrix<f64, nalgebra::Dyn, S, St>,
+    ) -> nalgebra::OMatrix<f64, nalgebra::Dyn, S>
+    where
+        nalgebra::DefaultAllocator: nalgebra::allocator::Allocator<nalgebra::Dyn, S>,
+    {
+        let mut projected = self.vectors.tr_mul(b);
+        for (mut row, value) in projected.row_iter_mut().zip(&self.values) {
+            match value {
+                Some(l) => row /= *l,
+                None => row.fill(0.0),
+            }
+        }
+        &self.vectors * projected
+    }
 }
 
 /// `a` scaled so that every root of `z^p - a_1 z^(p-1) - ... - a_p` is within

@@ -434,11 +434,7 @@ impl<F: Forecaster> Tracking<F> {
             .map(|k| samples.range(start..).map(|h| h.1[k]).collect())
             .collect();
         let y: Vec<&[f64]> = y.iter().map(Vec::as_slice).collect();
-        for track in m.forecasts.iter_mut() {
-            if let Some(next) = track.advanced(&t, &y) {
-                *track = next;
-            }
-        }
+        self.forecaster.advance_all(&mut m.forecasts, &t, &y);
         // The history's forecast of each rate starts from the newest rate too, measured as its
         // regression's were: across two fit spacings (a gap leaves the fit's).
         let newest_sample = history.newest();

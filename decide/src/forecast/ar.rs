@@ -486,6 +486,10 @@ impl super::Forecaster for ArForecaster {
     fn state_span_s(&self) -> f64 {
         ArModel::state_span_s(self.order, self.grid_step_s)
     }
+
+    fn advance_all(&self, forecasts: &mut [ArChannel], t: &[f64], y: &[&[f64]]) {
+        ArChannel::advance_all(forecasts, t, y);
+    }
 }
 
 impl super::ChannelForecast for ArChannel {

@@ -334,36 +334,17 @@ impl ArChannel {
         self.path.as_ref().unwrap_or(&self.own)
     }
 
-    /// The joint recursion's path for this channel from the samples `t`, `y` (every channel),
-    /// ending at the newest: None without a joint model or when a needed lag lies in a gap.
-    fn joint_path(&self, t: &[f64], y: &[&[f64]], span: usize) -> Option<ArModel> {
-        let joint = self.joint.as_ref()?;
-        let n_in = t.len();
-        if n_in < 2 || y.iter().any(|c| c.len() != n_in) {
-            return None;
-        }
-        let n = (((t[n_in - 1] - t[0]) / joint.dt).floor() as usize + 1).min(span);
-        if n < joint.order + 1 {
-            return None;
-        }
-        let grids: Vec<(Vec<f64>, Vec<bool>)> = y
-            .iter()
-            .map(|c| resample(t, c, joint.dt, n, joint.max_bridge_s))
-            .collect();
-        if grids[0].1[n - joint.order..].iter().any(|&u| u) {
-            return None;
-        }
-        let x: Vec<&[f64]> = grids.iter().map(|g| g.0.as_slice()).collect();
-        let predicted = joint.predict(&x)?.swap_remove(self.channel);
-        let c = self.channel;
-        Some(ArModel {
-            t0: t[n_in - 1],
-            predicted,
+    /// This channel's forecast along the joint recursion's `paths` (from [`JointAr::paths`]).
+    fn along(&self, paths: &JointPaths) -> ArModel {
+        let (joint, c) = (&paths.joint, self.channel);
+        ArModel {
+            t0: paths.t0,
+            predicted: paths.predicted[c].clone(),
             variance: joint.variance[c].clone(),
             rate_variance: joint.rate_variance[c].clone(),
-            before_t0: x[c][n - 2],
+            before_t0: paths.before_t0[c],
             ..self.own.clone()
-        })
+        }
     }
 
     /// Every channel's forecast from one fit on samples `t`, `y`: the own autoregressions
@@ -376,7 +357,7 @@ impl ArChannel {
         horizon_s: f64,
     ) -> Vec<Self> {
         let joint = JointAr::fit(&own, cross_order, horizon_s).map(Arc::new);
-        let span = joint.as_ref().map_or(0, |j| j.order + 1);
+        let paths = joint.as_ref().and_then(|j| j.paths(t, y));
         own.into_iter()
             .enumerate()
             .map(|(channel, (own, _))| {
@@ -386,7 +367,7 @@ impl ArChannel {
                     joint: joint.clone(),
                     path: None,
                 };
-                forecast.path = forecast.joint_path(t, y, span);
+                forecast.path = paths.as_ref().map(|p| forecast.along(p));
                 forecast
             })
             .collect()
@@ -395,15 +376,85 @@ impl ArChannel {
     /// Run forward from the newest samples of every channel (`t` increasing): the own
     /// autoregression as [`ArModel::advance`], the joint path where its lags were measured.
     pub fn advance(&self, t: &[f64], y: &[&[f64]]) -> Option<Self> {
+        let paths = self.joint.as_ref().and_then(|j| j.paths(t, y));
+        self.advanced_along(t, y, paths.as_ref())
+    }
+
+    /// [`Self::advance`] with the joint recursion's paths given (run once for every channel).
+    fn advanced_along(&self, t: &[f64], y: &[&[f64]], paths: Option<&JointPaths>) -> Option<Self> {
         let own = self.own.advance(t, y.get(self.channel)?)?;
-        let span = self.joint.as_ref().map_or(0, |j| j.order + 1);
         let mut next = Self {
             own,
             path: None,
             ..self.clone()
         };
-        next.path = next.joint_path(t, y, span);
+        next.path = paths.map(|p| next.along(p));
         Some(next)
+    }
+
+    /// Every channel's forecast of one fit run forward from the newest samples together: the
+    /// joint recursion once for all of them (per channel, it would run once for each). A
+    /// forecast that cannot be run forward stays as it was.
+    pub fn advance_all(forecasts: &mut [Self], t: &[f64], y: &[&[f64]]) {
+        let shared = forecasts.first().and_then(|f| f.joint.clone());
+        let one_joint = forecasts.iter().all(|f| match (&f.joint, &shared) {
+            (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+            (None, None) => true,
+            _ => false,
+        });
+        if !one_joint {
+            for f in forecasts.iter_mut() {
+                if let Some(next) = f.advance(t, y) {
+                    *f = next;
+                }
+            }
+            return;
+        }
+        let paths = shared.and_then(|j| j.paths(t, y));
+        for f in forecasts.iter_mut() {
+            if let Some(next) = f.advanced_along(t, y, paths.as_ref()) {
+                *f = next;
+            }
+        }
+    }
+}
+
+/// The joint recursion run forward from the newest samples: every channel's predicted grid
+/// values and the grid value before the newest (for the rate at the start).
+#[derive(Debug, Clone)]
+struct JointPaths {
+    joint: Arc<JointAr>,
+    t0: f64,
+    predicted: Vec<Vec<f64>>,
+    before_t0: Vec<f64>,
+}
+
+impl JointAr {
+    /// The recursion run forward from the samples `t`, `y` (every channel), ending at the
+    /// newest: None when a needed lag lies in a gap (or there are too few samples).
+    fn paths(self: &Arc<Self>, t: &[f64], y: &[&[f64]]) -> Option<JointPaths> {
+        let n_in = t.len();
+        if n_in < 2 || y.len() != self.coef.len() || y.iter().any(|c| c.len() != n_in) {
+            return None;
+        }
+        let n = (((t[n_in - 1] - t[0]) / self.dt).floor() as usize + 1).min(self.order + 1);
+        if n < self.order + 1 {
+            return None;
+        }
+        let grids: Vec<(Vec<f64>, Vec<bool>)> = y
+            .iter()
+            .map(|c| resample(t, c, self.dt, n, self.max_bridge_s))
+            .collect();
+        if grids[0].1[n - self.order..].iter().any(|&u| u) {
+            return None;
+        }
+        let x: Vec<&[f64]> = grids.iter().map(|g| g.0.as_slice()).collect();
+        Some(JointPaths {
+            joint: Arc::clone(self),
+            t0: t[n_in - 1],
+            predicted: self.predict(&x)?,
+            before_t0: x.iter().map(|c| c[n - 2]).collect(),
+        })
     }
 }
 

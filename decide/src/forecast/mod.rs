@@ -47,4 +47,14 @@ pub trait Forecaster: Clone + std::fmt::Debug {
     fn fit(&self, t: &[f64], y: &[&[f64]], horizon_s: f64) -> Option<Vec<Self::Channel>>;
     /// How much of the newest history [`ChannelForecast::advanced`] needs (s).
     fn state_span_s(&self) -> f64;
+    /// Every channel's forecast run forward from the newest samples (as
+    /// [`ChannelForecast::advanced`], a forecast that cannot be keeping what it was); a
+    /// forecaster whose channels share a recursion runs it once here.
+    fn advance_all(&self, forecasts: &mut [Self::Channel], t: &[f64], y: &[&[f64]]) {
+        for forecast in forecasts.iter_mut() {
+            if let Some(next) = forecast.advanced(t, y) {
+                *forecast = next;
+            }
+        }
+    }
 }

@@ -382,11 +382,12 @@ impl ArChannel {
 
     /// [`Self::advance`] with the joint recursion's paths given (run once for every channel).
     fn advanced_along(&self, t: &[f64], y: &[&[f64]], paths: Option<&JointPaths>) -> Option<Self> {
-        let own = self.own.advance(t, y.get(self.channel)?)?;
+        // Built afresh: cloning `self` would copy the old own forecast and path every frame.
         let mut next = Self {
-            own,
+            channel: self.channel,
+            own: self.own.advance(t, y.get(self.channel)?)?,
+            joint: self.joint.clone(),
             path: None,
-            ..self.clone()
         };
         next.path = paths.map(|p| next.along(p));
         Some(next)

@@ -2,7 +2,8 @@
 //! one thread: `cargo bench -p deckwatch-detect --bench detect`. Tracked detection also at
 //! 640x480 (a Pi's 30 fps stream), where the discs are small (radius about 5 px from 5 m), and
 //! there through a lens blurred to a deviation of 2.5 px (the discs measured by their blurred
-//! pass, `measure/blurred.rs`).
+//! pass, `measure/blurred.rs`), and at 1640x1232 (the Pi's other 30 fps stream) through a lens
+//! blurred to 3 px (large discs, the same pass where the pattern leaves it room).
 //!
 //! Criterion measures full-frame and tracked detection; then, in the same run, a plain timing
 //! loop measures the detector and the OpenCV baseline (`opencv_baseline.py`: threshold +
@@ -73,6 +74,20 @@ fn main() {
     c.bench_function("detect_640x480_blurred/tracked", |b| {
         let mut k = 0;
         b.iter_custom(|iters| tracked(&mut small_det, &blurred_frames, &mut k, iters))
+    });
+    let mid_cam = cam.scaled_to(1640, 1232);
+    let mid_blurred = render_frames_with(
+        mid_cam,
+        8,
+        RenderOptions {
+            optical_blur_px: 3.0,
+            ..RenderOptions::realistic()
+        },
+    );
+    let mut mid_det = Detector::new(mid_cam, deck, DetectorConfig::for_camera(&mid_cam, &deck));
+    c.bench_function("detect_1640x1232_blurred/tracked", |b| {
+        let mut k = 0;
+        b.iter_custom(|iters| tracked(&mut mid_det, &mid_blurred, &mut k, iters))
     });
     let mut group = c.benchmark_group("detect_3280x2464");
     let mut k = 0;

@@ -6,7 +6,10 @@ use super::*;
 mod blurred;
 mod coverage;
 
-use blurred::{BlurredCentre, BLURRED_EDGE_SIGMA_PX, SAME_DISC_PX};
+use blurred::{
+    BlurredCentre, BLURRED_BACKGROUND_RING_PX, BLURRED_EDGE_SIGMA_PX, BLURRED_ISOLATION_PER_EDGE_SIGMA,
+    SAME_DISC_PX,
+};
 use coverage::{Coverage, RowCoverage};
 
 impl Detector {
@@ -181,19 +184,22 @@ impl Detector {
         // fixes its own slope, better than the background's, which the deck's texture tilts
         // and the scaling would magnify.
         let small = 2.0 * l1.sqrt() < SMALL_DISC_PX;
-        let plateau_plane = {
+        let scaled_plateau = {
             let [n, sx, sy, .., sz, _, _] = pn.s.map(|v| v as f64);
-            match (small, n > 0.0) {
-                (false, _) => pn.solve().unwrap_or([peak as f64, 0.0, 0.0]),
-                (true, true) => {
+            match n > 0.0 {
+                true => {
                     let (zbar, xb, yb) = (sz / n, sx / n, sy / n);
                     let b = b_at(x0, y0) + bg[1] * xb + bg[2] * yb;
                     let scale = if b > 1.0 { zbar / b } else { 0.0 };
                     let (gx, gy) = (bg[1] * scale, bg[2] * scale);
                     [zbar - gx * xb - gy * yb, gx, gy]
                 }
-                (true, false) => [peak as f64, 0.0, 0.0],
+                false => [peak as f64, 0.0, 0.0],
             }
+        };
+        let plateau_plane = match small {
+            true => scaled_plateau,
+            false => pn.solve().unwrap_or([peak as f64, 0.0, 0.0]),
         };
         let p_at = |x: usize, y: usize| {
             plateau_plane[0] + plateau_plane[1] * (x - x0) as f64 + plateau_plane[2] * (y - y0) as f64
@@ -230,8 +236,22 @@ impl Detector {
         let contrast = plateau - b_at(seed.0, seed.1);
         let std_of = |w: &WindowCentre| centre_std_px(w.weighed, [w.u, w.v], w.coverage, noise_dn / contrast);
         let mut centre = [window.u, window.v, std_of(&window)];
-        if small && window.edge_sigma_px > BLURRED_EDGE_SIGMA_PX {
-            match self.blurred_centre(frame, &disc, &window, a, roundness) {
+        // A large disc blurred as widely is measured the same way where its pattern leaves room
+        // for the wide window and the background's ring clear of its neighbours' tails (the
+        // widest window, 6 deviations, and 3 more for the neighbour's tail); in a crowded
+        // pattern the neighbours' tails in that ring moved the centres by tenths of a pixel, and
+        // the banded window stands.
+        let isolated = a * self.least_gap_per_radius
+            >= BLURRED_ISOLATION_PER_EDGE_SIGMA * window.edge_sigma_px + BLURRED_BACKGROUND_RING_PX;
+        if (small || isolated) && window.edge_sigma_px > BLURRED_EDGE_SIGMA_PX {
+            // The plateau is the interior's level with the background's slope scaled to it: a
+            // blurred disc has no flat interior, and a plane fitted to its dome tilts as the dome
+            // sits on the pixel grid (a small disc's is that already).
+            let blurred_disc = DiscWindow {
+                plateau: scaled_plateau,
+                ..disc
+            };
+            match self.blurred_centre(frame, &blurred_disc, &window, a, roundness) {
                 BlurredCentre::Measured(wide) => {
                     // Only the centre and the blur's width: the area stays the banded
                     // window's, which identification's size check is measured on (the wide

@@ -432,6 +432,30 @@ mod tests {
         img
     }
 
+    /// The RMS per axis and the largest of a disc's centre error (px) over `count` sub-pixel
+    /// positions about (31.5, 32.5): quasi-random in u (the golden ratio's multiples, carried in
+    /// `sub_pixel` from call to call), even in v.
+    fn centre_error_px(
+        det: &mut Detector,
+        disc: impl Fn(f64, f64) -> GrayImage,
+        count: usize,
+        sub_pixel: &mut f64,
+        what: &str,
+    ) -> (f64, f64) {
+        let (mut sq, mut worst) = (0.0, 0.0f64);
+        for k in 0..count {
+            *sub_pixel = (*sub_pixel + 0.618_033_988_75).fract();
+            let (u, v) = (31.0 + *sub_pixel, 32.0 + ((k as f64 + 0.5) / count as f64));
+            let img = disc(u, v);
+            let Ok(c) = det.measure(img.view(), (0, 0, SIDE, SIDE)) else {
+                panic!("{what}: the disc was not measured")
+            };
+            let e = (c.u - u).hypot(c.v - v);
+            (sq, worst) = (sq + e * e, worst.max(e));
+        }
+        ((sq / (2.0 * count as f64)).sqrt(), worst)
+    }
+
     /// The centre of a disc through point spreads of several shapes and widths (Gaussian up to
     /// 3 px, defocus, a glare halo, an ISP's sharpening with its halos), at sub-pixel positions,
     /// contrasts and sizes of the 640 x 480 stream's markers: within 0.008 px RMS of the truth
@@ -458,19 +482,9 @@ mod tests {
         let mut sub_pixel = 0.0f64;
         for (name, psf, sharpen) in &spreads {
             for (r, background, contrast) in [(5.3, 50.0, 150.0), (8.5, 70.0, 90.0)] {
-                let (mut sq, mut worst, mut n) = (0.0, 0.0f64, 0.0);
-                for k in 0..24 {
-                    // Quasi-random sub-pixel positions (the golden ratio's multiples).
-                    sub_pixel = (sub_pixel + 0.618_033_988_75).fract();
-                    let (u, v) = (31.0 + sub_pixel, 32.0 + ((k as f64 + 0.5) / 24.0));
-                    let img = disc_through(u, v, r, psf, *sharpen, background, contrast);
-                    let Ok(c) = det.measure(img.view(), (0, 0, SIDE, SIDE)) else {
-                        panic!("{name}, radius {r}: the disc was not measured")
-                    };
-                    let e = (c.u - u).hypot(c.v - v);
-                    (sq, worst, n) = (sq + e * e, worst.max(e), n + 1.0);
-                }
-                let rms = (sq / (2.0 * n)).sqrt();
+                let disc = |u, v| disc_through(u, v, r, psf, *sharpen, background, contrast);
+                let (rms, worst) =
+                    centre_error_px(&mut det, disc, 24, &mut sub_pixel, &format!("{name}, radius {r}"));
                 assert!(
                     rms < 0.008,
                     "{name}, radius {r}: {rms:.4} px RMS per axis (worst {worst:.4})"
@@ -498,18 +512,9 @@ mod tests {
         let mut sub_pixel = 0.0f64;
         for (name, psf) in &spreads {
             for (r, background, contrast) in [(11.0, 60.0, 140.0), (13.5, 40.0, 100.0)] {
-                let (mut sq, mut worst, mut n) = (0.0, 0.0f64, 0.0);
-                for k in 0..16 {
-                    sub_pixel = (sub_pixel + 0.618_033_988_75).fract();
-                    let (u, v) = (31.0 + sub_pixel, 32.0 + ((k as f64 + 0.5) / 16.0));
-                    let img = disc_through(u, v, r, psf, 0.0, background, contrast);
-                    let Ok(c) = det.measure(img.view(), (0, 0, SIDE, SIDE)) else {
-                        panic!("{name}, radius {r}: the disc was not measured")
-                    };
-                    let e = (c.u - u).hypot(c.v - v);
-                    (sq, worst, n) = (sq + e * e, worst.max(e), n + 1.0);
-                }
-                let rms = (sq / (2.0 * n)).sqrt();
+                let disc = |u, v| disc_through(u, v, r, psf, 0.0, background, contrast);
+                let (rms, worst) =
+                    centre_error_px(&mut det, disc, 16, &mut sub_pixel, &format!("{name}, radius {r}"));
                 assert!(
                     rms < 0.006,
                     "{name}, radius {r}: {rms:.4} px RMS per axis (worst {worst:.4})"

@@ -405,9 +405,6 @@ impl Detector {
         if !(cw > 0.0) {
             return Err(Rejection::Shape);
         }
-        if !(cw > 0.0) {
-            return Err(Rejection::Shape);
-        }
         Ok(WindowCentre {
             u: cu / cw,
             v: cv / cw,

@@ -145,6 +145,40 @@ fn recording_check_reads_every_image_and_names_bad_ones() {
     );
 }
 
+/// A report whose reader has gone (`deckwatch eval REC | head -0`) ends with it, as Unix tools
+/// do, instead of panicking on the closed pipe ("failed printing to stdout: Broken pipe").
+#[test]
+fn a_report_ends_quietly_when_its_reader_goes() {
+    use std::os::unix::process::ExitStatusExt;
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("rec");
+    let made = Command::new(workspace_binary("deckwatch"))
+        .args([
+            "sim", "record", "--frames", "3", "--width", "640", "--height", "480", "--out",
+        ])
+        .arg(&rec)
+        .output()
+        .unwrap();
+    assert!(made.status.success(), "{}", String::from_utf8_lossy(&made.stderr));
+    let mut child = Command::new(workspace_binary("deckwatch"))
+        .arg("eval")
+        .arg(&rec)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The reader goes before the report is written.
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(
+        out.status.success() || out.status.signal() == Some(libc::SIGPIPE),
+        "{:?}: {stderr}",
+        out.status
+    );
+}
+
 #[test]
 fn sweep_compares_the_variants() {
     let out = Command::new(workspace_binary("deckwatch"))

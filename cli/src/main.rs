@@ -447,8 +447,48 @@ fn check_recording(dir: &std::path::Path) -> Result<(), String> {
     Ok(())
 }
 
+/// Whether a command only reports (reads files or simulates, writes what it found): such a command
+/// piped into `head` ends with its reader. The launcher's commands (`run`, `replay`, `latency`,
+/// `soak`, `budget`, `camera-record`, `clean`) supervise processes or shared memory and keep
+/// Rust's default (a closed pipe is an error their shutdown sees); `trials` may run a cluster.
+fn is_report(command: &Command) -> bool {
+    matches!(
+        command,
+        Command::Diff(_)
+            | Command::Convert(_)
+            | Command::Recover(_)
+            | Command::Doctor(_)
+            | Command::Inproc(_)
+            | Command::DecideEval(_)
+            | Command::PredictEval(_)
+            | Command::Eval(_)
+            | Command::EstimateTable(_)
+            | Command::Sweep(_)
+            | Command::Sim { .. }
+            | Command::Recording { .. }
+            | Command::Calibration { .. }
+            | Command::Cameras { .. }
+            | Command::Pattern(_)
+    )
+}
+
+/// A report whose reader has gone (`deckwatch eval REC | head -1`) ends there, as Unix tools do:
+/// the pipe's signal keeps its default action. Rust ignores it, so that every later print to the
+/// closed pipe panicked ("failed printing to stdout: Broken pipe").
+fn end_with_a_closed_pipe() {
+    // SAFETY: `signal` with a valid signal number and `SIG_DFL`, called at start-up on the main
+    // thread before any other thread or handler exists.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() -> ExitCode {
-    let result = match Cli::parse().command {
+    let cli = Cli::parse();
+    if is_report(&cli.command) {
+        end_with_a_closed_pipe();
+    }
+    let result = match cli.command {
         Command::Run(a) => pipeline::run(a),
         Command::Latency(a) => pipeline::latency(a),
         Command::Replay(a) => flight::replay(a),

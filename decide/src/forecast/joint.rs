@@ -336,14 +336,20 @@ impl ArChannel {
 
     /// This channel's forecast along the joint recursion's `paths` (from [`JointAr::paths`]).
     fn along(&self, paths: &JointPaths) -> ArModel {
-        let (joint, c) = (&paths.joint, self.channel);
+        let (joint, c, own) = (&paths.joint, self.channel, &self.own);
+        // Field by field: `..own.clone()` would copy the own forecast's paths every frame only
+        // to drop them.
         ArModel {
             t0: paths.t0,
+            dt: own.dt,
             predicted: paths.predicted[c].clone(),
+            fit_rms: own.fit_rms,
             variance: joint.variance[c].clone(),
             rate_variance: joint.rate_variance[c].clone(),
+            coef: own.coef.clone(),
             before_t0: paths.before_t0[c],
-            ..self.own.clone()
+            series_var: own.series_var,
+            max_bridge_s: own.max_bridge_s,
         }
     }
 
@@ -446,7 +452,10 @@ impl JointAr {
             .iter()
             .map(|c| resample(t, c, self.dt, n, self.max_bridge_s))
             .collect();
-        if grids[0].1[n - self.order..].iter().any(|&u| u) {
+        if grids
+            .iter()
+            .any(|(_, unmeasured)| unmeasured[n - self.order..].iter().any(|&u| u))
+        {
             return None;
         }
         let x: Vec<&[f64]> = grids.iter().map(|g| g.0.as_slice()).collect();

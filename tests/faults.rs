@@ -109,6 +109,35 @@ fn a_full_disk_for_the_decisions_csv_does_not_stop_the_pipeline() {
     );
 }
 
+/// The reader of the launcher's output goes before the run ends (`deckwatch run | head -1`): the
+/// pipeline runs to its end regardless (its live status lines and report are for people), no
+/// process panics, and nothing is left behind.
+#[test]
+fn a_run_whose_reader_goes_runs_to_its_end() {
+    let domain = format!("t{}-reader", std::process::id());
+    let mut launcher = PipelineGuard::spawn(
+        Command::new(workspace_binary("deckwatch"))
+            // Not `--quiet`: a status line a second, the first written after the reader went.
+            .args(["run", "--frames", "30", "--rate", "10", "--rerun", "off"])
+            .args(["--domain", &domain])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped()),
+        &domain,
+    );
+    drop(launcher.child().stdout.take());
+    let out = launcher.wait_with_output();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(out.status.success(), "{:?}: {stderr}", out.status);
+    // The source ran out and every stage reported its frames at its end: the run was not cut
+    // short (capture drops the frames it renders too late on a busy machine: counts vary).
+    for stage in ["capture finished its source", "frames processed", "marker sets"] {
+        assert!(stderr.contains(stage), "{stage}: {stderr}");
+    }
+    let left = deckwatch_tests::guard::leftovers(&domain);
+    assert!(left.is_empty(), "left behind: {left:?}");
+}
+
 /// The launcher SIGKILLed mid-run: its stages exit on their own (PR_SET_PDEATHSIG), and
 /// `deckwatch clean` removes what it left: the domain's shared memory and its run folder.
 #[test]

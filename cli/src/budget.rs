@@ -114,7 +114,7 @@ pub fn run(a: BudgetArgs) -> Result<(), String> {
         None => "[decide]\nheave = \"off\"\n".to_string(),
     };
     let factor = a.pi5_cpu_factor.max(a.pi5_memory_factor);
-    println!(
+    outln!(
         "budget: {} s at each of {:?} fps replaying {} (after {} s settling); per process: CPU \
          (user + system) per frame and % of a core, context switches per frame, private resident \
          memory (RssAnon) and the shared memory it has touched (RssShmem); Pi 5 = this machine's \
@@ -142,11 +142,12 @@ pub fn run(a: BudgetArgs) -> Result<(), String> {
         let (shm, files) = shm_mib(&a.domain);
         let report = run.report().map_err(|e| format!("at {rate} fps: {e}"))?;
         let frames_s = elapsed_s * rate;
-        println!(
+        outln!(
             "\n{rate} fps: {} decisions, drops {}",
-            report["decisions"], report["drops"]
+            report["decisions"],
+            report["drops"]
         );
-        println!(
+        outln!(
             "{:<9} {:>10} {:>10} {:>8} {:>14} {:>9} {:>11} {:>12}",
             "process",
             "user ms/f",
@@ -160,11 +161,11 @@ pub fn run(a: BudgetArgs) -> Result<(), String> {
         let mut total = [0.0f64; 5];
         for (k, (name, _)) in names.iter().enumerate() {
             let (Some(f), Some(l)) = (first[k], last[k]) else {
-                println!("{name:<9} (not running for the whole measurement)");
+                outln!("{name:<9} (not running for the whole measurement)");
                 continue;
             };
             if f.pid != l.pid {
-                println!("{name:<9} (restarted during the measurement)");
+                outln!("{name:<9} (restarted during the measurement)");
                 continue;
             }
             // The CPU time in nanoseconds, split into user and system as the ticks are.
@@ -186,7 +187,7 @@ pub fn run(a: BudgetArgs) -> Result<(), String> {
             {
                 *t += v;
             }
-            println!(
+            outln!(
                 "{name:<9} {user:>10.3} {system:>10.3} {pct:>8.2} {:>14} {:>9.1} {:>11.1} {:>12.2}",
                 format!("{vol:.1}/{inv:.2}"),
                 l.private_mib,
@@ -194,7 +195,7 @@ pub fn run(a: BudgetArgs) -> Result<(), String> {
                 (user + system) * factor
             );
         }
-        println!(
+        outln!(
             "{:<9} {:>10.3} {:>10.3} {:>8.2} {:>14} {:>9.1} {:>11} {:>12.2}",
             "all",
             total[0],
@@ -205,7 +206,7 @@ pub fn run(a: BudgetArgs) -> Result<(), String> {
             "",
             (total[0] + total[1]) * factor
         );
-        println!(
+        outln!(
             "the domain's shared memory: {shm:.1} MiB in {files} files; a Pi 5 core would be \
              {:.1} % busy",
             total[2] * factor

@@ -100,7 +100,7 @@ pub fn run(command: CalibrationCommand) -> Result<(), String> {
     std::fs::create_dir_all(&out_dir).map_err(|e| format!("{}: cannot create: {e}", out_dir.display()))?;
     print_summary(&a.file, &imported);
     write_camera_json(&out_dir, &imported.camera, &deck).map_err(|e| e.to_string())?;
-    println!("wrote {} (deck: {deck_source})", out_file.display());
+    outln!("wrote {} (deck: {deck_source})", out_file.display());
     Ok(())
 }
 
@@ -110,28 +110,34 @@ fn print_summary(file: &Path, imported: &ImportedCalibration) {
         .camera_name
         .as_ref()
         .map_or(String::new(), |n| format!(", camera `{n}`"));
-    println!("imported {} ({}{name})", file.display(), imported.format.name());
-    println!(
+    outln!("imported {} ({}{name})", file.display(), imported.format.name());
+    outln!(
         "  model: pinhole; lens `{}` -> Brown-Conrady [k1, k2, p1, p2, k3]",
         imported.distortion_model
     );
-    println!("  image: {}x{} px", c.width, c.height);
-    println!(
+    outln!("  image: {}x{} px", c.width, c.height);
+    outln!(
         "  fx {:?}  fy {:?}  cx {:?}  cy {:?} (px)",
-        c.fx, c.fy, c.cx, c.cy
+        c.fx,
+        c.fy,
+        c.cx,
+        c.cy
     );
-    println!("  distortion: {:?}", c.distortion.to_array());
+    outln!("  distortion: {:?}", c.distortion.to_array());
     if let Some(fit) = &imported.equidistant_fit {
-        println!(
+        outln!(
             "  equidistant k1..k4 {:?} fitted: max difference {:.4} px over the image (limit \
              {MAX_EQUIDISTANT_DIFFERENCE_PX} px; {:.1} deg off axis at the corners; {} pixels checked)",
-            fit.fisheye_coefficients, fit.max_difference_px, fit.max_field_angle_deg, fit.checked_pixels
+            fit.fisheye_coefficients,
+            fit.max_difference_px,
+            fit.max_field_angle_deg,
+            fit.checked_pixels
         );
     }
     if c.readout_s > 0.0 {
-        println!("  readout: {} ms (rolling shutter)", c.readout_s * 1e3);
+        outln!("  readout: {} ms (rolling shutter)", c.readout_s * 1e3);
     } else {
-        println!("  readout: 0 ms (a global shutter; --readout-ms sets a rolling shutter's)");
+        outln!("  readout: 0 ms (a global shutter; --readout-ms sets a rolling shutter's)");
     }
 }
 

@@ -160,7 +160,7 @@ fn print_clearance_bands(b: &ClearanceBands) {
             )
         })
         .collect();
-    println!(
+    outln!(
         "{:<10} at its {} clearances, the forecast over the touchdown inside its 95 % band / beyond {:.2} stated deviations: {}",
         "",
         b.judged[0],
@@ -368,7 +368,7 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
     let minutes = minutes(&a)?;
     let n = frames(&a, minutes);
     if !a.json {
-        println!(
+        outln!(
             "{} min at {} Hz per series, {} motion, noise {} deg, heave x{}: camera height noise {} m, autopilot height noise {} m, drift {} m/s, fused over {} s; dropout {}, outliers {}, NaN {}, stale {}, frozen {}/min of {} s, jitter {} ms; vehicle {} (autopilot noise {} deg, bias {:?} deg, timing {} ms, {} outages/min of {} s); capacity roll/pitch {}/{} deg, rates {}/{} deg/s, heave {:?} rate {} m/s, touchdown {} s; the decider states the autopilot's vertical-speed error {} m/s and attitude error {} deg",
             minutes, a.rate, a.motion_csv.as_ref().map_or(a.motion.name().to_string(), |p| p.display().to_string()), a.noise_deg, a.heave_scale, a.heave_noise_m, a.vehicle_height_noise_m, a.vehicle_height_drift_mps, pipeline.vehicle.height_fusion_s, a.dropout, a.outliers, a.nan_share, a.stale_share,
             a.frozen_per_min, a.frozen_s, a.jitter_ms, clap::ValueEnum::to_possible_value(&a.vehicle).map(|v| v.get_name().to_string()).unwrap_or_default(), a.vehicle_noise_deg,
@@ -379,9 +379,17 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
         );
         // UNSAFE: clearances into a touchdown the true deck broke the capacity in; touched:
         // those of them not sent around before the point of no return.
-        println!(
+        outln!(
             "{:<10} {:<14} {:>8} {:>8} {:>9} {:>7} {:>8} {:>6} {:>9}",
-            "sea/seed", "rule", "commits", "UNSAFE", "touched", "aborts", "calm win", "used", "avail"
+            "sea/seed",
+            "rule",
+            "commits",
+            "UNSAFE",
+            "touched",
+            "aborts",
+            "calm win",
+            "used",
+            "avail"
         );
     }
     let (mut total_smart, mut total_naive) = (RuleOutcome::default(), RuleOutcome::default());
@@ -396,7 +404,7 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
             oracle_share.push(smart.safe_time_share);
             let per_frame_us = clock.elapsed().as_secs_f64() * 1e6 / n as f64;
             if a.json {
-                println!(
+                outln!(
                     "{}",
                     serde_json::json!({"sea_state": ss, "seed": seed, "heading_deg": heading.is_finite().then_some(heading), "frames": n, "state_machine": smart, "naive": naive, "us_per_frame": per_frame_us})
                 );
@@ -406,7 +414,7 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
                     .iter()
                     .map(|(k, v)| format!("{k} {v}"))
                     .collect();
-                println!(
+                outln!(
                     "{:<10} {}   aborts: {}; decision cost p50/p99/max {:.0}/{:.0}/{:.0} us",
                     series_name(ss, seed, heading),
                     row("state machine", &smart),
@@ -420,9 +428,9 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
                     smart.update_us[2]
                 );
                 for u in &smart.unsafe_commit_details {
-                    println!("{:<10} UNSAFE commit at {u}", "");
+                    outln!("{:<10} UNSAFE commit at {u}", "");
                 }
-                println!("{:<10} {}", "", row("naive", &naive));
+                outln!("{:<10} {}", "", row("naive", &naive));
             }
             for (t, o) in [(&mut total_smart, &smart), (&mut total_naive, &naive)] {
                 for (k, v) in &o.abort_reasons {
@@ -447,24 +455,24 @@ pub fn run(a: DecideEvalArgs) -> Result<(), String> {
             .iter()
             .map(|(k, v)| format!("{k} {v}"))
             .collect();
-        println!("state machine decisions: {}", d.join(", "));
+        outln!("state machine decisions: {}", d.join(", "));
         let reasons: Vec<String> = total_smart
             .abort_reasons
             .iter()
             .map(|(k, v)| format!("{k} {v}"))
             .collect();
-        println!(
+        outln!(
             "{:<10} {}   aborts: {}",
             "all",
             row("state machine", &total_smart),
             reasons.join(", ")
         );
-        println!("{:<10} {}", "", row("naive", &total_naive));
+        outln!("{:<10} {}", "", row("naive", &total_naive));
         print_clearance_bands(&total_smart.at_clearances);
         // An oracle that knows the future commits into every truly calm window (availability
         // 100 %), and could commit this share of the time.
         let share = oracle_share.iter().sum::<f64>() / oracle_share.len().max(1) as f64;
-        println!(
+        outln!(
             "{:<10} oracle (knows the future motion): {} calm windows, 100.0 % used; a commit would be safe {:.1} % of the time",
             "",
             total_smart.calm_windows,

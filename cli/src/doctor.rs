@@ -46,15 +46,15 @@ pub fn run(a: DoctorArgs) -> Result<bool, String> {
     let mut fixes = 0;
     for f in &found {
         match f {
-            Finding::Ok(what) => println!("ok    {what}"),
-            Finding::Note(what) => println!("note  {what}"),
+            Finding::Ok(what) => outln!("ok    {what}"),
+            Finding::Note(what) => outln!("note  {what}"),
             Finding::Fix(what, how) => {
                 fixes += 1;
-                println!("FIX   {what}: {how}");
+                outln!("FIX   {what}: {how}");
             }
         }
     }
-    println!(
+    outln!(
         "{} checks, {fixes} to fix",
         found.iter().filter(|f| !matches!(f, Finding::Note(_))).count()
     );

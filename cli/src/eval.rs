@@ -83,7 +83,7 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
         }
         None => None,
     };
-    println!(
+    outln!(
         "{:<28} {:<12} {:>6} {:>6} {:>6} {:>6} {:>26} {:>26} {:>22} {:>14}",
         "recording",
         "estimator",
@@ -125,7 +125,7 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
             let out = match out {
                 Ok(o) => o,
                 Err(e) => {
-                    eprintln!("deckwatch eval: skipped: {e}");
+                    errln!("deckwatch eval: skipped: {e}");
                     continue;
                 }
             };
@@ -218,9 +218,18 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
             };
             let cost =
                 Percentiles::of(&mut t.cost_us).map_or("-".into(), |p| format!("{:.1}/{:.1}", p.p50, p.p99));
-            println!(
+            outln!(
                 "{:<28} {:<12} {:>6} {:>6} {:>6} {:>6} {:>26} {:>26} {:>22} {:>14}",
-                name, est, t.frames, t.estimated, t.missed, t.false_attitudes, rmse, max, pos, cost
+                name,
+                est,
+                t.frames,
+                t.estimated,
+                t.missed,
+                t.false_attitudes,
+                rmse,
+                max,
+                pos,
+                cost
             );
         }
     }

@@ -75,7 +75,7 @@ fn resim(input: &Path, out: &Path, config: Option<&Path>) -> Result<(), String> 
         None => match recorded_config(input).map_err(|e| e.to_string())? {
             Some(c) => c,
             None => {
-                eprintln!(
+                errln!(
                     "{}: no pipeline.toml attached; re-simulating with the defaults",
                     input.display()
                 );
@@ -85,11 +85,11 @@ fn resim(input: &Path, out: &Path, config: Option<&Path>) -> Result<(), String> 
     };
     let recorded = FlightMessages::read(input).map_err(|e| e.to_string())?;
     if let Some(why) = &recorded.ended_early {
-        eprintln!("{}: the recording ends early ({why})", input.display());
+        errln!("{}: the recording ends early ({why})", input.display());
     }
     let r = resimulate(input, &recorded, &config).map_err(|e| e.to_string())?;
     if !r.gaps.is_empty() {
-        eprintln!(
+        errln!(
             "{} frames detect processed have no pixels in the recording (first: {}); detect's tracking may differ after them",
             r.gaps.len(),
             r.gaps[0]
@@ -130,7 +130,7 @@ fn resim(input: &Path, out: &Path, config: Option<&Path>) -> Result<(), String> 
         w.write(m).map_err(|e| e.to_string())?;
     }
     w.finish().map_err(|e| e.to_string())?;
-    println!(
+    outln!(
         "re-simulated {} frames: {} marker sets, {} attitudes, {} decisions -> {}",
         recorded.frames.len(),
         r.markers.len(),
@@ -197,16 +197,17 @@ fn print_diff(stages: &[StageDiff], a: &str, b: &str) {
 }
 
 fn print_diff_listing(stages: &[StageDiff], a: &str, b: &str, list: usize) {
-    println!("A = {a}\nB = {b}");
+    outln!("A = {a}\nB = {b}");
     for d in stages {
         if d.same() {
-            println!(
+            outln!(
                 "{:<8} identical: {} outputs, every field bit for bit",
-                d.stage, d.compared
+                d.stage,
+                d.compared
             );
             continue;
         }
-        println!(
+        outln!(
             "{:<8} {} compared, {} identical, {} differ; {} only in A, {} only in B",
             d.stage,
             d.compared,
@@ -223,24 +224,24 @@ fn print_diff_listing(stages: &[StageDiff], a: &str, b: &str, list: usize) {
         if shown > 0 {
             let frames: Vec<String> = d.differing[..shown].iter().map(u64::to_string).collect();
             let more = if shown < d.differing.len() { " ..." } else { "" };
-            println!("         differing frames: {}{more}", frames.join(" "));
+            outln!("         differing frames: {}{more}", frames.join(" "));
         }
         if let Some((seq, fields)) = &d.first {
-            println!("         first at frame {seq}:");
+            outln!("         first at frame {seq}:");
             for f in fields.iter().take(12) {
-                println!("           {}: A {} B {}", f.path, f.a, f.b);
+                outln!("           {}: A {} B {}", f.path, f.a, f.b);
             }
             if fields.len() > 12 {
-                println!("           ... {} more fields", fields.len() - 12);
+                outln!("           ... {} more fields", fields.len() - 12);
             }
         }
         let mut largest: Vec<(&String, &f64)> = d.largest.iter().collect();
         largest.sort_by(|x, y| y.1.total_cmp(x.1));
         for (path, v) in largest.iter().take(8) {
-            println!("         largest |A - B| of {path}: {v:.3e}");
+            outln!("         largest |A - B| of {path}: {v:.3e}");
         }
         for (path, n) in d.changed.iter().take(8) {
-            println!("         {path}: differs in {n} frames");
+            outln!("         {path}: differs in {n} frames");
         }
     }
 }
@@ -264,9 +265,9 @@ pub fn convert(a: ConvertArgs) -> Result<(), String> {
         let c = deckwatch_flight::convert::mcap_to_folder(&a.input, &a.output, a.max_mib << 20)
             .map_err(|e| e.to_string())?;
         if let Some(why) = c.ended_early {
-            eprintln!("{}: ends early ({why})", a.input.display());
+            errln!("{}: ends early ({why})", a.input.display());
         }
-        println!("{} frames -> {}", c.frames, a.output.display());
+        outln!("{} frames -> {}", c.frames, a.output.display());
         return Ok(());
     }
     let encoding = match a.frames.as_str() {
@@ -276,7 +277,7 @@ pub fn convert(a: ConvertArgs) -> Result<(), String> {
         other => return Err(format!("--frames: unknown `{other}` (raw, png, jpeg)")),
     };
     let n = folder_to_mcap(&a.input, &a.output, encoding)?;
-    println!("{n} frames -> {}", a.output.display());
+    outln!("{n} frames -> {}", a.output.display());
     Ok(())
 }
 
@@ -317,7 +318,7 @@ pub fn folder_to_mcap(dir: &Path, out: &Path, encoding: FrameEncoding) -> Result
         let f = match source.capture(k, &mut pixels, width) {
             Ok(f) => f,
             Err(e) => {
-                eprintln!("frame {k}: {e}; skipped");
+                errln!("frame {k}: {e}; skipped");
                 drops.bad_frames += 1;
                 continue;
             }
@@ -358,13 +359,13 @@ pub fn recover(a: RecoverArgs) -> Result<(), String> {
     )
     .map_err(|e| e.to_string())?;
     match r.ended_early {
-        Some(why) => println!(
+        Some(why) => outln!(
             "{} messages recovered into {} ({} ended early: {why})",
             r.messages,
             a.output.display(),
             a.input.display()
         ),
-        None => println!(
+        None => outln!(
             "{} messages copied into {} ({} was complete)",
             r.messages,
             a.output.display(),

@@ -75,7 +75,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
     let mut csv = a.decisions.as_deref().map(DecisionsCsv::create).transpose()?;
     let mut chain = StageChain::new(&config).map_err(|e| e.to_string())?;
     let camera = *chain.source().camera();
-    println!(
+    outln!(
         "source: {}, {}x{}; estimator {}",
         chain.source().describe(),
         camera.width,
@@ -92,7 +92,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
         let out = match out {
             Ok(o) => o,
             Err(e) => {
-                eprintln!("skipped a bad frame: {e}");
+                errln!("skipped a bad frame: {e}");
                 continue;
             }
         };
@@ -143,7 +143,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
                 0 => String::new(),
                 n => format!(", {n} out of view"),
             };
-            println!(
+            outln!(
                 "frame {:5} t {:8.3} s: {:?} {} markers{}{out_of_view} | {att}{err} | {} ({})",
                 out.markers.context.source_index,
                 out.markers.context.source_timestamp_ns as f64 / 1e9,
@@ -156,7 +156,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
         }
     }
     let bad = chain.drops().bad_frames;
-    println!(
+    outln!(
         "{frames} frames ({bad} bad, skipped): {ok} ok, {partial} partial ({leaving} with markers out of view), \
          {no_deck} no deck; {tracked} tracked; \
          {estimated} attitudes"
@@ -166,23 +166,26 @@ pub fn run(a: RunArgs) -> Result<(), String> {
         .zip(states)
         .map(|(s, n)| format!("{} {n}", s.name()))
         .collect();
-    println!("decisions: {}", states.join(", "));
+    outln!("decisions: {}", states.join(", "));
     if accuracy.n > 0 {
         let (r, m) = (accuracy.rmse(), accuracy.max);
-        println!(
+        outln!(
             "attitude error vs ground truth ({} frames): RMSE roll {:.4} pitch {:.4} yaw {:.4} deg, max {:.4} {:.4} {:.4}",
             accuracy.n, r[0], r[1], r[2], m[0], m[1], m[2]
         );
     }
     if false_attitudes > 0 {
-        println!("WARNING: {false_attitudes} attitudes on frames without a deck in view");
+        outln!("WARNING: {false_attitudes} attitudes on frames without a deck in view");
     }
     let places = std::iter::once(SOURCE).chain(PipelineStage::ALL.map(PipelineStage::name));
     for (stage, times) in places.zip(&mut costs) {
         if let Some(p) = Percentiles::of(times) {
-            println!(
+            outln!(
                 "{stage:>9}: p50 {:8.3} ms  p90 {:8.3} ms  p99 {:8.3} ms  max {:8.3} ms",
-                p.p50, p.p90, p.p99, p.max
+                p.p50,
+                p.p90,
+                p.p99,
+                p.max
             );
         }
     }

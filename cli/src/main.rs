@@ -40,6 +40,8 @@ struct Cli {
     command: Command,
 }
 
+#[macro_use]
+mod console;
 mod budget;
 mod calibration;
 mod decide_eval;
@@ -254,7 +256,7 @@ fn record(a: RecordArgs) -> Result<(), String> {
             .samples(a.sim.profile().as_ref(), end_s, a.sim.seed);
         if !samples.is_empty() {
             deckwatch_formats::recording::write_vehicle_csv(&a.out, &samples).map_err(|e| e.to_string())?;
-            eprintln!(
+            errln!(
                 "vehicle.csv: {} autopilot samples at {} Hz (noise {} deg, bias {:?} deg, time error {} ms)",
                 samples.len(),
                 a.sim.autopilot.rate_hz,
@@ -265,7 +267,7 @@ fn record(a: RecordArgs) -> Result<(), String> {
         }
     }
     let n = writer.finish().map_err(|e| e.to_string())?;
-    eprintln!(
+    errln!(
         "wrote {n} frames ({}x{}, {} without deck) to {} in {:.1} s; rendering {:.1} ms/frame",
         camera.width,
         camera.height,
@@ -276,7 +278,7 @@ fn record(a: RecordArgs) -> Result<(), String> {
     );
     if let Some(v) = virtual_camera {
         let yaml = v.finish(a.sim.rate).map_err(|e| e.to_string())?;
-        eprintln!(
+        errln!(
             "virtual camera: {} (with {n} JPEG frames beside it)",
             yaml.display()
         );
@@ -293,7 +295,7 @@ fn camera_record(
     c.source.kind = deckwatch_common::messages::FrameSource::Libcamera;
     c.libcamera.frames = frames;
     let mut source = c.capture().open().map_err(|e| e.to_string())?;
-    eprintln!("{}", source.describe());
+    errln!("{}", source.describe());
     let (camera, deck) = (*source.camera(), *source.deck());
     let mut writer = RecordingWriter::create(out, &camera, &deck, deckwatch_formats::recording::NO_TRUTH)
         .map_err(|e| e.to_string())?;
@@ -316,12 +318,12 @@ fn camera_record(
             }
             Err(e) => {
                 bad += 1;
-                eprintln!("frame skipped: {e}");
+                errln!("frame skipped: {e}");
             }
         }
     }
     let n = writer.finish().map_err(|e| e.to_string())?;
-    eprintln!("wrote {n} frames to {} ({bad} bad frames skipped)", out.display());
+    errln!("wrote {n} frames to {} ({bad} bad frames skipped)", out.display());
     Ok(())
 }
 
@@ -329,18 +331,18 @@ fn cameras(json: bool) -> Result<(), String> {
     let (version, cameras) = deckwatch_capture::camera::list_cameras().map_err(|e| e.to_string())?;
     if json {
         let doc = serde_json::json!({ "libcamera": version, "cameras": cameras });
-        println!(
+        outln!(
             "{}",
             serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?
         );
         return Ok(());
     }
-    println!("libcamera {version}: {} camera(s)", cameras.len());
+    outln!("libcamera {version}: {} camera(s)", cameras.len());
     for c in &cameras {
-        print!("{c}");
+        out!("{c}");
     }
     if cameras.is_empty() {
-        println!("(none: is the camera connected, enabled and not held by another process?)");
+        outln!("(none: is the camera connected, enabled and not held by another process?)");
     }
     Ok(())
 }
@@ -373,7 +375,7 @@ fn sweep(a: SweepArgs) -> Result<(), String> {
         ));
     }
     let rows = a.sim.marker_rows(&sim, a.noise_px)?;
-    println!(
+    outln!(
         "scenario {}, camera {}, {} frames at {} Hz, seed {}, pixel noise {} px, altimeter error {:+.3} %",
         sim.scenario.name(),
         sim.camera_name,
@@ -383,9 +385,13 @@ fn sweep(a: SweepArgs) -> Result<(), String> {
         a.noise_px,
         100.0 * a.altimeter_error
     );
-    println!(
+    outln!(
         "{:<18} {:>10}  {:>30}  {:>30}  {:>17}",
-        "variant", "estimated", "RMSE roll/pitch/yaw (deg)", "max roll/pitch/yaw (deg)", "us p50/p99"
+        "variant",
+        "estimated",
+        "RMSE roll/pitch/yaw (deg)",
+        "max roll/pitch/yaw (deg)",
+        "us p50/p99"
     );
     for v in PaperVariant::ALL {
         let est = PaperEstimator::new(sim.camera, sim.deck, v);
@@ -403,7 +409,7 @@ fn sweep(a: SweepArgs) -> Result<(), String> {
         let [r0, r1, r2] = stats.rmse();
         let [m0, m1, m2] = stats.max;
         let t = Percentiles::of(&mut times).expect("at least one frame");
-        println!(
+        outln!(
             "{:<18} {:>10}  {:>9.2e} {:>9.2e} {:>9.2e}  {:>9.2e} {:>9.2e} {:>9.2e}  {:>8.1} {:>8.1}",
             v.name(),
             format!("{}/{}", stats.n, rows.len()),
@@ -428,7 +434,7 @@ fn check_recording(dir: &std::path::Path) -> Result<(), String> {
             .map_err(|e| format!("{e} (frames.csv line {})", f.line))?;
     }
     let no_deck = rec.frames.iter().filter(|f| f.truth.attitude().is_none()).count();
-    println!(
+    outln!(
         "{}: {} frames of {}x{} (fx {:.2}, fy {:.2}), deck {} ring markers on {} m; attitude truth: {}",
         dir.display(),
         rec.frames.len(),
@@ -535,7 +541,7 @@ fn main() -> ExitCode {
         Command::Calibration { command } => calibration::run(command),
         Command::Cameras { json } => cameras(json),
         Command::Clean { domain, rerun } => launch::clean(&domain, rerun.as_deref()).map(|c| {
-            println!(
+            outln!(
                 "domain `{domain}`: {} dead processes' resources removed{}",
                 c.dead_nodes,
                 if c.domain_removed {
@@ -545,7 +551,7 @@ fn main() -> ExitCode {
                 }
             );
             for p in &c.paths {
-                println!("removed {}", p.display());
+                outln!("removed {}", p.display());
             }
         }),
         Command::CameraRecord { config, frames, out } => camera_record(config, frames, &out),
@@ -558,7 +564,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("deckwatch: {e}");
+            errln!("deckwatch: {e}");
             ExitCode::FAILURE
         }
     }

@@ -99,7 +99,7 @@ fn write_pattern(a: &PatternArgs) -> Result<(), String> {
     let (layout, source) = configured_layout(a.config.as_deref())?;
     let drawing = PatternDrawing::new(&layout).map_err(|e| e.to_string())?;
     write_file(out, &drawing.svg())?;
-    println!(
+    outln!(
         "{}: the deck pattern of {source} at true scale, {:.0} x {:.0} mm (ring radius {} mm, {} ring markers, disc diameter {} mm, bow disc {} mm)",
         out.display(),
         drawing.width_mm,
@@ -113,7 +113,7 @@ fn write_pattern(a: &PatternArgs) -> Result<(), String> {
         TileArg::A4 => Paper::A4,
         TileArg::A3 => Paper::A3,
         TileArg::None => {
-            println!("print at 100 % (actual size) and measure the 100 mm check bar with a ruler");
+            outln!("print at 100 % (actual size) and measure the 100 mm check bar with a ruler");
             return Ok(());
         }
     };
@@ -138,7 +138,7 @@ fn write_pattern(a: &PatternArgs) -> Result<(), String> {
         )?;
     }
     write_file(&dir.join(format!("{stem}-overview.svg")), &tiled.overview_svg)?;
-    println!(
+    outln!(
         "{} pages of {} {} ({} rows x {} columns, {} mm overlap): {stem}-r1c1.svg ... {stem}-r{}c{}.svg, and {stem}-overview.svg (not to scale)",
         tiled.tiles.len(),
         paper.name(),
@@ -149,7 +149,7 @@ fn write_pattern(a: &PatternArgs) -> Result<(), String> {
         tiled.rows,
         tiled.cols,
     );
-    println!(
+    outln!(
         "print each page at 100 % (actual size, no fit to page) and measure its 100 mm bar with a ruler; \
          cut each page on its dashed lines and lay the cut edge on the neighbour's dotted line, the red crosses on each other"
     );
@@ -250,7 +250,7 @@ fn check(a: CheckArgs) -> Result<bool, String> {
     )
     .map_err(|e| format!("{name}: {e}"))?;
     if calibration_deck != layout {
-        println!(
+        outln!(
             "note: {} describes another deck (ring radius {} m); checked against {source}",
             a.camera.display(),
             calibration_deck.ring_radius_m
@@ -372,11 +372,11 @@ fn basis_text(d: &Dimension, check: &PatternCheck) -> String {
 
 fn print_check(check: &PatternCheck, layout: &DeckLayout, photo: &str, source: &str, tolerance_pct: f64) {
     let found = check.found_mask.count_ones();
-    println!(
+    outln!(
         "{photo}: {found} of {} markers found; checked against the deck of {source}",
         layout.marker_count()
     );
-    println!(
+    outln!(
         "view tilted {:.1} deg from square-on; the camera is {:.3} m from the centre marker if the print is true to size; \
          plane-map residual {:.2} px (rigid pose of the configured deck: {:.2} px)",
         check.view_tilt_deg,
@@ -385,18 +385,22 @@ fn print_check(check: &PatternCheck, layout: &DeckLayout, photo: &str, source: &
         check.pose.reprojection_rms_px
     );
     match check.scale {
-        Some(scale) => println!(
+        Some(scale) => outln!(
             "scale from --distance-m: the print is {:.2} % of the configured size",
             100.0 * scale
         ),
-        None => println!(
+        None => outln!(
             "scale: none (no --distance-m): lengths are the print's own proportions, its ring radius taken as configured"
         ),
     }
-    println!();
-    println!(
+    outln!();
+    outln!(
         "{:<34} {:>14} {:>14} {:>9}  {:<4} basis",
-        "dimension", "configured", "measured", "error", ""
+        "dimension",
+        "configured",
+        "measured",
+        "error",
+        ""
     );
     for d in &check.dimensions {
         let (measured, error, verdict) = match (d.measured, d.error_pct()) {
@@ -407,7 +411,7 @@ fn print_check(check: &PatternCheck, layout: &DeckLayout, photo: &str, source: &
             ),
             _ => ("-".into(), "-".into(), ""),
         };
-        println!(
+        outln!(
             "{:<34} {:>14} {:>14} {:>9}  {:<4} {}",
             quantity_name(d.quantity, layout),
             value_text(d.quantity, d.nominal),
@@ -417,22 +421,22 @@ fn print_check(check: &PatternCheck, layout: &DeckLayout, photo: &str, source: &
             basis_text(d, check)
         );
     }
-    println!();
+    outln!();
     let off: Vec<String> = check
         .off(tolerance_pct)
         .map(|d| quantity_name(d.quantity, layout))
         .collect();
     let measured = check.dimensions.iter().filter(|d| d.measured.is_some()).count();
     if off.is_empty() {
-        println!("result: all {measured} measured dimensions within {tolerance_pct} %");
+        outln!("result: all {measured} measured dimensions within {tolerance_pct} %");
     } else {
-        println!(
+        outln!(
             "result: {} of {measured} measured dimensions off by more than {tolerance_pct} %: {}",
             off.len(),
             off.join(", ")
         );
     }
-    println!(
+    outln!(
         "note: one photograph cannot tell a print's absolute size from its distance (twice as large twice as far looks the same). \
          Measure the 100 mm check bar with a ruler: a print scaled by the printer scales its bar too, so the photograph cannot check it. \
          --distance-m gives mm as accurate as the tape and the calibration's focal length."

@@ -172,7 +172,7 @@ pub fn load(config: Option<&Path>) -> Result<(PipelineConfig, String), String> {
 /// (after the report), so no script takes the incomplete file for the whole run.
 fn finish(report: RunReport, json: bool, csv: Option<&Path>) -> Result<(), String> {
     if json {
-        println!(
+        outln!(
             "{}",
             serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?
         );
@@ -204,7 +204,7 @@ pub fn run(a: RunArgs) -> Result<(), String> {
     }
     if a.print_config {
         c.validate(&file).map_err(|e| e.to_string())?;
-        print!("{}", c.to_toml());
+        out!("{}", c.to_toml());
         return Ok(());
     }
     let options = LaunchOptions {

@@ -57,13 +57,13 @@ fn print_report(label: &str, predictor: &str, r: &ForecastReport, touchdown_s: f
                 }
             })
             .collect();
-        println!(
+        outln!(
             "{label:<10} {predictor:<12} {name:<15} {}  {:>5.1}%",
             cells.join(" "),
             100.0 * r.window_coverage(q)
         );
     }
-    println!(
+    outln!(
         "{label:<10} {predictor:<12} {:<15} {} windows of {touchdown_s} s, every quantity inside: {:.1}%",
         "all",
         r.windows,
@@ -97,7 +97,7 @@ pub fn run(a: PredictEvalArgs) -> Result<(), String> {
     for p in &a.predictors {
         forecaster(p, &config)?;
     }
-    println!(
+    outln!(
         "{} min at {} Hz per series, {} motion; noise {} deg, camera height noise {} m, autopilot height noise {} m, drift {} m/s, fused over {} s, dropout {}, outliers {}; window {} s, touchdown {} s, risk per touchdown {}",
         minutes, a.stream.rate, a.stream.motion_csv.as_ref().map_or(a.stream.motion.name().to_string(), |p| p.display().to_string()), a.stream.noise_deg, a.stream.heave_noise_m,
         a.stream.vehicle_height_noise_m, a.stream.vehicle_height_drift_mps, pipeline.vehicle.height_fusion_s,
@@ -108,7 +108,7 @@ pub fn run(a: PredictEvalArgs) -> Result<(), String> {
         .iter()
         .map(|h| format!("{:>20}", format!("{h} s: rms p99 in95")))
         .collect();
-    println!(
+    outln!(
         "{:<10} {:<12} {:<15} {}  {:>6}",
         "sea",
         "predictor",
@@ -156,7 +156,7 @@ pub fn run(a: PredictEvalArgs) -> Result<(), String> {
         print_report("all", name, &overall[k], config.touchdown_s);
     }
     // The tail the decision's risk lies in: the 95 % band holding 95 % says nothing of it.
-    println!(
+    outln!(
         "share of truths beyond {TAIL_Z:.2} stated deviations, the tails the risk per touchdown is judged in (an honest normal band's: {:.2} %), at {} s, and at some instant of a whole touchdown (window)",
         100.0 * TAIL_SHARE,
         a.horizons.iter().map(|h| h.to_string()).collect::<Vec<_>>().join(", ")
@@ -179,7 +179,7 @@ pub fn run(a: PredictEvalArgs) -> Result<(), String> {
                 100.0 * overall[k].window_beyond_tail[q] as f64 / windows
             ));
             if overall[k].errors[q].iter().any(|e| !e.abs_errors.is_empty()) {
-                println!("{:<10} {name:<12} {quantity:<15} {}", "tail", cells.join(" "));
+                outln!("{:<10} {name:<12} {quantity:<15} {}", "tail", cells.join(" "));
             }
         }
     }

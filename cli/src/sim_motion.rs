@@ -105,7 +105,7 @@ pub fn run(a: MotionArgs) -> Result<(), String> {
     ];
     write_motion_csv(&a.out, &comments, &rows).map_err(|e| e.to_string())?;
     let summary = Summary::of(&rows);
-    eprintln!(
+    errln!(
         "wrote {} samples ({} min at {} Hz) of `{}`, sea state {}, waves from {} deg off the bow, seed {}, to {}",
         rows.len(),
         a.minutes,
@@ -122,7 +122,7 @@ pub fn run(a: MotionArgs) -> Result<(), String> {
         ("yaw", "deg", summary.yaw),
         ("heave", "m", summary.heave),
     ] {
-        eprintln!("  {name:<5} sd {sd:6.2} {unit}, largest {max:6.2} {unit}");
+        errln!("  {name:<5} sd {sd:6.2} {unit}, largest {max:6.2} {unit}");
     }
     Ok(())
 }

@@ -179,7 +179,7 @@ impl BackgroundRun {
 /// replays in a loop when given no recording).
 pub(crate) fn render_recording(me: &Path, dir: &Path, rate: f64, who: &str) -> Result<PathBuf, String> {
     let r = dir.join("recording");
-    eprintln!("{who}: rendering 60 frames of 3280x2464 into {}", r.display());
+    errln!("{who}: rendering 60 frames of 3280x2464 into {}", r.display());
     let status = Command::new(me)
         .args(["sim", "record", "--frames", "60", "--rate"])
         .arg(rate.to_string())
@@ -221,16 +221,23 @@ pub fn run(a: SoakArgs) -> Result<(), String> {
     )
     .map_err(|e| format!("{}: {e}", config.display()))?;
     let mut run = BackgroundRun::start(&me, &config)?;
-    println!(
+    outln!(
         "soak: {} min at {} fps of {} ({frames} frames); every {} s, each process's CPU since the last sample (% of a core, user + system) / private resident memory (RssAnon, MiB), and the domain's shared memory",
         a.minutes,
         a.rate,
         recording.display(),
         a.every_s
     );
-    println!(
+    outln!(
         "{:>7} {:>14} {:>14} {:>14} {:>14} {:>14} {:>9} {:>9}",
-        "t_s", "capture", "detect", "estimate", "decide", "launcher", "shm_MiB", "shm_files"
+        "t_s",
+        "capture",
+        "detect",
+        "estimate",
+        "decide",
+        "launcher",
+        "shm_MiB",
+        "shm_files"
     );
     let start = Instant::now();
     let mut samples: Vec<[Option<f64>; 5]> = Vec::new();
@@ -281,7 +288,7 @@ pub fn run(a: SoakArgs) -> Result<(), String> {
                 cells.push(format!("{pct}/{mib}"));
             }
             let (shm, files) = shm_mib(&a.domain);
-            println!(
+            outln!(
                 "{:>7.0} {:>14} {:>14} {:>14} {:>14} {:>14} {:>9.1} {:>9}",
                 start.elapsed().as_secs_f64(),
                 cells[0],
@@ -312,9 +319,13 @@ pub fn run(a: SoakArgs) -> Result<(), String> {
     // Growth from the first sample after a minute (buffers allocated) to the last.
     let settled = ((60.0 / a.every_s).ceil() as usize).min(samples.len().saturating_sub(1));
     let mut worst = 0.0f64;
-    println!(
+    outln!(
         "{:<9} {:>11} {:>13} {:>26} {:>22}",
-        "process", "CPU %", "CPU ms/frame", "RssAnon MiB (growth)", "ctx switches vol/invol"
+        "process",
+        "CPU %",
+        "CPU ms/frame",
+        "RssAnon MiB (growth)",
+        "ctx switches vol/invol"
     );
     for (k, name) in PROCESSES.iter().enumerate() {
         let first = samples.get(settled).and_then(|s| s[k]);
@@ -338,16 +349,16 @@ pub fn run(a: SoakArgs) -> Result<(), String> {
             _ => "-".to_string(),
         };
         let sw = switches[k].map_or("-".to_string(), |(v, i)| format!("{v}/{i}"));
-        println!("{name:<9} {pct:>11} {per_frame:>13} {mem:>26} {sw:>22}");
+        outln!("{name:<9} {pct:>11} {per_frame:>13} {mem:>26} {sw:>22}");
     }
-    println!(
+    outln!(
         "{} decisions in {:.0} s; drops {total_drops} ({drops}); restarts {}",
         report["decisions"],
         report["duration_s"].as_f64().unwrap_or(0.0),
         report["restarts"]
     );
     let flat = worst <= a.max_growth_mib;
-    println!(
+    outln!(
         "memory {} (largest growth {worst:+.1} MiB, limit {} MiB); {}",
         if flat { "flat" } else { "GROWS" },
         a.max_growth_mib,

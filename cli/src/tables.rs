@@ -103,7 +103,7 @@ pub fn estimate_table(a: EstimateTableArgs) -> Result<bool, String> {
         let row = match row {
             Ok(r) => r,
             Err(e) => {
-                eprintln!("deckwatch estimate-table: skipped: {e}");
+                errln!("deckwatch estimate-table: skipped: {e}");
                 bad_rows += 1;
                 continue;
             }
@@ -157,17 +157,20 @@ pub fn estimate_table(a: EstimateTableArgs) -> Result<bool, String> {
     }
     out.flush().map_err(io)?;
     let frames = ok + not_estimable.values().sum::<usize>();
-    eprintln!(
+    errln!(
         "deckwatch estimate-table: {frames} frames, {ok} estimated ({}), {bad_rows} bad rows skipped",
         variant.name()
     );
     for (why, n) in &not_estimable {
-        eprintln!("  not estimable x{n}: {why}");
+        errln!("  not estimable x{n}: {why}");
     }
     if let Some(p) = Percentiles::of(&mut times_us) {
-        eprintln!(
+        errln!(
             "  estimate time per frame (us): p50 {:.1} p90 {:.1} p99 {:.1} max {:.1}",
-            p.p50, p.p90, p.p99, p.max
+            p.p50,
+            p.p90,
+            p.p99,
+            p.max
         );
     }
     Ok(bad_rows == 0)

@@ -24,7 +24,7 @@ use supervise::{launched_stages, supervise, Supervised};
 
 fn say(msg: impl std::fmt::Display) {
     let line = format!("deckwatch: {msg}");
-    eprintln!("{line}");
+    errln!("{line}");
     if let Some(tx) = LAUNCHER_LOG.get() {
         let tx = tx.lock().unwrap_or_else(|p| p.into_inner());
         let _ = tx.send(StageLog::new(

@@ -97,7 +97,7 @@ impl StageProcess {
                     use std::io::BufRead;
                     for line in std::io::BufReader::new(stderr).lines() {
                         let Ok(line) = line else { break };
-                        eprintln!("{line}");
+                        errln!("{line}");
                         let _ = tx.send(StageLog::new(monotonic_ns(), pid, &name, &line));
                     }
                 });

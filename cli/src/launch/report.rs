@@ -51,18 +51,23 @@ pub struct RunReport {
 
 /// The report as a table for people.
 pub fn print_report(r: &RunReport) {
-    println!(
+    outln!(
         "{} decisions in {:.1} s ({:.1} per s){}",
         r.decisions,
         r.duration_s,
         r.decisions as f64 / r.duration_s.max(1e-9),
         if r.interrupted { ", stopped by signal" } else { "" }
     );
-    println!("latency (ms)        count      p50      p90      p99      max");
+    outln!("latency (ms)        count      p50      p90      p99      max");
     for l in &r.latency {
-        println!(
+        outln!(
             "  {:<16} {:>7} {:>8.3} {:>8.3} {:>8.3} {:>8.3}",
-            l.interval, l.count, l.p50_ms, l.p90_ms, l.p99_ms, l.max_ms
+            l.interval,
+            l.count,
+            l.p50_ms,
+            l.p90_ms,
+            l.p99_ms,
+            l.max_ms
         );
     }
     let d = &r.drops.counts;
@@ -71,29 +76,36 @@ pub fn print_report(r: &RunReport) {
         .iter()
         .map(|(name, n)| format!("{} {n}", name.replace('_', " ")))
         .collect();
-    println!(
+    outln!(
         "drops: {} ({}); decisions missed by the launcher: {}",
         d.total(),
         by_place.join(", "),
         r.drops.observer
     );
     let states: Vec<String> = r.states.iter().map(|(n, c)| format!("{n} {c}")).collect();
-    println!(
+    outln!(
         "decisions: {}; watchdog (stale) decisions: {}; bad decisions skipped: {}",
         states.join(", "),
         r.watchdog_decisions,
         r.bad_decisions_skipped
     );
     let restarts: Vec<String> = r.restarts.iter().map(|(n, c)| format!("{n} {c}")).collect();
-    println!("restarts: {}", restarts.join(", "));
+    outln!("restarts: {}", restarts.join(", "));
     if let (Some(rmse), Some(max)) = (r.rmse_deg, r.max_error_deg) {
-        println!(
+        outln!(
             "attitude vs truth (deg): RMSE roll {:.4} pitch {:.4} yaw {:.4}; max {:.4} {:.4} {:.4}",
-            rmse[0], rmse[1], rmse[2], max[0], max[1], max[2]
+            rmse[0],
+            rmse[1],
+            rmse[2],
+            max[0],
+            max[1],
+            max[2]
         );
     }
-    println!(
+    outln!(
         "valid attitudes: {} of {}; attitudes on frames without a deck: {}",
-        r.valid_attitudes, r.decisions, r.attitudes_without_deck
+        r.valid_attitudes,
+        r.decisions,
+        r.attitudes_without_deck
     );
 }

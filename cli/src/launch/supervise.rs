@@ -303,10 +303,10 @@ pub fn supervise(
             let line = observer.status_line(start.elapsed().as_secs_f64(), status_period.as_secs_f64());
             if options.status {
                 if tty {
-                    print!("\r\x1b[2K{line}");
+                    out!("\r\x1b[2K{line}");
                     let _ = std::io::stdout().flush();
                 } else {
-                    println!("{line}");
+                    outln!("{line}");
                 }
             }
         }
@@ -320,7 +320,7 @@ pub fn supervise(
     })
     .map_err(|e| e.to_string())?;
     if options.status && tty {
-        println!();
+        outln!();
     }
     if let Some(e) = failure {
         return Err(e);

@@ -522,12 +522,12 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
         _ => None,
     };
     if !a.json {
-        println!(
+        outln!(
             "closed-loop trials: {} approaches per sea state, seed and heading ({} x {} x {:?} deg); {}x{} at {} Hz, waiting {}, touchdown {} s, sway x{}, ride-through {} ms, no return {} ms (the vehicle's: {} s + descent speed / (2 x {} m/s^2)); faults: drops {}, glints {}, frozen {}/min of {} s, vehicle stream outages {}/min of {} s, height error {} m + drift {} m/s",
             a.approaches, a.seeds.len(), a.headings_deg.len(), a.headings_deg, a.width, a.height, a.rate, if model.follow_deck { format!("{} m over the deck, lagging it by {} s", model.hover_m, model.follow_lag_s) } else { format!("{} m over the mean deck, {} m over its highest", model.hover_m, model.wait_clearance_m) },
             model.touchdown_s, a.sway, capacity.ride_through_ms, capacity.no_return_ms, model.go_around_reaction_s, model.go_around_accel_mps2, a.drop_share, a.glints, a.frozen_per_min, a.frozen_s, a.vehicle_outages_per_min, a.vehicle_outage_s, a.vehicle_height_noise_m, a.vehicle_height_drift_mps
         );
-        println!(
+        outln!(
             "{:<4} {:<10} {:>10} {:>8} {:>10} {:>7} {:>7} {:>9} {:>9} {:>9}",
             "sea",
             "rule",
@@ -615,7 +615,7 @@ pub fn run(a: TrialsArgs) -> Result<(), String> {
             .filter(|(r, _)| **r != Rule::Oracle)
             .map(|(_, s)| s.frames)
             .sum();
-        println!(
+        outln!(
             "{} frames through the chain in {:.1} s on {} threads",
             frames,
             clock.elapsed().as_secs_f64(),
@@ -638,7 +638,7 @@ fn agreement(jobs: &[Approach], setup: &Setup, a: &TrialsArgs) -> Result<(), Str
         None => format!("{} commits, {} go-arounds, no touchdown", o.commits, o.go_arounds),
     };
     if !a.json {
-        println!("the same approaches through the processes at real time (detect, estimate, decide, link; MAVLink on UDP):");
+        outln!("the same approaches through the processes at real time (detect, estimate, decide, link; MAVLink on UDP):");
     }
     for &job in jobs {
         let world = world_of(job, a, setup.recorded.as_ref())?;
@@ -653,13 +653,13 @@ fn agreement(jobs: &[Approach], setup: &Setup, a: &TrialsArgs) -> Result<(), Str
         )?;
         let live = processes::fly(job, setup, a)?;
         if a.json {
-            println!(
+            outln!(
                 "{}",
                 serde_json::json!({"agreement": {"sea_state": job.sea_state, "seed": job.seed, "heading_deg": job.heading_deg,
                     "approach": job.index, "in_process": inproc, "processes": live}})
             );
         } else {
-            println!(
+            outln!(
                 "  sea {} seed {} heading {} #{}: in one process {}; processes {}",
                 job.sea_state,
                 job.seed,

@@ -13,7 +13,7 @@ pub(super) fn report(records: &[ApproachRecord], json: bool) -> Result<BTreeMap<
     for r in records {
         let rule = Rule::of(&r.rule)?;
         if json {
-            println!("{}", serde_json::json!({ "approach": r }));
+            outln!("{}", serde_json::json!({ "approach": r }));
         }
         // Every unsafe touchdown, with what it broke, to look into.
         if let Some(v) = r.outcome.touchdown.as_ref().filter(|v| !v.safe()) {
@@ -21,9 +21,9 @@ pub(super) fn report(records: &[ApproachRecord], json: bool) -> Result<BTreeMap<
                 "sea_state": r.sea_state, "seed": r.seed, "heading_deg": r.heading_deg,
                 "index": r.index, "rule": r.rule, "verdict": v}});
             if json {
-                println!("{record}");
+                outln!("{record}");
             } else {
-                eprintln!("{record}");
+                errln!("{record}");
             }
         }
         per_sea
@@ -42,22 +42,22 @@ pub(super) fn report(records: &[ApproachRecord], json: bool) -> Result<BTreeMap<
     for (ss, per_rule) in &per_sea {
         for (rule, s) in per_rule {
             if json {
-                println!("{}", summary_json((*ss).into(), *rule, s));
+                outln!("{}", summary_json((*ss).into(), *rule, s));
             } else {
-                println!("{}", row(&ss.to_string(), *rule, s));
+                outln!("{}", row(&ss.to_string(), *rule, s));
             }
             totals.entry(*rule).or_default().merge(s);
         }
     }
     for (rule, s) in &totals {
         if json {
-            println!("{}", summary_json("all".into(), *rule, s));
+            outln!("{}", summary_json("all".into(), *rule, s));
             continue;
         }
-        println!("{}", row("all", *rule, s));
+        outln!("{}", row("all", *rule, s));
         let c = s.safety_case();
         let descent = deckwatch_common::stats::Percentiles::of(&mut s.descent_mps.clone());
-        println!(
+        outln!(
             "     {:<10} unsafe {} of {} touchdowns (95 % upper bound {:.3} %); landed {:.1} % of approaches (95 %: {:.1}-{:.1} %); arrival to touchdown p50/p90/p99 {:.1}/{:.1}/{:.1} s{}",
             rule.name(),
             s.unsafe_touchdowns,
@@ -76,7 +76,7 @@ pub(super) fn report(records: &[ApproachRecord], json: bool) -> Result<BTreeMap<
             ))
         );
         if !s.abort_reasons.is_empty() || !s.violations.is_empty() {
-            println!(
+            outln!(
                 "     {:<10} go-arounds by reason: {:?}; unsafe by limit: {:?}",
                 rule.name(),
                 s.abort_reasons,
@@ -84,14 +84,14 @@ pub(super) fn report(records: &[ApproachRecord], json: bool) -> Result<BTreeMap<
             );
         }
         if !s.too_late_reasons.is_empty() {
-            println!(
+            outln!(
                 "     {:<10} go-arounds ordered past the point of no return (not flown) by reason: {:?}",
                 rule.name(),
                 s.too_late_reasons
             );
         }
         if !s.decisions_by_reason.is_empty() {
-            println!("     {:<10} decisions: {:?}", rule.name(), s.decisions_by_reason);
+            outln!("     {:<10} decisions: {:?}", rule.name(), s.decisions_by_reason);
         }
     }
     Ok(totals)

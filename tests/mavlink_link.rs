@@ -300,6 +300,41 @@ fn pymavlink_autopilot_and_ground_station() {
         );
     }
 
+    // The deck's values are stamped at their frame's mid-exposure on the autopilot's clock (as
+    // LANDING_TARGET is: before their arrival by the pipeline's latency), the calm window when
+    // it was sent; 0 before the autopilot's clock is known. Read by pymavlink.
+    let stamps = |name: &str| -> Vec<(f64, f64)> {
+        seen["float_stamps"][name]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| (p[0].as_f64().unwrap(), p[1].as_f64().unwrap()))
+            .filter(|&(sent, _)| sent > 0.0)
+            .collect()
+    };
+    for (name, latest_ms) in [("dw_roll", 250.0), ("dw_calm_s", 100.0)] {
+        let s = stamps(name);
+        assert!(s.len() > 20, "{name}: {} stamped", s.len());
+        for (sent_ms, arrived_ms) in s {
+            let age_ms = arrived_ms - sent_ms;
+            assert!(
+                (-5.0..latest_ms).contains(&age_ms),
+                "{name} {age_ms} ms old on the autopilot's clock"
+            );
+        }
+    }
+    // A frame's roll is older than its decision's sending.
+    let mean_age = |name: &str| {
+        let s = stamps(name);
+        s.iter().map(|(sent, arrived)| arrived - sent).sum::<f64>() / s.len() as f64
+    };
+    assert!(
+        mean_age("dw_roll") > mean_age("dw_calm_s"),
+        "{} {}",
+        mean_age("dw_roll"),
+        mean_age("dw_calm_s")
+    );
+
     // Decisions: while the stream flows no frame lacks the vehicle attitude; after it stops,
     // every frame whose mid-exposure is past the last sample + [vehicle] max_gap_ms is held for
     // want of it, except that a touchdown committed before rides through them for at most

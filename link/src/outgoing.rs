@@ -268,19 +268,28 @@ impl Outgoing {
                 [f64::NAN; 3]
             };
             let calm = |v: f64| if v.is_finite() { v } else { -1.0 };
-            for (name, value) in [
-                (names::ROLL, roll),
-                (names::PITCH, pitch),
+            // The deck's measured values at the instant they describe, the frame's mid-exposure
+            // on the autopilot's clock (beside its own attitude in a log, not a pipeline's
+            // latency later); the decision's (the calm window, counted from the decision, and
+            // the states below) when it is sent. 0 until the autopilot's clock is known.
+            let captured_ms = match d.stamp.times.captured_ns {
+                0 => 0,
+                captured => remote(captured).map_or(0, |t| (t / 1e6).max(0.0) as u32),
+            };
+            for (name, value, time_boot_ms) in [
+                (names::ROLL, roll, captured_ms),
+                (names::PITCH, pitch, captured_ms),
                 (
                     names::HEAVE,
                     if a.valid.get() { a.deck_height_m } else { f64::NAN },
+                    captured_ms,
                 ),
-                (names::HEAVE_RATE, d.heave_rate_mps),
-                (names::CALM_START, calm(d.calm_window_start_s)),
-                (names::CALM_LENGTH, calm(d.calm_window_length_s)),
+                (names::HEAVE_RATE, d.heave_rate_mps, captured_ms),
+                (names::CALM_START, calm(d.calm_window_start_s), boot_ms),
+                (names::CALM_LENGTH, calm(d.calm_window_length_s), boot_ms),
             ] {
                 out.push(MavMessage::NAMED_VALUE_FLOAT(NAMED_VALUE_FLOAT_DATA {
-                    time_boot_ms: boot_ms,
+                    time_boot_ms,
                     value: value as f32,
                     name: name.into(),
                 }));
@@ -420,6 +429,55 @@ mod tests {
         u.attitude.vehicle.compensation = Compensation::Missing.into();
         let m = o.decision(&u, LinkState::Up, None, 3_000_010);
         assert!(!kinds(&m).contains(&"target"));
+    }
+
+    /// The deck's measured values are stamped at the frame's mid-exposure on the autopilot's
+    /// clock, the decision's values when they are sent; 0 while that clock is unknown.
+    #[test]
+    fn named_values_are_stamped_at_what_they_describe() {
+        let mut o = Outgoing::new(&LinkConfig::default(), RotationMatrix::identity());
+        let mut d = decision(DecisionState::Hold);
+        d.stamp.times.captured_ns = 5_000_000_000;
+        // The autopilot's clock 2 s ahead of ours.
+        let clock = ClockEstimate {
+            offset_ns: 2e9,
+            at_local_ns: 5e9,
+            drift_ppm: 0.0,
+            rtt_ns: 0,
+            method: deckwatch_common::messages::ClockMethod::Timesync,
+        };
+        let now_ns = 5_080_000_000;
+        let stamps: Vec<(String, u32)> = o
+            .decision(&d, LinkState::Up, Some(&clock), now_ns)
+            .iter()
+            .filter_map(|m| match m {
+                MavMessage::NAMED_VALUE_FLOAT(v) => {
+                    Some((v.name.to_str().unwrap().to_string(), v.time_boot_ms))
+                }
+                MavMessage::NAMED_VALUE_INT(v) => {
+                    Some((v.name.to_str().unwrap().to_string(), v.time_boot_ms))
+                }
+                _ => None,
+            })
+            .collect();
+        assert_eq!(stamps.len(), 9, "{stamps:?}");
+        for (name, ms) in &stamps {
+            let expected = match name.as_str() {
+                names::ROLL | names::PITCH | names::HEAVE | names::HEAVE_RATE => 7_000,
+                _ => 7_080,
+            };
+            assert_eq!(*ms, expected, "{name}");
+        }
+        // No clock: 0 for all.
+        let mut o = Outgoing::new(&LinkConfig::default(), RotationMatrix::identity());
+        assert!(o
+            .decision(&d, LinkState::Up, None, now_ns)
+            .iter()
+            .all(|m| match m {
+                MavMessage::NAMED_VALUE_FLOAT(v) => v.time_boot_ms == 0,
+                MavMessage::NAMED_VALUE_INT(v) => v.time_boot_ms == 0,
+                _ => true,
+            }));
     }
 
     /// TARGET_RELATIVE goes beside LANDING_TARGET when configured, under the same conditions, at

@@ -140,6 +140,8 @@ def main():
         "landing_targets": [],
         "states": [],
         "floats": {},
+        # Per name: [time_boot_ms as sent, the autopilot's ms at arrival].
+        "float_stamps": {},
         "texts": [],
         "heartbeats_from": [],
         "attitude_q": q,
@@ -236,6 +238,7 @@ def main():
         elif t == "NAMED_VALUE_FLOAT":
             # NaN (not measured) has no JSON form: null.
             out["floats"].setdefault(m.name, []).append(m.value if math.isfinite(m.value) else None)
+            out["float_stamps"].setdefault(m.name, []).append([m.time_boot_ms, boot_ns() // 1_000_000])
         elif t == "STATUSTEXT":
             out["texts"].append([recv, m.severity, m.text])
         elif t == "HEARTBEAT":

@@ -4,12 +4,23 @@
 //! show: memory that grows, frames dropped; and what each process costs per frame (the budget a
 //! Raspberry Pi must have).
 
+use deckwatch_common::messages::STAGES;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-/// The processes a soak follows, in the order of its table.
-const PROCESSES: [&str; 5] = ["capture", "detect", "estimate", "decide", "launcher"];
+/// How many processes a soak follows: the source and the frame's stages (a soak's run has no
+/// link or recorder), then the launcher.
+const FOLLOWED: usize = STAGES + 2;
+
+/// The processes a soak follows, in the order of its table: the names the pipeline's topology
+/// declares (`runtime::stages::PROCESSES`), then the launcher.
+fn followed_processes() -> [&'static str; FOLLOWED] {
+    std::array::from_fn(|k| match k {
+        k if k <= STAGES => deckwatch_runtime::stages::PROCESSES[k].name,
+        _ => "launcher",
+    })
+}
 
 #[derive(clap::Args)]
 pub struct SoakArgs {
@@ -228,26 +239,18 @@ pub fn run(a: SoakArgs) -> Result<(), String> {
         recording.display(),
         a.every_s
     );
-    outln!(
-        "{:>7} {:>14} {:>14} {:>14} {:>14} {:>14} {:>9} {:>9}",
-        "t_s",
-        "capture",
-        "detect",
-        "estimate",
-        "decide",
-        "launcher",
-        "shm_MiB",
-        "shm_files"
-    );
+    let processes = followed_processes();
+    let columns: String = processes.iter().map(|p| format!(" {p:>14}")).collect();
+    outln!("{:>7}{columns} {:>9} {:>9}", "t_s", "shm_MiB", "shm_files");
     let start = Instant::now();
-    let mut samples: Vec<[Option<f64>; 5]> = Vec::new();
+    let mut samples: Vec<[Option<f64>; FOLLOWED]> = Vec::new();
     // Per process: (pid, CPU s, when) at the previous sample, at the first after a minute, and
     // the context switches at the last.
-    let mut previous: [Option<(u32, f64, Instant)>; 5] = [None; 5];
-    let mut settled_cpu: [Option<(u32, f64, Instant)>; 5] = [None; 5];
-    let mut first_cpu: [Option<(u32, f64, Instant)>; 5] = [None; 5];
-    let mut last_cpu: [Option<(u32, f64, Instant)>; 5] = [None; 5];
-    let mut switches: [Option<(u64, u64)>; 5] = [None; 5];
+    let mut previous: [Option<(u32, f64, Instant)>; FOLLOWED] = [None; FOLLOWED];
+    let mut settled_cpu: [Option<(u32, f64, Instant)>; FOLLOWED] = [None; FOLLOWED];
+    let mut first_cpu: [Option<(u32, f64, Instant)>; FOLLOWED] = [None; FOLLOWED];
+    let mut last_cpu: [Option<(u32, f64, Instant)>; FOLLOWED] = [None; FOLLOWED];
+    let mut switches: [Option<(u64, u64)>; FOLLOWED] = [None; FOLLOWED];
     let mut next = Duration::from_secs_f64(a.every_s.min(10.0));
     loop {
         if run.finished()? {
@@ -256,14 +259,14 @@ pub fn run(a: SoakArgs) -> Result<(), String> {
         if start.elapsed() >= next {
             next += Duration::from_secs_f64(a.every_s);
             let pids = deckwatch_runtime::stage::stage_processes(&a.domain);
-            let pid_of: [Option<u32>; 5] = PROCESSES.map(|p| match p {
-                "launcher" => Some(run.id()),
-                stage => pids.iter().find(|(n, _)| n == stage).map(|(_, pid)| *pid),
+            let pid_of: [Option<u32>; FOLLOWED] = std::array::from_fn(|k| match k {
+                k if k == FOLLOWED - 1 => Some(run.id()),
+                k => pids.iter().find(|(n, _)| n == processes[k]).map(|(_, pid)| *pid),
             });
-            let rss: [Option<f64>; 5] = pid_of.map(|pid| pid.and_then(private_mib));
+            let rss: [Option<f64>; FOLLOWED] = pid_of.map(|pid| pid.and_then(private_mib));
             let now = Instant::now();
-            let mut cells = Vec::new();
-            for k in 0..PROCESSES.len() {
+            let mut cells = String::new();
+            for k in 0..FOLLOWED {
                 let cpu = pid_of[k].and_then(|pid| Some((pid, cpu_s(pid)?, now)));
                 // Since the previous sample of the same process (a restart starts afresh).
                 let pct = match (previous[k], cpu) {
@@ -285,17 +288,12 @@ pub fn run(a: SoakArgs) -> Result<(), String> {
                 }
                 let pct = pct.map_or("-".to_string(), |v| format!("{v:.1}%"));
                 let mib = rss[k].map_or("-".to_string(), |v| format!("{v:.1}"));
-                cells.push(format!("{pct}/{mib}"));
+                cells.push_str(&format!(" {:>14}", format!("{pct}/{mib}")));
             }
             let (shm, files) = shm_mib(&a.domain);
             outln!(
-                "{:>7.0} {:>14} {:>14} {:>14} {:>14} {:>14} {:>9.1} {:>9}",
+                "{:>7.0}{cells} {:>9.1} {:>9}",
                 start.elapsed().as_secs_f64(),
-                cells[0],
-                cells[1],
-                cells[2],
-                cells[3],
-                cells[4],
                 shm,
                 files
             );
@@ -327,7 +325,7 @@ pub fn run(a: SoakArgs) -> Result<(), String> {
         "RssAnon MiB (growth)",
         "ctx switches vol/invol"
     );
-    for (k, name) in PROCESSES.iter().enumerate() {
+    for (k, name) in processes.iter().enumerate() {
         let first = samples.get(settled).and_then(|s| s[k]);
         let last = samples.iter().rev().find_map(|s| s[k]);
         // CPU from the first sample after a minute (or the first) to the last, same process.

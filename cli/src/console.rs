@@ -1,9 +1,9 @@
 //! The command line's own output: lines to stdout and stderr that never panic.
 //!
 //! `println!` panics when its stream is gone (`deckwatch run | head -1`, a terminal closed, a
-//! supervisor's log pipe shut). A launcher that panics there leaves its stage processes behind
-//! and its shared memory unreleased, and a stage's stderr reader that panics stops draining the
-//! stage's pipe until the stage blocks on it. What a command says is for people; a reader that
+//! supervisor's log pipe shut). A launcher that panics there ends the pipeline mid-run (its
+//! stages follow it), and a stage's stderr reader that panics stops draining the stage's pipe
+//! until the stage blocks on it. What a command says is for people; a reader that
 //! went away is no fault of the run, so a failed write is dropped. Report commands end instead
 //! (`main::end_with_a_closed_pipe`): their output is the whole point.
 

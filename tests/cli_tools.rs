@@ -179,6 +179,24 @@ fn a_report_ends_quietly_when_its_reader_goes() {
     );
 }
 
+/// Output that cannot be written for another reason than a closed reader (a full disk) fails
+/// the command and says so: the file it went to is incomplete.
+#[test]
+fn output_to_a_full_disk_fails_the_command() {
+    let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+    let out = Command::new(workspace_binary("deckwatch"))
+        .args(["run", "--print-config"])
+        .stdout(full)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("the output is incomplete") && !stderr.contains("panicked"),
+        "{stderr}"
+    );
+}
+
 #[test]
 fn sweep_compares_the_variants() {
     let out = Command::new(workspace_binary("deckwatch"))

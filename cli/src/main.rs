@@ -561,7 +561,10 @@ fn main() -> ExitCode {
             Err(e) => Err(e),
         },
     };
-    match result {
+    match result.and_then(|()| match console::lost_output() {
+        Some(e) => Err(format!("the output is incomplete: writing it failed ({e})")),
+        None => Ok(()),
+    }) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             errln!("deckwatch: {e}");

@@ -75,6 +75,11 @@ pub fn forwardable(d: &LandingDecision, now_ns: u64, max_age_ns: u64) -> Landing
     }
 }
 
+/// An autopilot time (ns) as MAVLink's `time_boot_ms`, which wraps after 49.7 days.
+fn wrapped_ms(autopilot_ns: f64) -> u32 {
+    ((autopilot_ns / 1e6).max(0.0) as u64) as u32
+}
+
 fn link_number(l: LinkState) -> i32 {
     match l {
         LinkState::Waiting => 0,
@@ -196,7 +201,7 @@ impl Outgoing {
         let mut out = Vec::with_capacity(9);
         let a = &d.attitude;
         let remote = |local_ns: u64| clock.map(|c| c.to_remote_ns(local_ns as f64));
-        let boot_ms = remote(now_ns).map_or(0, |t| (t / 1e6).max(0.0) as u32);
+        let boot_ms = remote(now_ns).map_or(0, wrapped_ms);
         let state = reported_state(d, link);
         let status = (state, d.reason.get() as u8, link);
         // The target goes first: it is what the autopilot acts on soonest.
@@ -268,28 +273,27 @@ impl Outgoing {
                 [f64::NAN; 3]
             };
             let calm = |v: f64| if v.is_finite() { v } else { -1.0 };
-            // The deck's measured values at the instant they describe, the frame's mid-exposure
-            // on the autopilot's clock (beside its own attitude in a log, not a pipeline's
-            // latency later); the decision's (the calm window, counted from the decision, and
-            // the states below) when it is sent. 0 until the autopilot's clock is known.
-            let captured_ms = match d.stamp.times.captured_ns {
+            // The values at the instant they describe, the frame's mid-exposure on the
+            // autopilot's clock (beside its own attitude in a log, not a pipeline's latency
+            // later): the deck's, and the calm window's, which counts from the capture. The
+            // states below when they are sent. 0 until the autopilot's clock is known.
+            let captured_boot_ms = match d.stamp.times.captured_ns {
                 0 => 0,
-                captured => remote(captured).map_or(0, |t| (t / 1e6).max(0.0) as u32),
+                captured => remote(captured).map_or(0, wrapped_ms),
             };
-            for (name, value, time_boot_ms) in [
-                (names::ROLL, roll, captured_ms),
-                (names::PITCH, pitch, captured_ms),
+            for (name, value) in [
+                (names::ROLL, roll),
+                (names::PITCH, pitch),
                 (
                     names::HEAVE,
                     if a.valid.get() { a.deck_height_m } else { f64::NAN },
-                    captured_ms,
                 ),
-                (names::HEAVE_RATE, d.heave_rate_mps, captured_ms),
-                (names::CALM_START, calm(d.calm_window_start_s), boot_ms),
-                (names::CALM_LENGTH, calm(d.calm_window_length_s), boot_ms),
+                (names::HEAVE_RATE, d.heave_rate_mps),
+                (names::CALM_START, calm(d.calm_window_start_s)),
+                (names::CALM_LENGTH, calm(d.calm_window_length_s)),
             ] {
                 out.push(MavMessage::NAMED_VALUE_FLOAT(NAMED_VALUE_FLOAT_DATA {
-                    time_boot_ms,
+                    time_boot_ms: captured_boot_ms,
                     value: value as f32,
                     name: name.into(),
                 }));
@@ -431,8 +435,8 @@ mod tests {
         assert!(!kinds(&m).contains(&"target"));
     }
 
-    /// The deck's measured values are stamped at the frame's mid-exposure on the autopilot's
-    /// clock, the decision's values when they are sent; 0 while that clock is unknown.
+    /// The float values (the deck's, the calm window's) are stamped at the frame's mid-exposure on
+    /// the autopilot's clock, the states when they are sent; 0 while that clock is unknown.
     #[test]
     fn named_values_are_stamped_at_what_they_describe() {
         let mut o = Outgoing::new(&LinkConfig::default(), RotationMatrix::identity());
@@ -463,8 +467,8 @@ mod tests {
         assert_eq!(stamps.len(), 9, "{stamps:?}");
         for (name, ms) in &stamps {
             let expected = match name.as_str() {
-                names::ROLL | names::PITCH | names::HEAVE | names::HEAVE_RATE => 7_000,
-                _ => 7_080,
+                names::STATE | names::REASON | names::LINK => 7_080,
+                _ => 7_000,
             };
             assert_eq!(*ms, expected, "{name}");
         }

@@ -140,8 +140,9 @@ def main():
         "landing_targets": [],
         "states": [],
         "floats": {},
-        # Per name: [time_boot_ms as sent, the autopilot's ms at arrival].
+        # Per name: [time_boot_ms as sent, the autopilot's ms at arrival]; the same for dw_state.
         "float_stamps": {},
+        "state_stamps": [],
         "texts": [],
         "heartbeats_from": [],
         "attitude_q": q,
@@ -235,6 +236,7 @@ def main():
             })
         elif t == "NAMED_VALUE_INT" and m.name == "dw_state":
             out["states"].append([recv, m.value])
+            out["state_stamps"].append([m.time_boot_ms, boot_ns() // 1_000_000])
         elif t == "NAMED_VALUE_FLOAT":
             # NaN (not measured) has no JSON form: null.
             out["floats"].setdefault(m.name, []).append(m.value if math.isfinite(m.value) else None)

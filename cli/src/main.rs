@@ -456,7 +456,8 @@ fn check_recording(dir: &std::path::Path) -> Result<(), String> {
 /// Whether a command only reports (reads files or simulates, writes what it found): such a command
 /// piped into `head` ends with its reader. The launcher's commands (`run`, `replay`, `latency`,
 /// `soak`, `budget`, `camera-record`, `clean`) supervise processes or shared memory and keep
-/// Rust's default (a closed pipe is an error their shutdown sees); `trials` may run a cluster.
+/// Rust's default, the signal ignored: they run to their end and shut down as they should, their
+/// lines to the closed pipe dropped (`console`); `trials` may run a cluster.
 fn is_report(command: &Command) -> bool {
     matches!(
         command,
@@ -479,8 +480,8 @@ fn is_report(command: &Command) -> bool {
 }
 
 /// A report whose reader has gone (`deckwatch eval REC | head -1`) ends there, as Unix tools do:
-/// the pipe's signal keeps its default action. Rust ignores it, so that every later print to the
-/// closed pipe panicked ("failed printing to stdout: Broken pipe").
+/// the pipe's signal keeps its default action. Rust ignores it, and a report would go on computing
+/// what nobody reads.
 fn end_with_a_closed_pipe() {
     // SAFETY: `signal` with a valid signal number and `SIG_DFL`, called at start-up on the main
     // thread before any other thread or handler exists.

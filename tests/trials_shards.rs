@@ -73,4 +73,24 @@ fn shards_merged_are_the_whole_run_bit_for_bit() {
         .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("appears twice"));
+    // A shard cut off in the middle of a line: the whole lines merged, the cut one named.
+    let text = std::fs::read_to_string(&files[0]).unwrap();
+    let cut = dir.path().join("cut.jsonl");
+    let whole_lines = text.trim_end();
+    let lines = whole_lines.lines().count();
+    std::fs::write(&cut, format!("{whole_lines}\n{}", &text[..40])).unwrap();
+    let out = Command::new(workspace_binary("deckwatch"))
+        .args(["trials", "merge", "--json", &cut.to_string_lossy()])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "{}: 1 line(s) not JSON skipped, the first at line {}",
+            cut.display(),
+            lines + 1
+        )),
+        "{stderr}"
+    );
 }

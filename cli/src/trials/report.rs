@@ -107,8 +107,17 @@ pub fn merge(m: &MergeArgs) -> Result<(), String> {
     for path in &m.files {
         let text = deckwatch_common::files::read_bounded_to_string(path, MAX_SHARD_REPORT_BYTES)
             .map_err(|e| e.to_string())?;
+        // A line that is not JSON (a shard cut off mid-line, a log mixed in) is counted, named
+        // and skipped: the report then says how much of the shard it left out.
+        let (mut not_json, mut first_not_json) = (0usize, 0usize);
         for (n, line) in text.lines().enumerate() {
             let Ok(value) = serde_json::from_str::<serde_json::Value>(line) else {
+                if !line.trim().is_empty() {
+                    not_json += 1;
+                    if first_not_json == 0 {
+                        first_not_json = n + 1;
+                    }
+                }
                 continue;
             };
             if let Some(r) = value.get("approach") {
@@ -116,6 +125,12 @@ pub fn merge(m: &MergeArgs) -> Result<(), String> {
                     .map_err(|e| format!("{}:{}: an approach record: {e}", path.display(), n + 1))?;
                 records.push(r);
             }
+        }
+        if not_json > 0 {
+            errln!(
+                "trials merge: {}: {not_json} line(s) not JSON skipped, the first at line {first_not_json}",
+                path.display()
+            );
         }
     }
     if records.is_empty() {

@@ -195,7 +195,8 @@ impl BandCalibration {
         for k in 0..WARMUP_BACKTESTS {
             let origin = end - holdout_s - RATE_CHECK_HALF_WINDOW_S - k as f64 * WARMUP_BACKTEST_STEP_S;
             let n = t.partition_point(|&ti| ti <= origin);
-            if n < 2 || origin - t[0] < WARMUP_BACKTEST_MIN_HISTORY_S {
+            // (Within a rounding: frames' times are sums of their intervals.)
+            if n < 2 || origin - t[0] < WARMUP_BACKTEST_MIN_HISTORY_S - 1e-9 {
                 break;
             }
             let fits = fits_until(n, horizon);

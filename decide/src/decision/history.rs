@@ -4,7 +4,8 @@
 
 use std::collections::VecDeque;
 
-/// Samples closer than this are thinned out for the fit (ship motion is below 0.5 Hz) (s).
+/// The fit's samples are this far apart (s): one per point of its grid (ship motion is
+/// below 0.5 Hz).
 pub(super) const FIT_SPACING_S: f64 = 0.2;
 
 /// Accepted samples, oldest first: (time s, [roll deg, pitch deg, deck height m or NaN]).
@@ -41,18 +42,49 @@ impl History {
         self.samples.clear();
     }
 
-    /// The samples a fit uses, `channels` of them: the newest always, older ones thinned to
-    /// `FIT_SPACING_S`.
+    /// The samples a fit uses, `channels` of them: the newest, and for each point of the
+    /// fit's grid before it (`FIT_SPACING_S` apart, counted back from the newest) the sample
+    /// nearest to it. The grid is resampled from these, so its points fall on samples rather
+    /// than between two, where interpolation smooths both the motion and the noise. (Kept
+    /// when at least a spacing after the sample before, a frame stamped a hair early left the
+    /// next one 0.3 s away at 10 Hz, half of them with 5 ms of jitter, and after a gap every
+    /// grid point could fall between two samples: the band of a 10 Hz history with jitter
+    /// held a point less of the rates.)
     pub(super) fn thinned(&self, channels: usize) -> Thinned {
-        let mut t = Vec::new();
+        let mut t: Vec<f64> = Vec::new();
         let mut y: Vec<Vec<f64>> = vec![Vec::new(); channels];
+        let Some(&(newest, _)) = self.samples.back() else {
+            return Thinned { t, y };
+        };
+        // (grid point index, distance from it, sample) of the nearest sample to the current
+        // grid point so far.
+        let mut best: Option<(i64, f64, (f64, [f64; 3]))> = None;
+        let mut keep = |sample: (f64, [f64; 3])| {
+            t.push(sample.0);
+            for (k, yk) in y.iter_mut().enumerate() {
+                yk.push(sample.1[k]);
+            }
+        };
         for &(ti, v) in self.samples.iter().rev() {
-            if t.last().is_none_or(|&last: &f64| last - ti >= FIT_SPACING_S) {
-                t.push(ti);
-                for (k, yk) in y.iter_mut().enumerate() {
-                    yk.push(v[k]);
+            let steps = (newest - ti) / FIT_SPACING_S;
+            let point = steps.round() as i64;
+            let off = (steps - point as f64).abs();
+            match best {
+                Some((p, d, _)) if p == point => {
+                    if off < d {
+                        best = Some((point, off, (ti, v)));
+                    }
+                }
+                _ => {
+                    if let Some((_, _, sample)) = best {
+                        keep(sample);
+                    }
+                    best = Some((point, off, (ti, v)));
                 }
             }
+        }
+        if let Some((_, _, sample)) = best {
+            keep(sample);
         }
         t.reverse();
         for yk in &mut y {
@@ -213,5 +245,29 @@ mod tests {
         );
         h.clear();
         assert!(h.newest().is_none() && h.line_rate(10.0, 0.6).is_none());
+    }
+
+    /// Frames at 10 Hz whose stamps jitter by a few ms, with a gap of 1.1 s (an odd number of
+    /// frames): the fit's samples are those on its grid, a spacing apart, on both sides of
+    /// the gap, none between two grid points.
+    #[test]
+    fn the_fits_samples_are_those_on_its_grid() {
+        let mut h = History::default();
+        let stamp = |k: usize| k as f64 / 10.0 + 0.008 * (((k * 7919) % 17) as f64 / 8.0 - 1.0);
+        for k in (0..=600).filter(|k| !(301..=311).contains(k)) {
+            h.push(stamp(k), [1.0, 2.0, 3.0], 100.0);
+        }
+        let thinned = h.thinned(3);
+        let newest = stamp(600);
+        assert_eq!(thinned.t.last(), Some(&newest));
+        assert!(thinned.t.len() > 290, "{}", thinned.t.len());
+        for &ti in &thinned.t {
+            let steps = (newest - ti) / FIT_SPACING_S;
+            assert!((steps - steps.round()).abs() < 0.1, "{ti} is between grid points");
+        }
+        let spacings: Vec<f64> = thinned.t.windows(2).map(|w| w[1] - w[0]).collect();
+        let (near, gap): (Vec<f64>, Vec<f64>) = spacings.iter().partition(|&&d| d < 0.5);
+        assert!(near.iter().all(|d| (d - FIT_SPACING_S).abs() < 0.02), "{near:?}");
+        assert_eq!(gap.len(), 1, "{gap:?}");
     }
 }

@@ -430,17 +430,18 @@ impl<F: Forecaster> Decider<F> {
             // Held: still the reason the landing was aborted for.
             decision.state = DecisionState::Abort;
             decision.reason = self.commitment.abort_reason();
-        } else if !m.band_checked {
-            // A band not yet checked against what came after is not cleared on (a held-out
-            // trial cleared on one 3 s after the warm-up and touched down at 0.62 m/s of heave
-            // rate).
-            decision.reason = DecisionReason::Warmup;
         } else if now - self.tracking.unexplained_at < c.ar().holdout_s {
             // The model just failed to explain a measurement, and its successor's band has no
             // track record of its own yet: the evidence behind the band is of the models before
             // (a noise-free heave cleared 1.1 s after such a miss into 0.635 m/s: unit test
             // `the_heave_rate_is_part_of_the_capacity`).
+            // Named ahead of an unchecked band: the miss is the newer, more telling reason.
             decision.reason = DecisionReason::PredictionUnreliable;
+        } else if !m.band_checked {
+            // A band not yet checked against what came after is not cleared on (a held-out
+            // trial cleared on one 3 s after the warm-up and touched down at 0.62 m/s of heave
+            // rate).
+            decision.reason = DecisionReason::Warmup;
         } else if self.measured_rate_outside() {
             // The deck is measured moving faster than the capacity now, whatever the model says
             // (a noise-free heave whose model was off by 0.06 m/s cleared at a measured 0.61 m/s

@@ -2,7 +2,7 @@
 //! (tests/peers/autopilot.py) plays a PX4 autopilot that holds a constant tilt, streams its
 //! attitude at 100 Hz on a clock 1234.5 s ahead of ours and answers TIMESYNC, then stops its
 //! stream. The whole pipeline runs as processes (`deckwatch run` with the link) on the
-//! simulator, rendered through the tilted camera. Checked: LANDING_TARGET at the frame rate in
+//! simulator, rendered through the tilted camera. Checked: one LANDING_TARGET per usable frame in
 //! BODY_FRD with the deck centre where the simulator put it, stamped on the autopilot's clock;
 //! the deck attitude compensated for the tilt; the decision and status messages; no CLEAR once
 //! the stream stopped (beyond a committed touchdown's ride-through); and a telemetry log that pymavlink's own `mavlogdump.py` decodes.
@@ -220,19 +220,7 @@ fn pymavlink_autopilot_and_ground_station() {
         captured_us.windows(2).all(|w| w[1] > w[0]),
         "a frame sent twice or out of order: {captured_us:?}"
     );
-    let link_count = |what: &str| -> u64 {
-        let at = stderr
-            .find(what)
-            .unwrap_or_else(|| panic!("no '{what}' in the link's summary:\n{stderr}"));
-        let digits: String = stderr[..at]
-            .trim_end()
-            .chars()
-            .rev()
-            .take_while(char::is_ascii_digit)
-            .collect();
-        digits.chars().rev().collect::<String>().parse().unwrap()
-    };
-    let targets_out = link_count(" landing targets and");
+    let targets_out = number_before(" landing targets and");
     assert_eq!(
         targets.len() as u64,
         targets_out,
@@ -313,7 +301,11 @@ fn pymavlink_autopilot_and_ground_station() {
         with_height += 1;
         assert!((h - truth).abs() < 0.05, "deck height {h} m, truth {truth} m");
     }
-    assert!(with_height > 100, "{with_height} frames with a deck height");
+    assert!(
+        with_height > 30 && with_height * 10 >= compensated.len() * 8,
+        "{with_height} of {} compensated frames with a deck height",
+        compensated.len()
+    );
     let heaves = seen["floats"]["dw_heave"].as_array().unwrap();
     assert!(heaves.iter().filter_map(|v| v.as_f64()).any(|v| v.abs() < 0.05));
     // The ground station's deck roll/pitch are the decisions' (float32).

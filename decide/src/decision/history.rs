@@ -44,8 +44,10 @@ impl History {
 
     /// The samples a fit uses, `channels` of them: the newest, and for each point of the
     /// fit's grid before it (`FIT_SPACING_S` apart, counted back from the newest) the sample
-    /// nearest to it. The grid is resampled from these, so its points fall on samples rather
-    /// than between two, where interpolation smooths both the motion and the noise. (Kept
+    /// nearest to it among those within half a spacing (none where a lost frame leaves none:
+    /// the grid is then interpolated across two spacings). The grid is resampled from these,
+    /// so at a frame rate that is a multiple of 5 Hz its points fall on frames rather than
+    /// between two, where interpolation smooths both the motion and the noise. (Kept
     /// when at least a spacing after the sample before, a frame stamped a hair early left the
     /// next one 0.3 s away at 10 Hz, half of them with 5 ms of jitter, and after a gap every
     /// grid point could fall between two samples: the band of a 10 Hz history with jitter
@@ -229,7 +231,10 @@ mod tests {
         let thinned = h.thinned(2);
         assert_eq!(thinned.y.len(), 2);
         assert_eq!(thinned.t.last(), Some(&10.0), "the newest sample always");
-        assert!(thinned.t.windows(2).all(|w| w[1] - w[0] >= FIT_SPACING_S - 1e-9));
+        assert!(thinned
+            .t
+            .windows(2)
+            .all(|w| (w[1] - w[0] - FIT_SPACING_S).abs() < 1e-9));
         // A line's slope is each channel's rate.
         let rates = h.line_rate(10.0, 0.6).unwrap();
         assert!(
@@ -247,27 +252,42 @@ mod tests {
         assert!(h.newest().is_none() && h.line_rate(10.0, 0.6).is_none());
     }
 
-    /// Frames at 10 Hz whose stamps jitter by a few ms, with a gap of 1.1 s (an odd number of
-    /// frames): the fit's samples are those on its grid, a spacing apart, on both sides of
-    /// the gap, none between two grid points.
+    /// Frames at 10 Hz whose stamps jitter by a few ms, with a gap that ends on a frame off
+    /// the grid: the fit's samples are those on its grid, with their own values, a spacing
+    /// apart on both sides of the gap.
     #[test]
     fn the_fits_samples_are_those_on_its_grid() {
         let mut h = History::default();
         let stamp = |k: usize| k as f64 / 10.0 + 0.008 * (((k * 7919) % 17) as f64 / 8.0 - 1.0);
-        for k in (0..=600).filter(|k| !(301..=311).contains(k)) {
-            h.push(stamp(k), [1.0, 2.0, 3.0], 100.0);
+        let value = |t: f64| [t.sin(), 2.0 * t, -t];
+        // Frames 302..=310 lost: the last before the gap (301) is off the grid.
+        for k in (0..=600).filter(|k| !(302..=310).contains(k)) {
+            h.push(stamp(k), value(stamp(k)), 100.0);
         }
         let thinned = h.thinned(3);
         let newest = stamp(600);
         assert_eq!(thinned.t.last(), Some(&newest));
+        for (i, &ti) in thinned.t.iter().enumerate() {
+            assert_eq!([thinned.y[0][i], thinned.y[1][i], thinned.y[2][i]], value(ti));
+        }
+        assert!(thinned.t.contains(&stamp(300)), "the grid's frame before the gap");
         assert!(thinned.t.len() > 290, "{}", thinned.t.len());
-        for &ti in &thinned.t {
+        // Every one on a grid point, but the gap's edge where it is the only frame within
+        // half a spacing of the grid point after it (a point in the gap, left unmeasured).
+        let on_grid = |ti: f64| {
             let steps = (newest - ti) / FIT_SPACING_S;
-            assert!((steps - steps.round()).abs() < 0.1, "{ti} is between grid points");
+            (steps - steps.round()).abs() < 0.1
+        };
+        for &ti in thinned.t.iter().filter(|&&ti| ti != stamp(301)) {
+            assert!(on_grid(ti), "{ti} is between grid points");
         }
         let spacings: Vec<f64> = thinned.t.windows(2).map(|w| w[1] - w[0]).collect();
         let (near, gap): (Vec<f64>, Vec<f64>) = spacings.iter().partition(|&&d| d < 0.5);
-        assert!(near.iter().all(|d| (d - FIT_SPACING_S).abs() < 0.02), "{near:?}");
+        assert!(
+            near.iter()
+                .all(|d| (d - FIT_SPACING_S).abs() < 0.02 || (d - 0.1).abs() < 0.02),
+            "{near:?}"
+        );
         assert_eq!(gap.len(), 1, "{gap:?}");
     }
 }

@@ -115,7 +115,7 @@ pub(super) fn rate_histories(t: &[f64], y: &[Vec<f64>], max_lag_s: [f64; 3]) -> 
         for lag in 1..=max_lags {
             let lag_s = lag as f64 * FIT_SPACING_S;
             // Each rate paired with the rate `lag_s` later, interpolated between the two samples
-            // around it (the fit's samples are 0.2-0.3 s apart), not across a gap.
+            // around it (the fit's samples are about 0.2 s apart), not across a gap.
             let (mut xx, mut xy, mut yy, mut n) = (0.0, 0.0, 0.0, 0usize);
             let (mut first_at, mut last_at) = (f64::INFINITY, f64::NEG_INFINITY);
             let mut j = 0;

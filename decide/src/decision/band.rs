@@ -9,10 +9,21 @@ use crate::forecast::ChannelForecast;
 use deckwatch_common::stats::normal_quantile;
 use std::collections::VecDeque;
 
-/// The band's scale makes its 95 % band hold this share of the recent held-out misses: more
+/// A rate band's scale makes its 95 % band hold this share of the recent held-out misses: more
 /// than 95 %, because the scale is measured on the last `BAND_MEMORY_S` and a sea's wave
 /// groups change faster (at 0.95 the band held 92-95 % 2 s ahead on the development seas).
 pub(super) const BAND_EVIDENCE_QUANTILE: f64 = 0.975;
+/// A value band's scale makes it hold this share: since the fit's samples fall on its grid
+/// the fit states its values' deviation in full, and at 0.975, never below 1, the value bands
+/// held 97.2-97.6 % of the touchdowns on the development files (the touchdown coverage widens
+/// a band that misses, never narrows one that errs wide): 95 %, and down to
+/// `MIN_VALUE_BAND_SCALE` (docs/history.md, "Value bands as wide as their misses").
+pub(super) const VALUE_BAND_EVIDENCE_QUANTILE: f64 = 0.95;
+/// The narrowest a value band is scaled to (a rate's band is never narrower than stated): the
+/// scale is measured on about a hundred misses 1.5-3 s after each fit, and the decision's risk
+/// reads the band at 3 deviations (the only floor tried: beyond the 1e-3 tail 0.10-0.18 % of
+/// the held-out touchdowns, against the 0.2 % stated).
+pub(super) const MIN_VALUE_BAND_SCALE: f64 = 0.7;
 /// The held-out misses the band's scale is measured on are this recent (s): long enough for
 /// 20 or more, short enough that the coarse fits of the first seconds after a warm-up (a lower
 /// order on a short history) stop widening the band soon after better ones take over (with
@@ -93,9 +104,9 @@ pub(super) struct BandScale {
     pub(super) checked: bool,
 }
 
-/// The `BAND_EVIDENCE_QUANTILE` of `values` (reordered; at least one).
-fn evidence_quantile(values: &mut [f64]) -> f64 {
-    let i = ((values.len() as f64 * BAND_EVIDENCE_QUANTILE).ceil() as usize).min(values.len()) - 1;
+/// The `quantile` of `values` (reordered; at least one).
+fn evidence_quantile(values: &mut [f64], quantile: f64) -> f64 {
+    let i = ((values.len() as f64 * quantile).ceil() as usize).min(values.len()) - 1;
     *values.select_nth_unstable_by(i, f64::total_cmp).1
 }
 
@@ -208,8 +219,9 @@ impl BandCalibration {
     }
 
     /// Per channel, the factor on the predictor's stated standard deviation that makes its 95 %
-    /// band hold `BAND_EVIDENCE_QUANTILE` of the held-out misses of the last `BAND_MEMORY_S`
-    /// (never below 1), and the same for its rate; each rate's misses in its own unit
+    /// band hold `VALUE_BAND_EVIDENCE_QUANTILE` of the held-out misses of the last
+    /// `BAND_MEMORY_S` (never below `MIN_VALUE_BAND_SCALE`), and for its rate
+    /// `BAND_EVIDENCE_QUANTILE` (never below 1); each rate's misses in its own unit
     /// (`BandScale::rate_miss_std`, from real fits' misses only); and whether every channel's
     /// value and rate has that evidence (no clearance before). Until the real fits have
     /// `MIN_BAND_EVIDENCE` misses of a quantity the warm-up's backtests add theirs; with fewer
@@ -258,12 +270,17 @@ impl BandCalibration {
                 }
                 continue;
             }
-            // Never narrower than stated, a rate's band neither: the scale is measured at the
-            // 97.5th percentile of about a hundred misses and read at 3 standard deviations.
-            // Rate bands allowed down to 0.75 of their stated deviation cleared twice into a
-            // heave rate beyond the capacity at the touchdown's end on fresh seas, both with the
-            // band at 0.77-0.78 (docs/history.md, "A rate's misses in its own unit, and rate bands never narrower than stated").
-            scale[k] = (evidence_quantile(&mut z) / Z95).max(1.0);
+            // A rate's band never narrower than stated: the scale is measured at the 97.5th
+            // percentile of about a hundred misses and read at 3 standard deviations, and its
+            // misses are against a rate measured from noisy samples. Rate bands allowed down to
+            // 0.75 of their stated deviation cleared twice into a heave rate beyond the capacity
+            // at the touchdown's end on fresh seas, both with the band at 0.77-0.78 (docs/history.md, "A rate's misses in its own unit, and rate bands never narrower than stated").
+            scale[k] = match k < 3 {
+                true => {
+                    (evidence_quantile(&mut z, VALUE_BAND_EVIDENCE_QUANTILE) / Z95).max(MIN_VALUE_BAND_SCALE)
+                }
+                false => (evidence_quantile(&mut z, BAND_EVIDENCE_QUANTILE) / Z95).max(1.0),
+            };
             if k >= 3 && !on_backtests {
                 // The same misses in m/s or deg/s, whatever each fit stated: the deviation
                 // whose normal band holds `BAND_EVIDENCE_QUANTILE` of them. Of real fits only:
@@ -275,7 +292,7 @@ impl BandCalibration {
                     (a.min(m.t_s), b.max(m.t_s))
                 });
                 if abs.len() >= MIN_BAND_EVIDENCE && last - first >= MIN_RATE_EVIDENCE_SPAN_S {
-                    rate_miss_std[k - 3] = evidence_quantile(&mut abs) / evidence_z();
+                    rate_miss_std[k - 3] = evidence_quantile(&mut abs, BAND_EVIDENCE_QUANTILE) / evidence_z();
                 }
             }
         }

@@ -1435,6 +1435,45 @@ fn the_rates_misses_spread_is_measured_in_its_own_unit() {
     assert!(s.rate_miss_std.iter().all(|x| x.is_nan()), "{s:?}");
 }
 
+/// A value band is scaled to hold `VALUE_BAND_EVIDENCE_QUANTILE` of its misses, narrower than
+/// stated down to `MIN_VALUE_BAND_SCALE`; a rate band to hold `BAND_EVIDENCE_QUANTILE`, never
+/// narrower than stated.
+#[test]
+fn a_value_band_is_as_wide_as_its_misses_a_rate_band_never_narrower_than_stated() {
+    let scaled = |step: f64| {
+        let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
+        // 100 misses of step, 2 step, ..., 100 step stated deviations, every quantity.
+        for k in 1..=100 {
+            let z = step * k as f64;
+            d.tracking.band.misses.push_back(BandMiss {
+                t_s: 0.1 * k as f64,
+                z: [z; 6],
+                abs: [z; 6],
+            });
+        }
+        d.tracking.band.scale(d.channels)
+    };
+    // Misses within about half the stated deviations: the value bands are narrowed as far
+    // as they may be, the rate bands are left as stated.
+    let s = scaled(0.01);
+    assert!(s.checked);
+    assert_eq!(s.values, [MIN_VALUE_BAND_SCALE; 3], "{s:?}");
+    assert_eq!(s.rates, [1.0; 3], "{s:?}");
+    // Misses wider than stated: the values at their 95th of 100 (2.85), the rates at their
+    // 97.5th (the 98th, 2.94).
+    let s = scaled(0.03);
+    for k in 0..3 {
+        assert!((s.values[k] - 2.85 / Z95).abs() < 1e-12, "{s:?}");
+        assert!((s.rates[k] - 2.94 / Z95).abs() < 1e-12, "{s:?}");
+    }
+    // Between: a value band at its misses, above the least.
+    let s = scaled(0.015);
+    assert!(
+        (s.values[0] - 1.425 / Z95).abs() < 1e-12 && s.values[0] > MIN_VALUE_BAND_SCALE,
+        "{s:?}"
+    );
+}
+
 /// Until a rate's band has evidence of its own, it is taken to be as far off as its value's
 /// has been measured to be (a campaign's sea cleared 0.2 s after the warm-up on the prior
 /// scale alone, with the heave's value band 3.9 times too narrow, and touched down into
@@ -1444,8 +1483,9 @@ fn the_rates_misses_spread_is_measured_in_its_own_unit() {
 fn a_rate_band_without_evidence_is_as_far_off_as_its_value_band() {
     let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
     assert_eq!(d.channels, 3);
-    // The heave's values missed by three times their stated band; no rate measured yet.
-    let values_only = [1.0, 1.0, 3.0 * Z95, f64::NAN, f64::NAN, f64::NAN];
+    // The heave's values missed by three times their stated band, the angles' by their band;
+    // no rate measured yet.
+    let values_only = [Z95, Z95, 3.0 * Z95, f64::NAN, f64::NAN, f64::NAN];
     for k in 0..2 * MIN_BAND_EVIDENCE {
         d.tracking
             .band
@@ -1469,7 +1509,7 @@ fn a_rate_band_without_evidence_is_as_far_off_as_its_value_band() {
         let heave_rate = if k + 1 < MIN_BAND_EVIDENCE { 0.5 } else { f64::NAN };
         d.tracking.band.misses.push_back(BandMiss::new(
             5.0 + 0.1 * k as f64,
-            [1.0, 1.0, 3.0 * Z95, 0.5, 0.5, heave_rate],
+            [Z95, Z95, 3.0 * Z95, 0.5, 0.5, heave_rate],
         ));
     }
     let (_, rates, checked) = scales(&d);
@@ -1485,7 +1525,7 @@ fn a_rate_band_without_evidence_is_as_far_off_as_its_value_band() {
     d.tracking
         .band
         .misses
-        .push_back(BandMiss::new(7.0, [1.0, 1.0, 3.0 * Z95, 0.5, 0.5, 0.5]));
+        .push_back(BandMiss::new(7.0, [Z95, Z95, 3.0 * Z95, 0.5, 0.5, 0.5]));
     let (_, rates, checked) = scales(&d);
     assert_eq!(rates[2], 1.0, "its own evidence stands");
     assert!(checked, "every value and rate has its own evidence");

@@ -122,8 +122,10 @@ impl<C: ChannelForecast> Models<C> {
     /// What channel `k`'s stated deviation is scaled by when a measurement is judged
     /// unexplained: its value band's scale, never below 1. A measurement carries its noise,
     /// which a value band that the held-out misses narrowed below its stated deviation leaves
-    /// out (judged with the narrowed scale itself, about 40 % more frames were held as
-    /// unexplained on the development files).
+    /// out. On the development files, judged on the narrowed scale itself (the rate bands then
+    /// at 95 % too) 4 211 frames were held as unexplained, on it at 1 or more 2 995, and on the
+    /// value's misses at the rates' quantile (the scale before values had their own) 2 204,
+    /// with no more calm windows used (45.7 against 46.0 %).
     fn innovation_scale(&self, k: usize) -> f64 {
         self.band_scale[k].max(1.0)
     }

@@ -93,4 +93,14 @@ fn shards_merged_are_the_whole_run_bit_for_bit() {
         )),
         "{stderr}"
     );
+    // ... and the JSON report says so too, naming the file and the line.
+    let skipped: Vec<serde_json::Value> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .filter_map(|v| v.get("skipped_lines").cloned())
+        .collect();
+    assert_eq!(skipped.len(), 1, "{skipped:?}");
+    assert_eq!(skipped[0]["file"], cut.display().to_string());
+    assert_eq!(skipped[0]["lines"], 1);
+    assert_eq!(skipped[0]["first_line"], lines + 1);
 }

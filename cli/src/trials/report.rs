@@ -104,6 +104,8 @@ const MAX_SHARD_REPORT_BYTES: u64 = 256 << 20;
 /// `deckwatch trials merge`: the shards' approach records, in job order, reported as one run.
 pub fn merge(m: &MergeArgs) -> Result<(), String> {
     let mut records: Vec<ApproachRecord> = Vec::new();
+    // Per shard with lines left out: the file, how many, the first (1-based).
+    let mut skipped: Vec<(String, usize, usize)> = Vec::new();
     for path in &m.files {
         let text = deckwatch_common::files::read_bounded_to_string(path, MAX_SHARD_REPORT_BYTES)
             .map_err(|e| e.to_string())?;
@@ -131,6 +133,7 @@ pub fn merge(m: &MergeArgs) -> Result<(), String> {
                 "trials merge: {}: {not_json} line(s) not JSON skipped, the first at line {first_not_json}",
                 path.display()
             );
+            skipped.push((path.display().to_string(), not_json, first_not_json));
         }
     }
     if records.is_empty() {
@@ -151,7 +154,17 @@ pub fn merge(m: &MergeArgs) -> Result<(), String> {
             w[0].job, w[0].rule
         ));
     }
-    report(&records, m.json).map(|_| ())
+    report(&records, m.json)?;
+    // A JSON report says it too: whoever reads only the report learns the merge left lines out.
+    if m.json {
+        for (file, lines, first_line) in &skipped {
+            outln!(
+                "{}",
+                serde_json::json!({"skipped_lines": {"file": file, "lines": lines, "first_line": first_line}})
+            );
+        }
+    }
+    Ok(())
 }
 
 /// The order of the rules' records within a job, in a run's report and a merge's alike.

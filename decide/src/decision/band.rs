@@ -15,9 +15,13 @@ use std::collections::VecDeque;
 pub(super) const BAND_EVIDENCE_QUANTILE: f64 = 0.975;
 /// A value band's scale makes it hold this share: since the fit's samples fall on its grid
 /// the fit states its values' deviation in full, and at 0.975, never below 1, the value bands
-/// held 97.2-97.6 % of the touchdowns on the development files (the touchdown coverage widens
+/// held 96.9-97.6 % of the touchdowns on the development files (the touchdown coverage widens
 /// a band that misses, never narrows one that errs wide): 95 %, and down to
-/// `MIN_VALUE_BAND_SCALE` (docs/history.md, "Value bands as wide as their misses").
+/// `MIN_VALUE_BAND_SCALE` (docs/history.md, "Value bands as wide as their misses"). Only the
+/// band's width reads the values' misses so: every guard on a band (a measurement unexplained,
+/// a band suspect or unreliable, an unreliable angle widened, a rate taken as far off as its
+/// value) judges it as before, at `BAND_EVIDENCE_QUANTILE` and never below 1
+/// (`BandScale::value_guards`), so that no guard moves with the width.
 pub(super) const VALUE_BAND_EVIDENCE_QUANTILE: f64 = 0.95;
 /// The narrowest a value band is scaled to (a rate's band is never narrower than stated): the
 /// scale is measured on about a hundred misses 1.5-3 s after each fit, and the decision's risk
@@ -97,6 +101,9 @@ pub(super) struct BandScale {
     pub(super) values: [f64; 3],
     /// ... and of its rate.
     pub(super) rates: [f64; 3],
+    /// Per channel, the value's misses read as a rate's are (`BAND_EVIDENCE_QUANTILE`, never
+    /// below 1): what the guards judge a value band by (`Models::guard_scale`).
+    pub(super) value_guards: [f64; 3],
     /// Per channel, the rate's recent misses in its own unit (deg/s, m/s) as a normal
     /// deviation (NaN without `MIN_BAND_EVIDENCE` of them).
     pub(super) rate_miss_std: [f64; 3],
@@ -229,6 +236,7 @@ impl BandCalibration {
     /// least its value's scale (shown in forecasts, never cleared on).
     pub(super) fn scale(&self, channels: usize) -> BandScale {
         let mut scale = [PRIOR_BAND_SCALE; 6];
+        let mut value_guards = [PRIOR_BAND_SCALE; 3];
         let mut rate_miss_std = [f64::NAN; 3];
         let mut checked = true;
         for k in 0..6 {
@@ -275,11 +283,13 @@ impl BandCalibration {
             // misses are against a rate measured from noisy samples. Rate bands allowed down to
             // 0.75 of their stated deviation cleared twice into a heave rate beyond the capacity
             // at the touchdown's end on fresh seas, both with the band at 0.77-0.78 (docs/history.md, "A rate's misses in its own unit, and rate bands never narrower than stated").
+            let read_as_rates = (evidence_quantile(&mut z, BAND_EVIDENCE_QUANTILE) / Z95).max(1.0);
             scale[k] = match k < 3 {
                 true => {
+                    value_guards[k] = read_as_rates;
                     (evidence_quantile(&mut z, VALUE_BAND_EVIDENCE_QUANTILE) / Z95).max(MIN_VALUE_BAND_SCALE)
                 }
-                false => (evidence_quantile(&mut z, BAND_EVIDENCE_QUANTILE) / Z95).max(1.0),
+                false => read_as_rates,
             };
             if k >= 3 && !on_backtests {
                 // The same misses in m/s or deg/s, whatever each fit stated: the deviation
@@ -299,6 +309,7 @@ impl BandCalibration {
         BandScale {
             values: [scale[0], scale[1], scale[2]],
             rates: [scale[3], scale[4], scale[5]],
+            value_guards,
             rate_miss_std,
             checked,
         }

@@ -38,10 +38,19 @@ pub(super) struct Models<C> {
     /// One per channel in use.
     pub(super) forecasts: Vec<C>,
     /// Per channel: what the forecaster's stated standard deviation is multiplied by so that
-    /// its band held what happened (1 or more; see [`BandCalibration::scale`]).
+    /// its band held what happened (`MIN_VALUE_BAND_SCALE` or more; see
+    /// [`BandCalibration::scale`]).
     pub(super) band_scale: [f64; 3],
-    /// The same for each channel's rate.
+    /// The same for each channel's rate (1 or more).
     pub(super) rate_band_scale: [f64; 3],
+    /// Per channel, its value's scale as the guards read it (`BandScale::value_guards`; 1 or
+    /// more): a measurement unexplained, a band suspect or unreliable, an unreliable angle
+    /// widened, a rate taken as far off as its value. `band_scale` is the band's width only:
+    /// judged on it (down to 0.7, the rate bands then at 95 % too), 4 211 frames of the
+    /// development files were held as unexplained against 2 204 on this; and a band read at
+    /// 3.4 before would read about 3, no longer unreliable (the 95th percentile of a normal's
+    /// misses is 0.875 of its 97.5th).
+    pub(super) guard_scale: [f64; 3],
     /// Per channel, the spread of its rate's recent held-out misses in its own unit, whatever
     /// each fit stated (NaN without the evidence): the least deviation its forecast is given.
     pub(super) rate_miss_std: [f64; 3],
@@ -64,7 +73,7 @@ impl<C: ChannelForecast> Models<C> {
     /// How many times too narrow channel `k`'s band has been measured, its value's or its
     /// rate's, whichever is more.
     fn widest_band_scale(&self, k: usize) -> f64 {
-        self.band_scale[k].max(self.rate_band_scale[k])
+        self.guard_scale[k].max(self.rate_band_scale[k])
     }
 
     /// Whether channel `k`'s band is suspect: measured more than `SUSPECT_BAND_SCALE` times too
@@ -108,7 +117,7 @@ impl<C: ChannelForecast> Models<C> {
         // Each band widened by its own touchdowns' coverage, then compared.
         let rate_scale = self.widening[3 + k] * self.rate_band_scale[k];
         let scale = match unreliable && as_value {
-            true => rate_scale.max(self.widening[k] * self.band_scale[k]),
+            true => rate_scale.max(self.widening[k] * self.guard_scale[k]),
             false => rate_scale,
         };
         let scaled = scale * self.forecasts[k].rate_std(t);
@@ -119,25 +128,13 @@ impl<C: ChannelForecast> Models<C> {
         }
     }
 
-    /// What channel `k`'s stated deviation is scaled by when a measurement is judged
-    /// unexplained: its value band's scale, never below 1. A measurement carries its noise,
-    /// which a value band that the held-out misses narrowed below its stated deviation leaves
-    /// out. On the development files, judged on the narrowed scale itself (the rate bands then
-    /// at 95 % too) 4 211 frames were held as unexplained, on it at 1 or more 2 995, and on the
-    /// value's misses at the rates' quantile (the scale before values had their own) 2 204,
-    /// with no more calm windows used (45.7 against 46.0 %).
-    fn innovation_scale(&self, k: usize) -> f64 {
-        self.band_scale[k].max(1.0)
-    }
-
     /// Whether measurement `sample` at `t` is further from the forecast than the configured
     /// limits and than `INNOVATION_Z` of its calibrated deviations: the forecast is wrong.
     pub(super) fn misses(&self, c: &DecisionConfig, t: f64, sample: &[f64; 3]) -> bool {
         let f = c.ar();
         let outside = |k: usize, limit: f64| {
             let track = &self.forecasts[k];
-            (track.value(t) - sample[k]).abs()
-                > limit.max(INNOVATION_Z * self.innovation_scale(k) * track.std(t))
+            (track.value(t) - sample[k]).abs() > limit.max(INNOVATION_Z * self.guard_scale[k] * track.std(t))
         };
         outside(ROLL, f.max_innovation_deg)
             || outside(PITCH, f.max_innovation_deg)
@@ -255,8 +252,7 @@ impl<F: Forecaster> Tracking<F> {
         self.rate_checked_at = t;
         let outside = |k: usize, limit: f64| {
             let track = &m.forecasts[k];
-            (track.rate(t) - rates[k]).abs()
-                > limit.max(INNOVATION_Z * m.innovation_scale(k) * track.rate_std(t))
+            (track.rate(t) - rates[k]).abs() > limit.max(INNOVATION_Z * m.guard_scale[k] * track.rate_std(t))
         };
         let max_rate_innovation_dps = c.ar().max_rate_innovation_dps;
         outside(ROLL, max_rate_innovation_dps)
@@ -391,6 +387,7 @@ impl<F: Forecaster> Tracking<F> {
         let BandScale {
             values: band_scale,
             rates: rate_band_scale,
+            value_guards: guard_scale,
             rate_miss_std,
             checked: band_checked,
         } = self.band.scale(channels);
@@ -407,6 +404,7 @@ impl<F: Forecaster> Tracking<F> {
             forecasts,
             band_scale,
             rate_band_scale,
+            guard_scale,
             rate_miss_std,
             band_checked,
             rate_history: std::array::from_fn(|_| RateHistory::unknown()),

@@ -128,8 +128,9 @@ pub(super) fn predicted_within<C: ChannelForecast>(
 /// not (the largest instant's, not the whole touchdown's): honest bands left the truth
 /// beyond 3.09 deviations at some instant of a touchdown 4 times as often as at its end
 /// (BENCHMARKS.md, "The landing decision: decide-eval"). The
-/// measured share of clearances into a broken limit stays below the risk: the band's scale
-/// is read at the 97.5th percentile and the limits' risks are summed. A band measured more
+/// measured share of clearances into a broken limit stays below the risk: a rate band's
+/// scale is read at the 97.5th percentile (a value band's at the 95th, its tails measured:
+/// BENCHMARKS.md, "Ship motion it was not built on") and the limits' risks are summed. A band measured more
 /// than `judgement.unreliable_band_scale` times too narrow has its rate judged by its history too
 /// (`MAX_BAND_SCALE`; a new commitment's `SUSPECT_BAND_SCALE`: `Judgement::commit`); an angle
 /// whose band is unreliable has its deviation widened by `judgement.unreliable_angle_factor`,
@@ -150,7 +151,7 @@ pub(super) fn exceedance_risk<C: ChannelForecast>(
     // sea that is changing: scaled 5.96 and 7.27 times, roll and pitch bands cleared into
     // a true roll of 5.41 deg against 5 as a lull ended (docs/history.md, "An unreliable angle band widened by a new commitment"). A new commitment widens it again.
     let angle_factor = |k: usize| {
-        if m.band_scale[k] > MAX_BAND_SCALE {
+        if m.guard_scale[k] > MAX_BAND_SCALE {
             judgement.unreliable_angle_factor
         } else {
             1.0

@@ -915,6 +915,7 @@ fn an_unreliable_channel_is_judged_by_the_spread_of_its_history_too() {
         "a calm sea, honest bands: {honest}"
     );
     m.band_scale[2] = 4.0;
+    m.guard_scale[2] = m.band_scale[2];
     let unreliable = exceedance_risk_as_measured(&d.config, &m, times(), &limits);
     let spread_alone = outside_probability(0.0, 0.5, c.max_abs_heave_rate_mps);
     assert!(unreliable >= spread_alone, "{unreliable} < {spread_alone}");
@@ -925,6 +926,7 @@ fn an_unreliable_channel_is_judged_by_the_spread_of_its_history_too() {
     m.rate_history[2] = RateHistory::spread_only(0.5);
     // A scale of 3 or less is still a band to believe.
     m.band_scale[2] = MAX_BAND_SCALE;
+    m.guard_scale[2] = m.band_scale[2];
     assert!(exceedance_risk_as_measured(&d.config, &m, times(), &limits) < c.risk_per_touchdown);
 }
 
@@ -1014,6 +1016,7 @@ fn an_unreliable_rate_is_judged_from_its_newest_value() {
     let times = || (0..=40).map(|k| 60.0 + 0.05 * k as f64);
     m.rate_miss_std = [f64::NAN; 3];
     m.band_scale[HEAVE] = 4.0;
+    m.guard_scale[HEAVE] = m.band_scale[HEAVE];
     assert!(exceedance_risk_as_measured(&d.config, &m, times(), &limits) > c.risk_per_touchdown);
     let regressed = |newest: f64| RateHistory {
         spread: 0.5,
@@ -1053,6 +1056,7 @@ fn calm_sea_models() -> (LandingDecider, Models<ArChannel>, [f64; 6]) {
     let mut m = d.tracking.models.clone().expect("fitted");
     let limits = d.config().capacity_limits();
     m.band_scale = [1.0; 3];
+    m.guard_scale = m.band_scale;
     m.rate_band_scale = [1.0; 3];
     m.rate_history = [0.1, 0.1, 0.5].map(RateHistory::spread_only);
     // The rules on the band are tested on the band as the held-out misses scale it.
@@ -1131,6 +1135,7 @@ fn a_band_within_reach_of_unreliable_is_suspect() {
     m.rate_miss_std = [f64::NAN; 3];
     assert!(!(0..3).any(|k| m.band_suspect(k)), "honest bands");
     m.band_scale[HEAVE] = 0.5 * (SUSPECT_BAND_SCALE + MAX_BAND_SCALE);
+    m.guard_scale[HEAVE] = m.band_scale[HEAVE];
     assert!(m.band_suspect(HEAVE) && !m.band_suspect(ROLL));
     // A seeing touchdown believes the band; a new commitment judges the heave rate by the
     // history's spread (0.5 m/s) too, and does not clear on it.
@@ -1152,8 +1157,10 @@ fn a_band_within_reach_of_unreliable_is_suspect() {
         Judgement::entry(&d.config)
     ));
     m.band_scale[HEAVE] = MAX_BAND_SCALE + 0.1;
+    m.guard_scale[HEAVE] = m.band_scale[HEAVE];
     assert!(!m.band_suspect(HEAVE) && m.judged_by_history(HEAVE));
     m.band_scale[HEAVE] = 1.0;
+    m.guard_scale[HEAVE] = m.band_scale[HEAVE];
     m.rate_band_scale[HEAVE] = MAX_BAND_SCALE;
     assert!(m.band_suspect(HEAVE));
     // Its rate's own misses stand for its error: nothing to suspect.
@@ -1196,12 +1203,16 @@ fn a_new_commitment_widens_an_unreliable_angle_band() {
     };
     for k in [ROLL, PITCH] {
         m.band_scale = [1.0; 3];
+        m.guard_scale = m.band_scale;
         m.band_scale[k] = MAX_BAND_SCALE;
+        m.guard_scale[k] = m.band_scale[k];
         assert_eq!(risk(&m, commit), risk(&m, as_measured), "within: as measured");
         m.band_scale[k] = unreliable;
+        m.guard_scale[k] = m.band_scale[k];
         let widened = risk(&m, commit);
         assert!(widened > risk(&m, as_measured), "channel {k}");
         m.band_scale[k] = unreliable * UNRELIABLE_ANGLE_FACTOR;
+        m.guard_scale[k] = m.band_scale[k];
         assert_eq!(widened, risk(&m, as_measured), "channel {k}");
     }
 }
@@ -1240,12 +1251,14 @@ fn a_new_commitment_takes_an_unreliable_channels_rate_as_far_off_as_its_value() 
             exceedance_risk(&d.config, m, times(), &tight, judgement)
         };
         m.band_scale[k] = MAX_BAND_SCALE;
+        m.guard_scale[k] = m.band_scale[k];
         assert_eq!(
             risk(&m, commit),
             risk(&m, as_measured),
             "channel {k} within: as measured"
         );
         m.band_scale[k] = unreliable;
+        m.guard_scale[k] = m.band_scale[k];
         let widened = risk(&m, commit);
         assert!(widened > 10.0 * risk(&m, as_measured), "channel {k}: {widened}");
         m.rate_band_scale[k] = unreliable;
@@ -1276,6 +1289,7 @@ fn an_unreliable_rate_is_given_at_least_the_spread_of_its_own_misses() {
     // The heave's value band measured 20 times too narrow, its rate's misses 0.02 m/s: a
     // calm sea's forecast to believe at that spread, not at the history's 0.5 m/s.
     m.band_scale[HEAVE] = 20.0;
+    m.guard_scale[HEAVE] = m.band_scale[HEAVE];
     assert_eq!(
         m.rate_std(HEAVE, 60.5),
         10.0 * stated + 0.01,
@@ -1437,7 +1451,7 @@ fn the_rates_misses_spread_is_measured_in_its_own_unit() {
 
 /// A value band is scaled to hold `VALUE_BAND_EVIDENCE_QUANTILE` of its misses, narrower than
 /// stated down to `MIN_VALUE_BAND_SCALE`; a rate band to hold `BAND_EVIDENCE_QUANTILE`, never
-/// narrower than stated.
+/// narrower than stated; the guards read a value band as a rate's (`BandScale::value_guards`).
 #[test]
 fn a_value_band_is_as_wide_as_its_misses_a_rate_band_never_narrower_than_stated() {
     let scaled = |step: f64| {
@@ -1459,12 +1473,14 @@ fn a_value_band_is_as_wide_as_its_misses_a_rate_band_never_narrower_than_stated(
     assert!(s.checked);
     assert_eq!(s.values, [MIN_VALUE_BAND_SCALE; 3], "{s:?}");
     assert_eq!(s.rates, [1.0; 3], "{s:?}");
+    assert_eq!(s.value_guards, [1.0; 3], "the guards judge as before: {s:?}");
     // Misses wider than stated: the values at their 95th of 100 (2.85), the rates at their
     // 97.5th (the 98th, 2.94).
     let s = scaled(0.03);
     for k in 0..3 {
         assert!((s.values[k] - 2.85 / Z95).abs() < 1e-12, "{s:?}");
         assert!((s.rates[k] - 2.94 / Z95).abs() < 1e-12, "{s:?}");
+        assert!((s.value_guards[k] - 2.94 / Z95).abs() < 1e-12, "{s:?}");
     }
     // Between: a value band at its misses, above the least.
     let s = scaled(0.015);

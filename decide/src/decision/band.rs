@@ -233,7 +233,7 @@ impl BandCalibration {
     /// value and rate has that evidence (no clearance before). Until the real fits have
     /// `MIN_BAND_EVIDENCE` misses of a quantity the warm-up's backtests add theirs; with fewer
     /// than that in all there is no track record yet: `PRIOR_BAND_SCALE`, and for a rate at
-    /// least its value's scale (shown in forecasts, never cleared on).
+    /// least its value's scale as the guards read it (shown in forecasts, never cleared on).
     pub(super) fn scale(&self, channels: usize) -> BandScale {
         let mut scale = [PRIOR_BAND_SCALE; 6];
         let mut value_guards = [PRIOR_BAND_SCALE; 3];
@@ -269,12 +269,12 @@ impl BandCalibration {
                 checked = false;
                 if k >= 3 {
                     // The rates' evidence comes later (each needs a second of samples around
-                    // it). Until then a forecast shows a rate's band as far off as its value's
-                    // has been measured to be: on the prior scale alone a fresh sea cleared
+                    // it). Until then a forecast shows a rate's band as far off as its value's, as
+                    // the guards read it: on the prior scale alone a fresh sea cleared
                     // 0.2 s after the warm-up with the heave's value band 3.9 times too
                     // narrow and its rate's stated at 5 mm/s; 2 s later the deck fell at
                     // 0.678 m/s against 0.6 (docs/history.md, "The first clearance after the warm-up").
-                    scale[k] = scale[k].max(scale[k - 3]);
+                    scale[k] = scale[k].max(value_guards[k - 3]);
                 }
                 continue;
             }

@@ -148,6 +148,12 @@ impl<C: ChannelForecast> Models<C> {
         self.widening[k] * self.band_scale[k] * self.forecasts[k].std(t)
     }
 
+    /// [`Self::value_std`] with the value's scale as the guards read it (`guard_scale`, at least
+    /// the band's width): the deviation of an angle whose band is unreliable.
+    pub(super) fn guarded_value_std(&self, k: usize, t: f64) -> f64 {
+        self.widening[k] * self.guard_scale[k] * self.forecasts[k].std(t)
+    }
+
     /// The forecast at `t` as the decision judges it: values, rates and their 95 % bands (NaN
     /// for a channel not predicted).
     pub(super) fn deck_forecast(&self, t: f64) -> DeckForecast {

@@ -150,14 +150,12 @@ pub(super) fn exceedance_risk<C: ChannelForecast>(
     // unreliable angle has none, and its band scaled by the past's misses is no bound on a
     // sea that is changing: scaled 5.96 and 7.27 times, roll and pitch bands cleared into
     // a true roll of 5.41 deg against 5 as a lull ended (docs/history.md, "An unreliable angle band widened by a new commitment"). A new commitment widens it again.
-    let angle_factor = |k: usize| {
-        if m.guard_scale[k] > MAX_BAND_SCALE {
-            judgement.unreliable_angle_factor
-        } else {
-            1.0
-        }
+    // Its deviation is the one its scale as the guards read it gives (`Models::guard_scale`,
+    // never the band's narrower width), widened.
+    let angle_std = |k: usize, t: f64| match m.guard_scale[k] > MAX_BAND_SCALE {
+        true => judgement.unreliable_angle_factor * m.guarded_value_std(k, t),
+        false => m.value_std(k, t),
     };
-    let (sr, sp) = (angle_factor(ROLL), angle_factor(PITCH));
     // A channel whose band has been measured far too narrow (value or rate) states
     // deviations that are not its forecast's error. A campaign cleared on heave bands scaled
     // 3.4-200 times, three times into more than 0.64 m/s of heave rate (docs/history.md, "A campaign of 2 016 approaches: three unsafe touchdowns into heave rate"). Its rate is given at least the spread of its own
@@ -197,8 +195,8 @@ pub(super) fn exceedance_risk<C: ChannelForecast>(
     let rate_std = |k: usize, t: f64| m.rate_std_judging(k, t, judgement.rate_as_value);
     let mut worst = [0.0f64; 6];
     for t in times {
-        let (rm, rs) = (roll.value(t), with_attitude_error(sr * m.value_std(ROLL, t)));
-        let (pm, ps) = (pitch.value(t), with_attitude_error(sp * m.value_std(PITCH, t)));
+        let (rm, rs) = (roll.value(t), with_attitude_error(angle_std(ROLL, t)));
+        let (pm, ps) = (pitch.value(t), with_attitude_error(angle_std(PITCH, t)));
         let tails = [
             outside_probability(rm, rs, limits[0]),
             outside_probability(pm, ps, limits[1]),

@@ -1482,6 +1482,25 @@ fn a_value_band_is_as_wide_as_its_misses_a_rate_band_never_narrower_than_stated(
         assert!((s.rates[k] - 2.94 / Z95).abs() < 1e-12, "{s:?}");
         assert!((s.value_guards[k] - 2.94 / Z95).abs() < 1e-12, "{s:?}");
     }
+    // A rate without misses of its own is as far off as its value as the guards read it: the
+    // heave's misses 38 of 2 bands and 2 of 3.5 bands, its width 2, its guards 3.5.
+    let mut d = LandingDecider::new(DecisionConfig::default()).unwrap();
+    for k in 0..40 {
+        let heave = if k < 38 { 2.0 } else { 3.5 } * Z95;
+        d.tracking.band.misses.push_back(BandMiss::new(
+            0.1 * k as f64,
+            [Z95, Z95, heave, f64::NAN, f64::NAN, f64::NAN],
+        ));
+    }
+    let s = d.tracking.band.scale(d.channels);
+    assert!(
+        (s.values[HEAVE] - 2.0).abs() < 1e-12 && (s.value_guards[HEAVE] - 3.5).abs() < 1e-12,
+        "{s:?}"
+    );
+    assert!(
+        (s.rates[HEAVE] - 3.5).abs() < 1e-12,
+        "unreliable, as before: {s:?}"
+    );
     // Between: a value band at its misses, above the least.
     let s = scaled(0.015);
     assert!(

@@ -53,7 +53,7 @@ fn capture_pipes_into_estimate_exactly() {
         assert_eq!(f[col("status")], "ok", "{line}");
         for c in ["err_roll_deg", "err_pitch_deg", "err_yaw_deg"] {
             let e: f64 = f[col(c)].parse().unwrap();
-            assert!(e < 1e-9, "{c} = {e} in {line}");
+            assert!(e.abs() < 1e-9, "{c} = {e} in {line}");
         }
         rows += 1;
     }

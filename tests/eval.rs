@@ -46,4 +46,30 @@ fn full_pose_and_paper_side_by_side() {
     assert_eq!((nodeck[3].as_str(), nodeck[5].as_str()), ("0", "0"));
     let rows = std::fs::read_to_string(&csv).unwrap().lines().count();
     assert_eq!(rows, 1 + 2 * (3 + 8 + 3));
+    // Each row's errors are the estimate less the truth, with their sign (a bias or an error
+    // growing with the angle shows only so), and the table's RMSE is theirs.
+    let (mut negative, mut sum_sq, mut n) = (0, [0.0; 3], 0);
+    for r in deckwatch_tests::read_csv_rows(&csv) {
+        if !r["recording"].starts_with("ship-640x480") || r["estimator"] != "full-pose" {
+            continue;
+        }
+        n += 1;
+        for (k, axis) in ["roll", "pitch", "yaw"].iter().enumerate() {
+            let e: f64 = r[&format!("err_{axis}_deg")].parse().unwrap();
+            let estimate: f64 = r[&format!("{axis}_deg")].parse().unwrap();
+            assert!(e.abs() < 1.0 && estimate.is_finite(), "{r:?}");
+            negative += usize::from(e < 0.0);
+            sum_sq[k] += e * e;
+        }
+    }
+    assert!(
+        negative > 0 && negative < 3 * n,
+        "{negative} of {} errors negative",
+        3 * n
+    );
+    let ship = row("ship-640x480", "full-pose");
+    for (k, sum_sq) in sum_sq.iter().enumerate() {
+        let rmse = (sum_sq / n as f64).sqrt();
+        assert!((rmse - num(&ship, 6 + k)).abs() < 1e-4, "{rmse} against {ship:?}");
+    }
 }

@@ -6,7 +6,7 @@
 
 use deckwatch_capture::source::ReplayConfig;
 use deckwatch_common::messages::{EstimatorKind, FrameSource, PipelineStage};
-use deckwatch_common::rotation::rpy_error_deg;
+use deckwatch_common::rotation::rpy_signed_error_deg;
 use deckwatch_common::stats::{ErrorStats, Percentiles};
 use deckwatch_common::vehicle::Compensation;
 use deckwatch_estimate::EstimateConfig;
@@ -23,7 +23,8 @@ pub struct EvalArgs {
     /// Recordings (folders with camera.json, frames.csv and frames).
     #[arg(required = true)]
     recordings: Vec<PathBuf>,
-    /// Write one row per frame and estimator to this CSV file.
+    /// Write one row per frame and estimator to this CSV file (`err_*_deg`: the estimate less the
+    /// truth, with its sign).
     #[arg(long)]
     csv: Option<PathBuf>,
 }
@@ -151,7 +152,8 @@ pub fn run(a: EvalArgs) -> Result<(), String> {
                 match (usable, truth) {
                     (true, Some(tr)) => {
                         t.estimated += 1;
-                        err = rpy_error_deg(&a.rpy, &tr);
+                        // Signed in the CSV; the RMSE and the largest error are the same.
+                        err = rpy_signed_error_deg(&a.rpy, &tr);
                         t.angles.add(err);
                         let tr = &f.truth;
                         if z.is_finite() && tr.altitude_m.is_finite() && tr.offset_x_m.is_finite() {

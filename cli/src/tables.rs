@@ -3,7 +3,7 @@
 //! estimate-table` runs the paper's estimator on such a table, one attitude row per frame. A bad
 //! row is reported (file, line, column), counted and skipped; the stream goes on.
 
-use deckwatch_common::rotation::rpy_error_deg;
+use deckwatch_common::rotation::rpy_signed_error_deg;
 use deckwatch_common::stats::Percentiles;
 use deckwatch_common::{CameraModel, DeckLayout};
 use deckwatch_estimate::{PaperEstimator, PaperVariant};
@@ -122,7 +122,7 @@ pub fn estimate_table(a: EstimateTableArgs) -> Result<bool, String> {
                 let err = row
                     .truth
                     .attitude()
-                    .map(|t| rpy_error_deg(&att.rpy, &t))
+                    .map(|t| rpy_signed_error_deg(&att.rpy, &t))
                     .unwrap_or([f64::NAN; 3]);
                 let cols = [
                     r,

@@ -428,10 +428,16 @@ pub fn angle_difference(a: f64, b: f64) -> f64 {
 
 /// |a - b| per axis (roll, pitch, yaw), wrapped, in degrees: how far an estimate is from the truth.
 pub fn rpy_error_deg(a: &Rpy, b: &Rpy) -> [f64; 3] {
+    rpy_signed_error_deg(a, b).map(f64::abs)
+}
+
+/// a - b per axis (roll, pitch, yaw), wrapped to (-180, 180], in degrees: an estimate's error
+/// with its sign (a bias, or an error that grows with the angle, shows only in these).
+pub fn rpy_signed_error_deg(a: &Rpy, b: &Rpy) -> [f64; 3] {
     [
-        angle_difference(a.roll, b.roll).abs().to_degrees(),
-        angle_difference(a.pitch, b.pitch).abs().to_degrees(),
-        angle_difference(a.yaw, b.yaw).abs().to_degrees(),
+        angle_difference(a.roll, b.roll).to_degrees(),
+        angle_difference(a.pitch, b.pitch).to_degrees(),
+        angle_difference(a.yaw, b.yaw).to_degrees(),
     ]
 }
 

@@ -9,7 +9,7 @@ pub struct ErrorStats {
 }
 
 impl ErrorStats {
-    /// Adds one sample of absolute errors.
+    /// Adds one sample of errors, signed or not (the RMS and the largest take their size).
     pub fn add(&mut self, e: [f64; 3]) {
         self.n += 1;
         for ((max, sum_sq), e) in self.max.iter_mut().zip(&mut self.sum_sq).zip(e) {

@@ -1,6 +1,7 @@
 //! From measured discs to a marker set: the best-fitting subset by the deck's geometry, its
 //! consistency and residual, identities, and what tracking remembers for the next frame.
 
+use super::light::LightModel;
 use super::measure::disc_image;
 use super::*;
 
@@ -243,6 +244,18 @@ impl Detector {
                 }
             }
             self.previous = Some(prev);
+            // The markers of the common size only: a larger disc (the bow) is less dimmed by the
+            // blur at its centre, and its level would tilt the light toward it.
+            let common_radius = self.deck.disc_radius(0);
+            let levels: Vec<(f64, f64, f64)> = (0..self.deck.marker_count())
+                .filter(|&i| (self.deck.disc_radius(i) - common_radius).abs() <= 1e-3 * common_radius)
+                .map(|i| &set.markers[i])
+                .filter(|m| m.valid.get())
+                .map(|m| (m.u, m.v, m.mean_intensity))
+                .collect();
+            if let Some(light) = LightModel::fit(&levels) {
+                self.light = Some((light, 0));
+            }
             if let Some(angle) = ring_orientation(|i| set.pixel(i), &self.deck, &self.camera) {
                 self.orientation = Some((angle, 0));
             }

@@ -244,11 +244,16 @@ impl Detector {
         let isolated = a * self.least_gap_per_radius
             >= BLURRED_ISOLATION_PER_EDGE_SIGMA * window.edge_sigma_px + BLURRED_BACKGROUND_RING_PX;
         if (small || isolated) && window.edge_sigma_px > BLURRED_EDGE_SIGMA_PX {
-            // The plateau is the interior's level with the background's slope scaled to it: a
-            // blurred disc has no flat interior, and a plane fitted to its dome tilts as the dome
-            // sits on the pixel grid (a small disc's is that already).
+            // The plateau is the interior's level with a slope: a blurred disc has no flat
+            // interior, and a plane fitted to its dome tilts as the dome sits on the pixel grid.
+            // A small disc's slope is the background's scaled to it (its plateau already); a
+            // large one's the light's across the pattern, which the deck's texture does not
+            // tilt (`Self::blurred_plateau`).
             let blurred_disc = DiscWindow {
-                plateau: scaled_plateau,
+                plateau: match small {
+                    true => scaled_plateau,
+                    false => self.blurred_plateau(scaled_plateau, (mx, my)),
+                },
                 ..disc
             };
             match self.blurred_centre(frame, &blurred_disc, &window, a, roundness) {
@@ -289,6 +294,22 @@ impl Detector {
             centre_std_px,
             edge_sigma_px: window.edge_sigma_px,
         })
+    }
+
+    /// A large blurred disc's plateau (about its region's corner): the interior's level at its
+    /// centroid `at` (px about the corner), as `scaled` has it, with the slope of the light
+    /// across the pattern (`light::LightModel`, measured within `MAX_LIGHT_AGE_FRAMES`), and
+    /// without one, none. Not the slope of `scaled` (the region border's plane scaled to the
+    /// disc): it carries what is painted on the deck there, and on the simulator's textured
+    /// deck moved a centre by 0.36 px (`light::tests`).
+    fn blurred_plateau(&self, scaled: [f64; 3], at: (f64, f64)) -> [f64; 3] {
+        let level = scaled[0] + scaled[1] * at.0 + scaled[2] * at.1;
+        let (rx, ry) = match self.light {
+            Some((light, age)) if age <= MAX_LIGHT_AGE_FRAMES => light.relative_slope(),
+            _ => (0.0, 0.0),
+        };
+        let (gx, gy) = (level * rx, level * ry);
+        [level - gx * at.0 - gy * at.1, gx, gy]
     }
 
     /// The coverage-weighted centre of a disc in a window around `(cx, cy)` (see `measure`),

@@ -26,6 +26,7 @@ use deckwatch_common::{CameraModel, DeckLayout};
 
 mod assemble;
 mod discs;
+mod light;
 mod measure;
 
 pub use discs::MeasuredDisc;
@@ -42,6 +43,10 @@ const MAX_ORIENTATION_AGE_FRAMES: u32 = 10;
 /// a 1640x1232 frame holds four). Four fit any homography: the disc sizes and the orientation
 /// are what check them.
 const ORIENTATION_MIN_MARKERS: usize = 4;
+/// The light measured on an earlier frame gives a blurred disc's plateau slope for this many
+/// frames after it (light across a deck changes slowly; the pattern moves across the
+/// vignetting as the vehicle sways).
+const MAX_LIGHT_AGE_FRAMES: u32 = 10;
 
 /// Tuning of the detector.
 #[derive(Debug, Clone, PartialEq)]
@@ -124,6 +129,10 @@ pub struct Detector {
     /// identifies a pattern whose bow is cut by the border or out of view when tracking cannot
     /// (a low frame rate, a jump), whatever the frame rate.
     orientation: Option<(f64, u32)>,
+    /// The light across the pattern, from the newest identified set whose markers' levels
+    /// gave one, and the frames since: a large blurred disc's plateau slope
+    /// ([`light::LightModel`]).
+    light: Option<(light::LightModel, u32)>,
     coarse: Vec<u8>,
     stack: Vec<(u32, u32)>,
     seeds: Vec<u32>,
@@ -176,6 +185,7 @@ impl Detector {
             config,
             previous: None,
             orientation: None,
+            light: None,
             coarse: Vec::new(),
             stack: Vec::new(),
             seeds: Vec::new(),
@@ -201,16 +211,17 @@ impl Detector {
     }
 
     /// Forgets the previous frame (the next frame is searched in full; the ring's orientation
-    /// is kept, to identify a pattern without its bow).
+    /// is kept, to identify a pattern without its bow, and the light, for its age).
     pub fn reset_tracking(&mut self) {
         self.previous = None;
     }
 
-    /// Forgets the previous frame and the ring's orientation: the next pattern must show its
-    /// bow to be identified (another deck, another camera mounting).
+    /// Forgets the previous frame, the ring's orientation and the light: the next pattern must
+    /// show its bow to be identified (another deck, another camera mounting).
     pub fn reset(&mut self) {
         self.previous = None;
         self.orientation = None;
+        self.light = None;
     }
 
     /// Detects markers in a frame given as bytes with its geometry; a geometry that does not fit
@@ -229,6 +240,9 @@ impl Detector {
     /// fails) over the full frame. A frame whose size is not the camera's gives `BadFrame`.
     pub fn detect(&mut self, frame: GrayView<'_>) -> MarkerSet {
         if let Some((_, age)) = &mut self.orientation {
+            *age = age.saturating_add(1);
+        }
+        if let Some((_, age)) = &mut self.light {
             *age = age.saturating_add(1);
         }
         if (frame.width(), frame.height()) != (self.camera.width as usize, self.camera.height as usize) {

@@ -71,8 +71,8 @@ fn closed_loop_landings_touch_down_safely_in_one_process_and_through_the_process
         // The Pi camera's 640x480: at 320x240 the attitudes are noisy enough that this
         // approach's motion model is unreliable and it never lands (in either way).
         // Two minutes, the trials' own measure: the chain's first approach lands 41.9 s after
-        // arrival, and through the processes on a loaded machine (CI's tests beside it) a late
-        // frame once sent that touchdown around at 40 s and the next calm spell came after 60 s.
+        // arrival, and through the processes on a loaded machine (CI's tests beside it) it once
+        // went around (stale frames refused beside it) and did not touch down within 60 s.
         "--max-approach-s",
         "120",
         "--processes",

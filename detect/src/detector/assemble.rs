@@ -247,13 +247,12 @@ impl Detector {
             // The markers of the common size only: a larger disc (the bow) is less dimmed by the
             // blur at its centre, and its level would tilt the light toward it.
             let common_radius = self.deck.disc_radius(0);
-            let levels: Vec<(f64, f64, f64)> = (0..self.deck.marker_count())
+            let levels = (0..self.deck.marker_count())
                 .filter(|&i| (self.deck.disc_radius(i) - common_radius).abs() <= 1e-3 * common_radius)
                 .map(|i| &set.markers[i])
                 .filter(|m| m.valid.get())
-                .map(|m| (m.u, m.v, m.mean_intensity))
-                .collect();
-            if let Some(light) = LightModel::fit(&levels) {
+                .map(|m| (m.u, m.v, m.mean_intensity));
+            if let Some(light) = LightModel::fit(levels) {
                 self.light = Some((light, 0));
             }
             if let Some(angle) = ring_orientation(|i| set.pixel(i), &self.deck, &self.camera) {

@@ -14,6 +14,8 @@
 //! its level put a radial slope error of 7e-5 per pixel, half the light's whole gradient, on
 //! every ring marker).
 
+use deckwatch_common::deck::MAX_MARKERS;
+
 /// The light's log-level over the image: a plane through the markers' mean position.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct LightModel {
@@ -42,23 +44,30 @@ const MAX_LOG_RESIDUAL: f64 = 0.05;
 const MAX_SLOPE_PER_PX: f64 = 2e-3;
 
 impl LightModel {
-    /// Fits the model to markers' `(u, v, level)` (px, px, DN). None with fewer than
-    /// `MIN_MARKERS` unclipped positive levels, too little spread, or a slope no light has.
-    pub(super) fn fit(markers: &[(f64, f64, f64)]) -> Option<Self> {
-        let mut kept: Vec<(f64, f64, f64)> = markers
-            .iter()
-            .copied()
+    /// Fits the model to markers' `(u, v, level)` (px, px, DN; the first `MAX_MARKERS`). None
+    /// with fewer than `MIN_MARKERS` unclipped positive levels, too little spread, or a slope no
+    /// light has. No allocation: it runs on every identified frame.
+    pub(super) fn fit(markers: impl IntoIterator<Item = (f64, f64, f64)>) -> Option<Self> {
+        let mut buffer = [(0.0, 0.0, 0.0); MAX_MARKERS];
+        let mut n = 0;
+        for m in markers
+            .into_iter()
             .filter(|&(u, v, level)| u.is_finite() && v.is_finite() && level > 0.0 && level < MAX_LEVEL_DN)
-            .collect();
-        let mut model = Self::plane(&kept)?;
+            .take(MAX_MARKERS)
+        {
+            buffer[n] = m;
+            n += 1;
+        }
+        let kept = &mut buffer[..n];
+        let mut model = Self::plane(kept)?;
         let worst = kept
             .iter()
             .map(|&(u, v, level)| (level.ln() - model.log_level_at(u, v)).abs())
             .enumerate()
             .max_by(|a, b| a.1.total_cmp(&b.1));
         if let Some((i, _)) = worst.filter(|w| w.1 > MAX_LOG_RESIDUAL) {
-            kept.swap_remove(i);
-            model = Self::plane(&kept)?;
+            kept.swap(i, n - 1);
+            model = Self::plane(&kept[..n - 1])?;
         }
         let (gx, gy) = model.slope_per_px;
         (gx.hypot(gy) <= MAX_SLOPE_PER_PX).then_some(model)
@@ -138,30 +147,30 @@ mod tests {
             let (gx, gy) = m.relative_slope();
             (gx - gradient.0).abs() < 1e-5 && (gy - gradient.1).abs() < 1e-5
         };
-        let model = LightModel::fit(&markers).expect("eight markers");
+        let model = LightModel::fit(markers.iter().copied()).expect("eight markers");
         assert!(close_to(&model), "{model:?}");
         // A clipped level is left out; a marker 20 % darker (a shadow) is dropped.
         let mut odd = markers.clone();
         odd[3].2 = 255.0;
         odd[5].2 *= 0.8;
         assert!(
-            close_to(&LightModel::fit(&odd).expect("six good markers")),
+            close_to(&LightModel::fit(odd.iter().copied()).expect("six good markers")),
             "{odd:?}"
         );
         // Too few, too close, edge-on, or a level that is no light: no model.
-        assert!(LightModel::fit(&markers[..3]).is_none());
+        assert!(LightModel::fit(markers[..3].iter().copied()).is_none());
         let close: Vec<_> = markers
             .iter()
             .map(|m| (900.0 + 0.01 * m.0, 500.0 + 0.01 * m.1, m.2))
             .collect();
-        assert!(LightModel::fit(&close).is_none());
+        assert!(LightModel::fit(close.iter().copied()).is_none());
         let edge_on: Vec<_> = markers.iter().map(|m| (m.0, 500.0 + 0.01 * m.1, m.2)).collect();
-        assert!(LightModel::fit(&edge_on).is_none());
+        assert!(LightModel::fit(edge_on.iter().copied()).is_none());
         let mut dark = markers.clone();
         for m in dark.iter_mut().take(5) {
             m.2 = 0.0;
         }
-        assert!(LightModel::fit(&dark).is_none());
+        assert!(LightModel::fit(dark.iter().copied()).is_none());
     }
 
     /// The simulator's deck at 1640x1232 through a 2 px blur, textured and not, the same pose,

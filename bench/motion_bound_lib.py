@@ -10,6 +10,8 @@ intercept. Its band is Gaussian: the residuals' standard deviation per quantity 
 the whole file (global; optimistic, since the fit and the band both saw the whole file), or over
 each decision's own trailing `local_band_s` of residuals already known then (local; floored at
 `local_floor` of the global one), as a decider that measures its misses as it goes could state it.
+With `online_window_s` the regression is instead refitted as it goes on the trailing span whose
+targets have come (`online_fit`): the same forecaster without the hindsight of the whole file.
 """
 import math
 import os
@@ -173,14 +175,40 @@ def fit(motion, groups, args, rng):
         lag_index = rows[:, None] - stride * np.arange(lags)[None, :]
         design = np.hstack([z[c][lag_index] for c in group] + [np.ones((len(rows), 1))])
         keys = [q for q in QUANTITIES if q[0] in group]
-        coef = np.linalg.lstsq(design, np.hstack([truth[q] for q in keys]), rcond=None)[0]
-        fitted = design @ coef
+        targets = np.hstack([truth[q] for q in keys])
+        if getattr(args, "online_window_s", 0):
+            fitted = online_fit(design, targets, args.online_window_s, args.online_refit_s)
+        else:
+            fitted = design @ np.linalg.lstsq(design, targets, rcond=None)[0]
         for j, q in enumerate(keys):
             block = fitted[:, j * len(horizons_s) : (j + 1) * len(horizons_s)]
             mean[q], residual[q] = np.full((n, len(horizons_s)), np.nan), np.full((n, len(horizons_s)), np.nan)
             mean[q][rows], residual[q][rows] = block, truth[q] - block
-            dof[q] = len(rows) - design.shape[1]
+            # Fitted online, the residuals are out of sample: no coefficients to pay for.
+            online = np.isfinite(block[:, 0])
+            dof[q] = int(online.sum()) if not online.all() else len(rows) - design.shape[1]
     return t_s, first, last, horizons_s, mean, residual, dof
+
+
+def online_fit(design, targets, window_s, refit_s):
+    """The same regression fitted as a decider could fit it in flight: every `refit_s`, on the
+    rows of the trailing `window_s` whose whole touchdown had come by then (their targets known),
+    and used until the next refit. Rows before the first full window stay NaN. It still regresses
+    on the true targets (a decider has only noisy ones), so it stays optimistic; what the fit on
+    the whole file gains over it is hindsight, not a better forecaster."""
+    fitted = np.full(targets.shape, np.nan)
+    window = int(round(window_s * DECISION_HZ))
+    step = max(1, int(round(refit_s * DECISION_HZ)))
+    known = int(math.ceil(TOUCHDOWN_S * DECISION_HZ - 1e-9))
+    for b in range(window + known, len(design), step):
+        train = slice(b - known - window, b - known + 1)
+        # Normal equations with a whisker of ridge: the same fit as lstsq where it is well posed.
+        x, y = design[train], targets[train]
+        gram = x.T @ x
+        gram[np.diag_indices_from(gram)] += 1e-9 * np.trace(gram) / len(gram)
+        coef = np.linalg.solve(gram, x.T @ y)
+        fitted[b : b + step] = design[b : b + step] @ coef
+    return fitted
 
 
 def bands(residual, first, last, horizons_s, dof, local_band_s, local_floor):
@@ -190,7 +218,7 @@ def bands(residual, first, last, horizons_s, dof, local_band_s, local_floor):
     global)."""
     global_std, local_std = {}, {}
     for q, r in residual.items():
-        global_std[q] = np.sqrt((r[first : last + 1] ** 2).sum(0) / dof[q])
+        global_std[q] = np.sqrt(np.nansum(r[first : last + 1] ** 2, axis=0) / dof[q])
         if not local_band_s:
             continue
         window = int(round(local_band_s * DECISION_HZ))
@@ -280,8 +308,13 @@ def run_file(path, args, joint, rng):
     if stop <= start:
         raise ValueError(f"{path}: {motion.duration_s:.0f} s is too short for --start-s {args.start_s}")
     # Every decision judged has all its lags and a full trailing span of residuals.
-    if start < first + int(round((args.local_band_s or 0) * DECISION_HZ)):
-        raise ValueError(f"--start-s {args.start_s}: before the lags and the local band's span are measured")
+    fitted_from = first + int(round(getattr(args, "online_window_s", 0) * DECISION_HZ))
+    if getattr(args, "online_window_s", 0):
+        fitted_from += int(math.ceil(TOUCHDOWN_S * DECISION_HZ - 1e-9))
+    if start < fitted_from + int(round((args.local_band_s or 0) * DECISION_HZ)):
+        raise ValueError(
+            f"--start-s {args.start_s}: before the lags, the online fit's window and the local band's span are measured"
+        )
     global_std, local_std = bands(residual, first, last, horizons_s, dof, args.local_band_s, args.local_floor)
     variants = [("global", global_std)]
     if args.local_band_s:

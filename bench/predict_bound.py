@@ -56,7 +56,7 @@ Usage: python3 bench/predict_bound.py [--lags-s 9.6] [--joint] [--sea-states 3,4
        [--vertical-speed-error-mps 0] [--attitude-error-deg 0]
        python3 bench/predict_bound.py --motion-csv FILE[,FILE...] [--joint] [--lags-s 19.2]
        [--local-band-s 60] [--local-floor 0.2] [--within-s 120] [--start-s 80] [--step-s 0.1]
-       [--latency-ms 5] [--json] (and --risk, --band-scale, --noise-deg, --heave-noise-m, the
+       [--latency-ms 5] [--online-window-s 240 --start-s 320] [--json] (and --risk, --band-scale, --noise-deg, --heave-noise-m, the
        reserves: 0.05 m/s and 0.2 deg by default on files)
 `--fitted`: instead of the bound, the rate forecast errors of autoregressions fitted on the noisy
 samples as the decider fits them, one per channel (what the decider does) and one of the three
@@ -490,6 +490,14 @@ def main():
     p.add_argument(
         "--start-s", type=float, default=80.0, help="motion files: the first decision and arrival (s; after the lags and local band)"
     )
+    p.add_argument(
+        "--online-window-s",
+        type=float,
+        default=0.0,
+        help="motion files: fit the regression as a decider in flight could, on the trailing span of this many seconds "
+        "whose truths had come, every --online-refit-s (0: on the whole file, the bound)",
+    )
+    p.add_argument("--online-refit-s", type=float, default=5.0, help="motion files, --online-window-s: refit this often (s)")
     p.add_argument("--latency-ms", type=float, default=5.0, help="motion files: capture to decision, as decide-eval's")
     p.add_argument("--step-s", type=float, default=0.1, help="motion files: the touchdown's judged instants this far apart (s)")
     p.add_argument("--json", action="store_true", help="motion files: one JSON object per line")

@@ -186,9 +186,12 @@ def gaussian_psf(sigma_px, step):
 def pillbox_psf(radius_px, step):
     """Geometric defocus: a uniform disc of `radius_px` output pixels (the blur circle of a lens
     out of focus, without diffraction), sampled every `step` output pixels, each sample the share
-    of its cell inside the disc (8 x 8 sub-samples). Its edge response is a circular segment's
-    area, not an error function: flat-topped and hard-cornered where a Gaussian is smooth."""
+    of its cell inside the disc (8 x 8 sub-samples): a flat-topped spread with a hard rim. Its
+    edge response is a circular segment's area with kinks at the rim's reach, not an error
+    function."""
     r = radius_px / step
+    if r < 0.5:  # a circle smaller than a grid cell: no blur (as gaussian_psf's sigma 0)
+        return np.ones((1, 1))
     n = max(1, int(math.ceil(r)) + 1)
     sub = (np.arange(8) + 0.5) / 8 - 0.5
     x = (np.arange(-n, n + 1, dtype=np.float64)[:, None] + sub[None, :]).ravel()

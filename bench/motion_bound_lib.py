@@ -176,7 +176,8 @@ def fit(motion, groups, args, rng):
         design = np.hstack([z[c][lag_index] for c in group] + [np.ones((len(rows), 1))])
         keys = [q for q in QUANTITIES if q[0] in group]
         targets = np.hstack([truth[q] for q in keys])
-        if getattr(args, "online_window_s", 0):
+        online = bool(getattr(args, "online_window_s", 0))
+        if online:
             fitted = online_fit(design, targets, args.online_window_s, args.online_refit_s)
         else:
             fitted = design @ np.linalg.lstsq(design, targets, rcond=None)[0]
@@ -185,8 +186,7 @@ def fit(motion, groups, args, rng):
             mean[q], residual[q] = np.full((n, len(horizons_s)), np.nan), np.full((n, len(horizons_s)), np.nan)
             mean[q][rows], residual[q][rows] = block, truth[q] - block
             # Fitted online, the residuals are out of sample: no coefficients to pay for.
-            online = np.isfinite(block[:, 0])
-            dof[q] = int(online.sum()) if not online.all() else len(rows) - design.shape[1]
+            dof[q] = int(np.isfinite(block[:, 0]).sum()) if online else len(rows) - design.shape[1]
     return t_s, first, last, horizons_s, mean, residual, dof
 
 

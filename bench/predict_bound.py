@@ -56,7 +56,7 @@ Usage: python3 bench/predict_bound.py [--lags-s 9.6] [--joint] [--sea-states 3,4
        [--vertical-speed-error-mps 0] [--attitude-error-deg 0]
        python3 bench/predict_bound.py --motion-csv FILE[,FILE...] [--joint] [--lags-s 19.2]
        [--local-band-s 60] [--local-floor 0.2] [--within-s 120] [--start-s 80] [--step-s 0.1]
-       [--latency-ms 5] [--online-window-s 240 --start-s 320] [--json] (and --risk, --band-scale, --noise-deg, --heave-noise-m, the
+       [--latency-ms 5] [--online-window-s 240 --start-s 330] [--json] (and --risk, --band-scale, --noise-deg, --heave-noise-m, the
        reserves: 0.05 m/s and 0.2 deg by default on files)
 `--fitted`: instead of the bound, the rate forecast errors of autoregressions fitted on the noisy
 samples as the decider fits them, one per channel (what the decider does) and one of the three
@@ -521,6 +521,8 @@ def main():
             p.error(f"--lags-s: {args.lags_s} is not a multiple of {motion_bound_lib.LAG_STEP_S} s of at least 2")
         if not 0 < args.step_s <= motion_bound_lib.TOUCHDOWN_S or args.local_band_s < 0 or not 0 < args.local_floor <= 1:
             p.error("--step-s in (0, 2], --local-band-s not negative, --local-floor in (0, 1]")
+        if args.online_window_s < 0 or args.online_refit_s <= 0:
+            p.error("--online-window-s not negative, --online-refit-s positive")
         if args.fitted:
             p.error("--fitted is for the spectrum seas")
         motion_files(args)

@@ -137,36 +137,38 @@ fn main() {
             )
         })
     });
-    // A refit of all three channels on the default window (240 s at 10 Hz), each alone and
-    // with the other channels' lags (`cross_order`: `forecast::joint`).
-    let t: Vec<f64> = (0..2400).map(|k| k as f64 * 0.1).collect();
-    let decks: Vec<DeckObservation> = t.iter().map(|&t| deck_at(t)).collect();
-    let channels: [Vec<f64>; 3] = [
-        decks.iter().map(|d| d.roll_deg).collect(),
-        decks.iter().map(|d| d.pitch_deg).collect(),
-        decks.iter().map(|d| d.height_m).collect(),
-    ];
-    let y: Vec<&[f64]> = channels.iter().map(Vec::as_slice).collect();
-    for cross_order in [0, 24] {
-        let forecaster = deckwatch_decide::forecast::ArForecaster {
-            order,
-            cross_order,
-            grid_step_s: 0.2,
-            max_bridge_s: 0.5,
-        };
-        group.bench_function(
-            format!("refit_three_channels_240s_cross_order_{cross_order}"),
-            |b| {
-                b.iter(|| {
-                    deckwatch_decide::forecast::Forecaster::fit(
-                        &forecaster,
-                        black_box(&t),
-                        black_box(&y),
-                        25.0,
-                    )
-                })
-            },
-        );
+    // A refit of all three channels on the default window (600 s at 10 Hz) and the former one
+    // (240 s), each alone and with the other channels' lags (`cross_order`: `forecast::joint`).
+    for window_s in [240usize, 600] {
+        let t: Vec<f64> = (0..window_s * 10).map(|k| k as f64 * 0.1).collect();
+        let decks: Vec<DeckObservation> = t.iter().map(|&t| deck_at(t)).collect();
+        let channels: [Vec<f64>; 3] = [
+            decks.iter().map(|d| d.roll_deg).collect(),
+            decks.iter().map(|d| d.pitch_deg).collect(),
+            decks.iter().map(|d| d.height_m).collect(),
+        ];
+        let y: Vec<&[f64]> = channels.iter().map(Vec::as_slice).collect();
+        for cross_order in [0, 24] {
+            let forecaster = deckwatch_decide::forecast::ArForecaster {
+                order,
+                cross_order,
+                grid_step_s: 0.2,
+                max_bridge_s: 0.5,
+            };
+            group.bench_function(
+                format!("refit_three_channels_{window_s}s_cross_order_{cross_order}"),
+                |b| {
+                    b.iter(|| {
+                        deckwatch_decide::forecast::Forecaster::fit(
+                            &forecaster,
+                            black_box(&t),
+                            black_box(&y),
+                            25.0,
+                        )
+                    })
+                },
+            );
+        }
     }
     group.finish();
     c.final_summary();

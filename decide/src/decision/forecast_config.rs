@@ -37,11 +37,9 @@ pub struct ArForecastConfig {
     pub cross_order: usize,
     /// History the fit estimates its coefficients on (s). 97 coefficients on 120 s (600 rows on
     /// the 5 Hz grid) carry enough of their own error to widen the band; 240 s used 40.7 -> 42.9 %
-    /// of the calm windows on the development ship-motion files. With the channels reading one
-    /// another the cross lags want more rows: 600 s used 45.6 -> 48.2 % there (sea state 6: 30.2
-    /// -> 35.8 %), the refit's p99 about 1 ms either way (docs/history.md, "A 600 s fit window").
-    /// It matters only after that long over the deck: an approach that lands within two minutes
-    /// decides as before.
+    /// of the calm windows on the development ship-motion files (400 s: 43.4 %, at twice the
+    /// refit's cost). It matters only after that long over the deck: an approach that lands
+    /// within two minutes decides as before (docs/history.md, "A 240 s fit window").
     pub window_s: f64,
     /// No clearance before this much history: the wait after the deck comes into view (s). A
     /// short history fits a lower order and states the larger uncertainty that comes with it.
@@ -83,7 +81,7 @@ impl Default for ArForecastConfig {
         Self {
             order: 96,
             cross_order: 24,
-            window_s: 600.0,
+            window_s: 240.0,
             min_history_s: 8.0,
             refit_interval_s: 1.0,
             holdout_s: 2.0,

@@ -44,7 +44,7 @@ pub fn normal_equations(x: &[f64], p: usize) -> (DMatrix<f64>, DVector<f64>) {
     let lags = p + 1;
     let mut s = DMatrix::<f64>::zeros(lags, lags);
     for v in 0..lags {
-        s[(0, v)] = (0..rows).map(|r| x[r] * x[r + v]).sum();
+        s[(0, v)] = dot(&x[..rows], &x[v..v + rows]);
     }
     for u in 1..lags {
         for v in u..lags {
@@ -65,6 +65,91 @@ pub fn normal_equations(x: &[f64], p: usize) -> (DMatrix<f64>, DVector<f64>) {
     });
     let atb = DVector::from_fn(p + 1, |i, _| if i == p { sums[p] } else { lagged(p - 1 - i, p) });
     (ata, atb)
+}
+
+/// The lagged products `S(u, v) = sum_r a[r + u] b[r + v]` (`u, v` in `0..=p`) and the lagged
+/// sums `sum_r a[r + u]` over the rows `r` of an autoregression of order `p` on grids `a`, `b`
+/// of one length, the rows `gap_rows` (increasing) left out: what the joint fit's normal
+/// equations are made of. Each run of kept rows is summed as [`normal_equations`] does, along
+/// the diagonals (`O(rows p + runs p^2)`); multiplying the designs out is `O(rows p q)`, and
+/// was the largest part of the joint refit's time on a 600 s window (a profile of the criterion
+/// bench: the products and their packing about a quarter, building the designs a sixth).
+pub(super) fn lagged_products(
+    a: &[f64],
+    b: &[f64],
+    p: usize,
+    gap_rows: &[usize],
+) -> (DMatrix<f64>, Vec<f64>) {
+    let mut products = DMatrix::<f64>::zeros(p + 1, p + 1);
+    let mut sums = vec![0.0; p + 1];
+    debug_assert_eq!(a.len(), b.len(), "the grids of one fit");
+    let rows = a.len().min(b.len()).saturating_sub(p);
+    debug_assert!(
+        gap_rows.windows(2).all(|w| w[0] < w[1]) && gap_rows.last().is_none_or(|&r| r < rows),
+        "gap rows increasing and inside the rows"
+    );
+    let mut start = 0;
+    for end in gap_rows.iter().copied().chain(std::iter::once(rows)) {
+        if end > start {
+            add_run_products(
+                &a[start..end + p],
+                &b[start..end + p],
+                p,
+                &mut products,
+                &mut sums,
+            );
+        }
+        start = end + 1;
+    }
+    (products, sums)
+}
+
+/// [`lagged_products`] over every row of the grids `a`, `b` (length `rows + p`), added.
+fn add_run_products(a: &[f64], b: &[f64], p: usize, products: &mut DMatrix<f64>, sums: &mut [f64]) {
+    let rows = a.len() - p;
+    let lagged = |u: usize, v: usize| dot(&a[u..u + rows], &b[v..v + rows]);
+    // The first row and column start the diagonals; a step along one adds the row after the
+    // run and takes the first away.
+    let mut run = DMatrix::<f64>::zeros(p + 1, p + 1);
+    for v in 0..=p {
+        run[(0, v)] = lagged(0, v);
+    }
+    for u in 1..=p {
+        run[(u, 0)] = lagged(u, 0);
+    }
+    for u in 1..=p {
+        for v in 1..=p {
+            run[(u, v)] = run[(u - 1, v - 1)] - a[u - 1] * b[v - 1] + a[u - 1 + rows] * b[v - 1 + rows];
+        }
+    }
+    *products += run;
+    let mut sum: f64 = a[..rows].iter().sum();
+    sums[0] += sum;
+    for u in 1..=p {
+        sum += a[u - 1 + rows] - a[u - 1];
+        sums[u] += sum;
+    }
+}
+
+/// The dot product of `a` and `b` (of one length) in eight running sums: a single one is a chain
+/// of dependent additions the compiler may not reorder, and the lagged products are most of a
+/// refit's sums.
+pub(super) fn dot(a: &[f64], b: &[f64]) -> f64 {
+    debug_assert_eq!(a.len(), b.len());
+    let mut acc = [0.0; 8];
+    let (a8, b8) = (a.chunks_exact(8), b.chunks_exact(8));
+    let tail: f64 = a8
+        .remainder()
+        .iter()
+        .zip(b8.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in a8.zip(b8) {
+        for i in 0..8 {
+            acc[i] += x[i] * y[i];
+        }
+    }
+    acc.iter().sum::<f64>() + tail
 }
 
 /// The rows of the autoregression of order `p` (row `r`: target `r + p`, lags `r..r + p`) with
@@ -338,6 +423,36 @@ mod tests {
             let scale = a.tr_mul(&a).amax();
             assert!((ata - a.tr_mul(&a)).amax() < 1e-12 * scale, "order {p}");
             assert!((atb - a.tr_mul(&b)).amax() < 1e-12 * scale, "order {p}");
+        }
+    }
+
+    #[test]
+    fn lagged_products_over_runs_of_rows_are_the_sums_over_those_rows() {
+        let a: Vec<f64> = (0..120)
+            .map(|k| 1.5 + (0.31 * k as f64).sin() + 0.05 * ((k * k) % 11) as f64)
+            .collect();
+        let b: Vec<f64> = (0..120)
+            .map(|k| -0.5 + (0.23 * k as f64).cos() + 0.07 * ((k * 3) % 5) as f64)
+            .collect();
+        // No gap; gaps at the start, in the middle (two adjacent), at the end.
+        let gap_sets: [&[usize]; 4] = [&[], &[0, 1, 2], &[40, 41, 60], &[100, 101, 102, 103]];
+        for p in [2usize, 7, 16] {
+            let rows = a.len() - p;
+            for gaps in gap_sets {
+                let kept: Vec<usize> = (0..rows).filter(|r| !gaps.contains(r)).collect();
+                let (products, sums) = lagged_products(&a, &b, p, gaps);
+                for u in 0..=p {
+                    let sum: f64 = kept.iter().map(|&r| a[r + u]).sum();
+                    assert!((sums[u] - sum).abs() < 1e-10, "order {p}, gaps {gaps:?}, sum {u}");
+                    for v in 0..=p {
+                        let product: f64 = kept.iter().map(|&r| a[r + u] * b[r + v]).sum();
+                        assert!(
+                            (products[(u, v)] - product).abs() < 1e-10 * product.abs().max(1.0),
+                            "order {p}, gaps {gaps:?}, ({u}, {v})"
+                        );
+                    }
+                }
+            }
         }
     }
 

@@ -12,7 +12,7 @@
 //! ([`ArModel`]'s notes).
 
 use super::ar::{ArModel, OwnSystem};
-use super::ar_numerics::{gap_rows, resample, truncated_solve};
+use super::ar_numerics::{dot, gap_rows, lagged_products, resample, truncated_solve};
 use nalgebra::{DMatrix, DVector};
 use std::sync::Arc;
 
@@ -102,36 +102,76 @@ impl JointAr {
         // residual per row, the coefficients counted beyond the own fit's.
         let price = (p + cross) as f64 - order as f64;
         let params = order + cross + 1;
+        // Every pair of channels' lagged products over the kept rows (`products[a][b]` for
+        // a <= b; the other order is its transpose): the joint normal equations' blocks.
+        let gaps = &systems[0].gap_rows;
+        let mut products = vec![Vec::new(); channels];
+        let mut sums = Vec::with_capacity(channels);
+        for a in 0..channels {
+            for b in a..channels {
+                let (s, lagged_sums) = lagged_products(&systems[a].x, &systems[b].x, p, gaps);
+                products[a].push(s);
+                if a == b {
+                    sums.push(lagged_sums);
+                }
+            }
+        }
+        let product = |a: usize, b: usize, u: usize, v: usize| match a <= b {
+            true => products[a][b - a][(u, v)],
+            false => products[b][a - b][(v, u)],
+        };
         let mut coef = Vec::with_capacity(channels);
         let mut joint = Vec::with_capacity(channels);
         for c in 0..channels {
             let system = systems[c];
             let x = &system.x;
-            let own_design = DMatrix::from_fn(rows.len(), p + 1, |i, col| match col == p {
-                true => 1.0,
-                false => x[rows[i] + p - 1 - col],
-            });
-            let others: Vec<&[f64]> = (0..channels)
-                .filter(|&j| j != c)
-                .map(|j| systems[j].x.as_slice())
-                .collect();
-            let cross_design = DMatrix::from_fn(rows.len(), cross, |i, col| {
-                others[col / q][rows[i] + p - 1 - col % q]
-            });
-            let b = DVector::from_iterator(rows.len(), rows.iter().map(|&r| x[r + p]));
+            // Cross column k: channel `others[k / q]`'s lag `k % q + 1`, offset `p - 1 - k % q`
+            // from a row's first grid point (own column i: offset `p - 1 - i`; the target: `p`).
+            let others: Vec<usize> = (0..channels).filter(|&j| j != c).collect();
+            let cross_of = |k: usize| (others[k / q], p - 1 - k % q);
             // [[A, B], [B', D]] [own; cross] = [a; d], with A's pseudo-inverse known: the cross
-            // lags' coefficients solve the Schur complement S = D - B' A+ B. (Products of
-            // transposes through `*`: nalgebra's blocked product; `tr_mul` is a dot product per
-            // entry, three times slower here.)
-            let cross_t = cross_design.transpose();
-            let between = own_design.transpose() * &cross_design;
+            // lags' coefficients solve the Schur complement S = D - B' A+ B.
+            let between = DMatrix::from_fn(p + 1, cross, |col, k| {
+                let (o, v) = cross_of(k);
+                match col == p {
+                    true => sums[o][v],
+                    false => product(c, o, p - 1 - col, v),
+                }
+            });
+            let cross_gram = DMatrix::from_fn(cross, cross, |k, l| {
+                let ((o, u), (j, v)) = (cross_of(k), cross_of(l));
+                product(o, j, u, v)
+            });
+            let cross_target = DVector::from_fn(cross, |k, _| {
+                let (o, u) = cross_of(k);
+                product(o, c, u, p)
+            });
             let a_inv_between = system.inverse.apply(&between);
-            let schur = &cross_t * &cross_design - between.transpose() * &a_inv_between;
-            let rhs = &cross_t * &b - a_inv_between.transpose() * &system.atb;
+            let schur = cross_gram - between.transpose() * &a_inv_between;
+            let rhs = cross_target - a_inv_between.transpose() * &system.atb;
             let solved = truncated_solve(schur, &rhs).map(|cross_coef| {
                 let own_coef = system.inverse.apply(&system.atb) - &a_inv_between * &cross_coef;
-                let fitted = &own_design * &own_coef + &cross_design * &cross_coef;
-                (own_coef, cross_coef, (&b - fitted).norm_squared())
+                // The coefficients oldest lag first, as the grids run: each part a dot product.
+                let own_reversed: Vec<f64> = (0..p).rev().map(|i| own_coef[i]).collect();
+                let cross_reversed: Vec<Vec<f64>> = cross_coef
+                    .as_slice()
+                    .chunks(q)
+                    .map(|lags| lags.iter().rev().copied().collect())
+                    .collect();
+                let rss: f64 = rows
+                    .iter()
+                    .map(|&r| {
+                        let predicted = own_coef[p]
+                            + dot(&own_reversed, &x[r..r + p])
+                            + others
+                                .iter()
+                                .zip(&cross_reversed)
+                                .map(|(&o, lags)| dot(lags, &systems[o].x[r + p - q..r + p]))
+                                .sum::<f64>();
+                        (x[r + p] - predicted).powi(2)
+                    })
+                    .sum();
+                (own_coef, cross_coef, rss)
             });
             let rss_own = own[c].1.resid_sq;
             let keeps = solved.as_ref().is_some_and(|(_, _, rss)| {

@@ -573,6 +573,50 @@ mod tests {
         );
     }
 
+    /// The joint fit's blocks come from lagged products summed over the runs of rows between
+    /// gaps; its coefficients must be the extended system's least squares over the rows that
+    /// have every lag measured, as if the design were written out.
+    #[test]
+    fn the_joint_coefficients_are_the_least_squares_of_the_written_out_design() {
+        let (t, lead, follow) = led_and_following(1500);
+        // A 3 s gap (samples dropped) makes a run of unmeasured grid points.
+        let kept: Vec<usize> = (0..t.len()).filter(|k| !(600..615).contains(k)).collect();
+        let t: Vec<f64> = kept.iter().map(|&k| t[k]).collect();
+        let y: Vec<Vec<f64>> = [&lead, &follow]
+            .iter()
+            .map(|c| kept.iter().map(|&k| c[k]).collect())
+            .collect();
+        let (order, cross_order) = (12, 4);
+        let own: Vec<_> = y
+            .iter()
+            .map(|c| super::ArModel::fit_keeping_system(&t, c, order, DT, 5.0, 0.5).unwrap())
+            .collect();
+        assert!(!own[0].1.gap_rows.is_empty(), "the gap leaves rows out");
+        let joint = super::JointAr::fit(&own, cross_order, 5.0).expect("a joint fit");
+        assert_eq!(joint.joint, vec![false, true]);
+        let (x, other) = (&own[1].1.x, &own[0].1.x);
+        let rows: Vec<usize> = (0..x.len() - order)
+            .filter(|r| own[0].1.gap_rows.binary_search(r).is_err())
+            .collect();
+        let columns = order + cross_order + 1;
+        let design = nalgebra::DMatrix::from_fn(rows.len(), columns, |i, col| {
+            let r = rows[i];
+            match col {
+                c if c < order => x[r + order - 1 - c],
+                c if c < order + cross_order => other[r + order - 1 - (c - order)],
+                _ => 1.0,
+            }
+        });
+        let target = nalgebra::DVector::from_fn(rows.len(), |i, _| x[rows[i] + order]);
+        let solved = design.svd(true, true).solve(&target, 1e-12).unwrap();
+        for (col, (&fitted, &written)) in joint.coef[1].iter().zip(solved.iter()).enumerate() {
+            assert!(
+                (fitted - written).abs() < 1e-8,
+                "coefficient {col}: {fitted} against {written}"
+            );
+        }
+    }
+
     #[test]
     fn a_history_too_short_for_every_lag_reads_the_other_channel_with_fewer_of_its_own() {
         // A minute on the grid: the own fits take 96 lags, too many to add 24 of the other's.

@@ -2,8 +2,9 @@
 //! the other channels' newest lags beside its own. Roll, pitch and the deck's height answer the
 //! same waves, and a pad away from the centre of gravity heaves with the roll and the pitch: one
 //! channel's recent past tells of another's next seconds. A channel keeps the other channels'
-//! lags only when they explain more than their number costs (the Bayesian information
-//! criterion on its one-step residuals); otherwise its recursion is its own autoregression's.
+//! lags only when they explain more than their number costs (Akaike's information criterion
+//! in its small-sample form, AICc, on its one-step residuals); otherwise its recursion is its
+//! own autoregression's.
 //!
 //! The joint model runs all channels forward together; its stated uncertainty is the vector
 //! recursion's (the impulse responses `Psi_j`, the innovations' covariance `Sigma`): the error
@@ -98,9 +99,17 @@ impl JointAr {
         let m = rows.len() as f64;
         // The own fits' rows and residuals: the baseline each channel's joint fit must beat.
         let own_rows = kept_rows(order, &own[0].1.gap_rows).len() as f64;
-        // The information criterion (Bayesian: ln m per coefficient) on the mean squared
-        // residual per row, the coefficients counted beyond the own fit's.
-        let price = (p + cross) as f64 - order as f64;
+        // The information criterion on the mean squared residual per row: AICc's price,
+        // `2 k m / (m - k - 1)` for k coefficients, the joint fit's less the own fit's. On a
+        // long history it is Akaike's 2 a coefficient (the Bayesian `ln m` kept too few cross
+        // lags on the 600 s window); on a short one it grows without bound as k nears m, which
+        // keeps a minute's history from overfitting (docs/history.md, "Cross lags priced by
+        // AICc").
+        let aicc_price = |k: f64| match m - k - 1.0 > 0.0 {
+            true => 2.0 * k * m / (m - k - 1.0),
+            false => f64::INFINITY,
+        };
+        let price = aicc_price((p + cross + 1) as f64) - aicc_price((order + 1) as f64);
         let params = order + cross + 1;
         // Every pair of channels' lagged products over the kept rows (`products[a][b]` for
         // a <= b; the other order is its transpose): the joint normal equations' blocks.
@@ -175,9 +184,7 @@ impl JointAr {
             });
             let rss_own = own[c].1.resid_sq;
             let keeps = solved.as_ref().is_some_and(|(_, _, rss)| {
-                rss_own > 0.0
-                    && *rss > 0.0
-                    && m * ((rss / m) / (rss_own / own_rows)).ln() + price * m.ln() < 0.0
+                rss_own > 0.0 && *rss > 0.0 && m * ((rss / m) / (rss_own / own_rows)).ln() + price < 0.0
             });
             let mut all = vec![0.0; params];
             match solved.filter(|_| keeps) {

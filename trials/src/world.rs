@@ -76,8 +76,12 @@ impl ApproachWorld {
     }
 
     /// [`Self::new`] for a vehicle that holds over the deck `watch_before_s` before the landing
-    /// is asked for: the motion must hold the watch too, so an approach that would start
-    /// earlier into the motion than that starts that far in (the others where they would).
+    /// is asked for: the motion must hold the watch too. On a motion file the requests are
+    /// spread over what is left after the watch (approach k asked for 421 k s after it, wrapped
+    /// to fit), so that no two approaches of a file share their instant whatever the watch
+    /// (moving only the early ones to the watch's end had put 3 of 10 on one instant with a
+    /// minute's watch, and 6 of 10 with eight minutes'); without a watch, as [`Self::new`]. On a
+    /// spectrum sea an approach that would start earlier than the watch starts at its end.
     pub fn watched(
         approach: Approach,
         recorded: Option<&Arc<RecordedShipMotion>>,
@@ -100,7 +104,7 @@ impl ApproachWorld {
             return Ok(Self {
                 sea: TrialSea::Recorded(motion.clone()),
                 sway,
-                sea_offset_s: ((421.0 * approach.index as f64) % usable_s).max(watch_s),
+                sea_offset_s: watch_s + request_offset_s(approach.index, usable_s - watch_s),
             });
         }
         let sea = SpectrumShipMotion::sea_state_from(approach.sea_state, approach.seed, approach.heading_deg)
@@ -151,5 +155,68 @@ impl ApproachWorld {
     pub fn attitudes(&self, t: f64) -> (RotationMatrix, RotationMatrix) {
         let deck = self.sea.sample(t + self.sea_offset_s).attitude.to_matrix();
         (deck, self.vehicle_attitude(t))
+    }
+}
+
+/// When approach `index` is asked for on a motion file, in seconds after the first instant it
+/// may use: 421 s apart (a prime, so that wrapped instants rarely meet), wrapped into `span_s`.
+fn request_offset_s(index: u32, span_s: f64) -> f64 {
+    match span_s > 0.0 {
+        true => (421.0 * index as f64) % span_s,
+        false => 0.0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn file_of(duration_s: f64) -> Arc<RecordedShipMotion> {
+        let mut text = String::from("time_s,roll_deg,pitch_deg,heave_m\n");
+        for k in 0..=(duration_s * 10.0) as usize {
+            text += &format!("{},0,0,0\n", k as f64 / 10.0);
+        }
+        Arc::new(RecordedShipMotion::parse(&text, "test").unwrap())
+    }
+
+    fn starts(motion: &Arc<RecordedShipMotion>, watch_s: f64) -> Vec<f64> {
+        (0..10)
+            .map(|index| {
+                let approach = Approach {
+                    sea_state: 0,
+                    seed: 1,
+                    heading_deg: f64::NAN,
+                    index,
+                };
+                ApproachWorld::watched(approach, Some(motion), 1.0, 120.0, watch_s)
+                    .unwrap()
+                    .sea_offset_s
+            })
+            .collect()
+    }
+
+    #[test]
+    fn approaches_on_a_file_start_at_distinct_instants_after_any_watch() {
+        let motion = file_of(1800.0);
+        assert_eq!(
+            starts(&motion, 0.0)[..3],
+            [0.0, 421.0, 842.0],
+            "no watch: as before"
+        );
+        for watch_s in [0.0, 60.0, 480.0, 900.0] {
+            let starts = starts(&motion, watch_s);
+            for (i, a) in starts.iter().enumerate() {
+                assert!(
+                    *a >= watch_s && *a + 120.0 + LOOK_AHEAD_S <= 1800.0,
+                    "watch {watch_s}: start {a}"
+                );
+                for b in &starts[..i] {
+                    assert!(
+                        (a - b).abs() >= 1.0,
+                        "watch {watch_s}: two approaches at {a} and {b}"
+                    );
+                }
+            }
+        }
     }
 }

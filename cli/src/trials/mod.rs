@@ -43,7 +43,7 @@ pub struct TrialsArgs {
     /// The ship's motion from a file (CSV: `time_s,roll_deg,pitch_deg,heave_m`, optional
     /// `yaw_deg`; docs/recording.md, "Ship motion from a file"): the rendered deck follows it, and the
     /// report's sea is `0`. `--sea-states` and `--headings-deg` are unused; approach k starts
-    /// 421 k s into the file (wrapped to fit its length).
+    /// 421 k s into the file (wrapped to fit its length; with a watch, 421 k s after it).
     #[arg(long)]
     pub motion_csv: Option<std::path::PathBuf>,
     /// Approaches per sea state, seed and heading (each starts at a different time of the sea).

@@ -100,11 +100,13 @@ impl JointAr {
         // The own fits' rows and residuals: the baseline each channel's joint fit must beat.
         let own_rows = kept_rows(order, &own[0].1.gap_rows).len() as f64;
         // The information criterion on the mean squared residual per row: AICc's price,
-        // `2 k m / (m - k - 1)` for k coefficients, the joint fit's less the own fit's. On a
-        // long history it is Akaike's 2 a coefficient (the Bayesian `ln m` kept too few cross
-        // lags on the 600 s window); on a short one it grows without bound as k nears m, which
-        // keeps a minute's history from overfitting (docs/history.md, "Cross lags priced by
-        // AICc").
+        // `2 k m / (m - k - 1)` for k coefficients, the joint fit's less the own fit's, both on
+        // the joint fit's m rows. On the 600 s window it is about Akaike's 2 a coefficient (the
+        // Bayesian `ln m`, about 8, used fewer calm windows there); on a minute's history, where
+        // the joint fit keeps two rows a coefficient, it is steeper (108 coefficients on 217
+        // rows: 80 against the Bayesian 59), which keeps that history from overfitting
+        // (docs/history.md, "Cross lags priced by AICc"). A price that is not finite (no row to
+        // spare) keeps no cross lag.
         let aicc_price = |k: f64| match m - k - 1.0 > 0.0 {
             true => 2.0 * k * m / (m - k - 1.0),
             false => f64::INFINITY,
@@ -184,7 +186,10 @@ impl JointAr {
             });
             let rss_own = own[c].1.resid_sq;
             let keeps = solved.as_ref().is_some_and(|(_, _, rss)| {
-                rss_own > 0.0 && *rss > 0.0 && m * ((rss / m) / (rss_own / own_rows)).ln() + price < 0.0
+                price.is_finite()
+                    && rss_own > 0.0
+                    && *rss > 0.0
+                    && m * ((rss / m) / (rss_own / own_rows)).ln() + price < 0.0
             });
             let mut all = vec![0.0; params];
             match solved.filter(|_| keeps) {

@@ -5,10 +5,11 @@ use super::*;
 
 mod blurred;
 mod coverage;
+mod profile;
 
 use blurred::{
-    BlurredCentre, BLURRED_BACKGROUND_RING_PX, BLURRED_EDGE_SIGMA_PX, BLURRED_ISOLATION_PER_EDGE_SIGMA,
-    SAME_DISC_PX,
+    BlurredCentre, DiscShape, BLURRED_BACKGROUND_RING_PX, BLURRED_EDGE_SIGMA_PX,
+    BLURRED_ISOLATION_PER_EDGE_SIGMA, SAME_DISC_PX,
 };
 use coverage::{Coverage, RowCoverage};
 
@@ -256,13 +257,32 @@ impl Detector {
                 },
                 ..disc
             };
-            match self.blurred_centre(frame, &blurred_disc, &window, a, roundness) {
-                BlurredCentre::Measured(wide) => {
+            let mut pixels = std::mem::take(&mut self.profile_pixels);
+            let measured = self.blurred_centre(
+                frame,
+                &blurred_disc,
+                &window,
+                &DiscShape {
+                    semi_major_px: a,
+                    axis_ratio: roundness,
+                    moments: [cxx, cxy, cyy],
+                },
+                &mut pixels,
+            );
+            self.profile_pixels = pixels;
+            match measured {
+                BlurredCentre::Measured(wide, profile) => {
                     // Only the centre and the blur's width: the area stays the banded
                     // window's, which identification's size check is measured on (the wide
                     // window's sum follows the tone curve's lift of the tail: a filmic curve
                     // left no pattern identified).
-                    centre = blurred::combined_centre(centre, [wide.u, wide.v, std_of(&wide)]);
+                    centre = match profile {
+                        // The edge profile's centre where its fit settles: it weighs each
+                        // pixel by what it tells of the centre, and its deviation is its own
+                        // residual's (`measure/profile.rs`).
+                        Some(p) => [p.u, p.v, p.std_px],
+                        None => blurred::combined_centre(centre, [wide.u, wide.v, std_of(&wide)]),
+                    };
                     window.edge_sigma_px = wide.edge_sigma_px;
                 }
                 BlurredCentre::Cut(grown) if may_grow => {

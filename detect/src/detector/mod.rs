@@ -139,6 +139,8 @@ pub struct Detector {
     mask: Vec<u8>,
     /// One mask row, copied for the erosion.
     row_copy: Vec<u8>,
+    /// Scratch for the edge profile's fit (`measure::profile`).
+    profile_pixels: Vec<[f32; 3]>,
     candidates: Vec<Candidate>,
     searches: SearchCounts,
     /// The least gap between two markers' edges on the deck over the largest marker's radius:
@@ -191,6 +193,7 @@ impl Detector {
             seeds: Vec::new(),
             mask: Vec::new(),
             row_copy: Vec::new(),
+            profile_pixels: Vec::new(),
             candidates: Vec::new(),
             searches: SearchCounts::default(),
             least_gap_per_radius: least_gap_per_radius(&deck),

@@ -40,7 +40,9 @@ impl Detector {
     /// [`BLURRED_CONVERGED_PX`]. The centroid of a disc blurred by any symmetric point spread is
     /// the disc's own (a convolution adds the spread's centroid), whatever the spread's shape,
     /// as long as the window is a circle about the centre that holds the tail: `Cut` with a
-    /// region that does when this one cannot.
+    /// region that does when this one cannot. With the centroid, the centre fitted to the
+    /// disc's edge profile in that window (`measure/profile.rs`; `pixels`: its scratch), which
+    /// the measurement takes where the fit settles.
     pub(super) fn blurred_centre(
         &self,
         frame: GrayView<'_>,
@@ -312,7 +314,8 @@ pub(super) const BLURRED_BACKGROUND_RING_PX: f64 = 3.0;
 pub(super) const BLURRED_ISOLATION_PER_EDGE_SIGMA: f64 =
     BLURRED_REACH_PER_EDGE_SIGMA * BLURRED_MAX_SPREAD_PER_EDGE_SIGMA + 3.0;
 
-/// A blurred disc's centre from both passes, `[u, v, deviation per axis]` each: the blurred
+/// Where the edge profile's fit does not settle (`measure/profile.rs`), a blurred disc's
+/// centre from both passes, `[u, v, deviation per axis]` each: the blurred
 /// pass's is unbiased whatever the spread, the banded window's less noisy (a smaller window,
 /// its deep pixels counted without noise) but off by up to 0.03 px under a wide blur. Their
 /// difference is that offset and both noises: the blurred centre counts by the share of the
@@ -336,8 +339,6 @@ pub(super) fn combined_centre(banded: [f64; 3], blurred: [f64; 3]) -> [f64; 3] {
     [banded[0] + w * du, banded[1] + w * dv, std]
 }
 
-/// What [`Detector::blurred_centre`] found: the centre, or the region that would hold the
-/// blur's tail (the same region when none can).
 /// A disc's shape as its half-way mask measures it.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct DiscShape {
@@ -348,6 +349,8 @@ pub(super) struct DiscShape {
     pub(super) moments: [f64; 3],
 }
 
+/// What [`Detector::blurred_centre`] found: the centre, or the region that would hold the
+/// blur's tail (the same region when none can).
 pub(super) enum BlurredCentre {
     /// The coverage-weighted centroid, and the edge profile's centre about it where that fit
     /// settles.
@@ -566,8 +569,8 @@ mod tests {
     /// coverage-weighted centroid of the same disc, the estimator it replaced (here with the
     /// background and contrast known to it, as it never was), and states its own scatter: a
     /// disc of the 640 x 480 stream's size at sub-pixel positions through three point spreads,
-    /// 4 DN of normal noise. Measured: 0.36-0.51 of the centroid's scatter (0.018-0.024 px
-    /// against 0.047-0.048), the stated deviation 0.86-1.01 of the scatter.
+    /// 4 DN of normal noise. Measured: 0.53-0.61 of the centroid's scatter (0.016-0.023 px
+    /// against 0.030-0.043), the stated deviation 0.99-1.08 of the scatter.
     #[test]
     fn the_edge_profile_centre_beats_the_centroid_under_noise_and_states_its_scatter() {
         let cam = CameraModel::rpi_v2().scaled_to(640, 480);
@@ -581,12 +584,14 @@ mod tests {
             ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
         };
         let (r, background, contrast, noise) = (5.3, 50.0, 150.0, 4.0);
+        // Each with the centroid's reach beyond the edge: 3 deviations of the spread (a
+        // defocus circle of radius 4 px: a deviation of 2 px).
         let spreads = [
-            ("gaussian 2.5 px", Kernel::gaussian(2.5), 0.0),
-            ("defocus 4 px", Kernel::defocus(4.0), 0.0),
-            ("gaussian 1.8 px, sharpened 1.2", Kernel::gaussian(1.8), 1.2),
+            ("gaussian 2.5 px", Kernel::gaussian(2.5), 0.0, 7.5),
+            ("defocus 4 px", Kernel::defocus(4.0), 0.0, 6.0),
+            ("gaussian 1.8 px, sharpened 1.2", Kernel::gaussian(1.8), 1.2, 5.4),
         ];
-        for (name, psf, sharpen) in &spreads {
+        for (name, psf, sharpen, reach) in &spreads {
             let (mut profile_sq, mut centroid_sq, mut stated_sq, n) = (0.0, 0.0, 0.0, 120);
             for _ in 0..n {
                 let (u, v) = (31.0 + uniform(), 32.0 + uniform());
@@ -600,14 +605,14 @@ mod tests {
                 };
                 profile_sq += (c.u - u).powi(2) + (c.v - v).powi(2);
                 stated_sq += 2.0 * c.centre_std_px * c.centre_std_px;
-                // The centroid of the coverage within 8 px of the disc's edge (the blur's tail),
-                // centred again three times.
+                // The centroid of the coverage within `reach` of the disc's edge (the blur's
+                // tail), centred again three times.
                 let (mut cu, mut cv) = (c.u, c.v);
                 for _ in 0..3 {
                     let (mut w, mut wu, mut wv) = (0.0, 0.0, 0.0);
                     for (i, &p) in img.data.iter().enumerate() {
                         let (x, y) = ((i % SIDE) as f64, (i / SIDE) as f64);
-                        if (x - cu).hypot(y - cv) <= r + 8.0 {
+                        if (x - cu).hypot(y - cv) <= r + reach {
                             let cover = (f64::from(p) - background) / contrast;
                             (w, wu, wv) = (w + cover, wu + cover * x, wv + cover * y);
                         }
@@ -627,11 +632,10 @@ mod tests {
     }
 
     /// An ellipse (a marker seen obliquely; semi-axes 7 and 4.5 px, turned 30 deg) blurred by
-    /// a Gaussian of 2 px is centred within 0.008 px RMS (0.0034 measured): the edge profile
-    /// is measured in rings of the disc's own shape (in circles the edge would spread over
-    /// 2.5 px of radius).
+    /// a Gaussian of 2 px is centred within 0.008 px RMS (0.0034 measured), its edge profile
+    /// measured in rings of its own shape.
     #[test]
-    fn an_elliptical_disc_is_centred_in_rings_of_its_own_shape() {
+    fn an_elliptical_blurred_disc_is_centred() {
         let cam = CameraModel::rpi_v2().scaled_to(640, 480);
         let deck = DeckLayout::paper();
         let mut det = Detector::new(cam, deck, DetectorConfig::for_camera(&cam, &deck));

@@ -21,10 +21,8 @@ const MAX_RINGS: usize = 96;
 /// The fit stops when its step is below this (px): the fit converges about quadratically, and
 /// the step after one this short moves the centre by about a thousandth of a pixel...
 const PROFILE_CONVERGED_PX: f64 = 2e-2;
-/// ... or after this many steps, keeping the last centre if that step was below
-/// [`PROFILE_SETTLED_PX`].
+/// ... within this many steps; a fit still moving after them gives no centre.
 const PROFILE_MAX_STEPS: usize = 5;
-const PROFILE_SETTLED_PX: f64 = 1e-2;
 /// A centre further than this from where the fit started (px) is not this disc's (a neighbour,
 /// a cut): no centre. The pixels are gathered once, this much inside the window.
 const PROFILE_MAX_DRIFT_PX: f64 = 0.5;
@@ -32,7 +30,8 @@ const PROFILE_MAX_DRIFT_PX: f64 = 0.5;
 /// blur inside the disc's edge (and a pixel more) outward; deeper pixels tell nothing of the
 /// centre and only cost time.
 const PROFILE_INNER_PER_EDGE_SIGMA: f64 = 3.0;
-/// ... and out to this many beyond it (a Gaussian edge's coverage is 0.02 % there).
+/// ... and out to as far as the window reaches (3 deviations beyond the edge, less the drift),
+/// at most this many deviations and a pixel beyond the edge.
 const PROFILE_OUTER_PER_EDGE_SIGMA: f64 = 3.5;
 
 /// The centre from the edge profile, and its deviation (px, per axis) from the fit's own
@@ -160,10 +159,11 @@ pub(super) fn edge_profile_centre(
         inv_width_q: 1.0 / width_q,
         count: (((outer_q - inner_q) / width_q).ceil() as usize).clamp(2, MAX_RINGS),
     };
-    let mut sums = gather(frame, window, shape, &rings, pixels);
+    // A drift of PROFILE_MAX_DRIFT_PX moves a pixel's rho by up to this much.
+    let drift_rho = PROFILE_MAX_DRIFT_PX / least.sqrt();
+    let mut sums = gather(frame, window, shape, &rings, drift_rho, pixels);
 
     let (mut ox, mut oy) = (0.0f64, 0.0f64);
-    let mut last = None;
     for _ in 0..PROFILE_MAX_STEPS {
         let (level, slope) = sums.profile(&rings)?;
         sums = RingSums::new();
@@ -211,33 +211,35 @@ pub(super) fn edge_profile_centre(
             v: window.start.1 + oy,
             std_px: (variance * 0.5 * (a00 + a11) / det).sqrt(),
         };
+        // A residual of exactly zero (no noise at all) states no deviation: no weight can
+        // follow from it.
+        if !(centre.std_px.is_finite() && centre.std_px > 0.0) {
+            return None;
+        }
         if moved < PROFILE_CONVERGED_PX {
             return Some(centre);
         }
-        last = (moved < PROFILE_SETTLED_PX).then_some(centre);
     }
-    // Not converged within its steps: the last centre if its step was a short one.
-    last
+    None
 }
 
 /// The pixels of the window's circle about its start (inside its region) whose radius in the
-/// disc's shape lies within the rings' and the drift's reach: their offsets from the start and
-/// their coverage; and the ring sums about the start.
+/// disc's shape lies within the rings, widened by what the fit's drift may move it
+/// (`drift_rho`): their offsets from the start and their coverage; and the ring sums about
+/// the start.
 fn gather(
     frame: GrayView<'_>,
     window: &ProfileWindow<'_>,
     shape: [f64; 3],
     rings: &Rings,
+    drift_rho: f64,
     pixels: &mut Vec<[f32; 3]>,
 ) -> RingSums {
     pixels.clear();
     let mut sums = RingSums::new();
     let (x0, y0, x1, y1) = window.roi;
     let ((cx, cy), reach) = (window.start, window.reach_px);
-    let (inner, outer) = (
-        rings.inner_q.sqrt() - PROFILE_MAX_DRIFT_PX,
-        rings.outer_q.sqrt() + PROFILE_MAX_DRIFT_PX,
-    );
+    let (inner, outer) = (rings.inner_q.sqrt() - drift_rho, rings.outer_q.sqrt() + drift_rho);
     let (inner2, outer2) = (inner.max(0.0).powi(2), outer * outer);
     let ya = (cy - reach).ceil().max(y0 as f64) as usize;
     let yb = (cy + reach).floor().min(y1 as f64 - 1.0);
@@ -266,4 +268,119 @@ fn gather(
         }
     }
     sums
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use deckwatch_common::GrayImage;
+
+    const SIDE: usize = 48;
+
+    /// A disc of radius `r` at `(u, v)` on 40 DN, 150 DN brighter, its edge a Gaussian of 2 px
+    /// (8 x 8 samples a pixel), rounded to 8 bits.
+    fn blurred_disc(u: f64, v: f64, r: f64) -> GrayImage {
+        let mut img = GrayImage::new(SIDE, SIDE);
+        for (i, p) in img.data.iter_mut().enumerate() {
+            let (x, y) = ((i % SIDE) as f64, (i / SIDE) as f64);
+            let cover: f64 = (0..64)
+                .map(|k| {
+                    let d =
+                        (x + ((k % 8) as f64 - 3.5) / 8.0 - u).hypot(y + ((k / 8) as f64 - 3.5) / 8.0 - v);
+                    0.5 * libm_erfc((d - r) / (2.0 * std::f64::consts::SQRT_2))
+                })
+                .sum::<f64>()
+                / 64.0;
+            *p = (40.0 + 150.0 * cover).round() as u8;
+        }
+        img
+    }
+
+    /// erfc by Abramowitz and Stegun 7.1.26 (1.5e-7): enough for a test's picture.
+    fn libm_erfc(x: f64) -> f64 {
+        let t = 1.0 / (1.0 + 0.327_591_1 * x.abs());
+        let poly = t
+            * (0.254_829_592
+                + t * (-0.284_496_736 + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
+        let e = poly * (-x * x).exp();
+        if x >= 0.0 {
+            e
+        } else {
+            2.0 - e
+        }
+    }
+
+    fn fit(
+        img: &GrayImage,
+        start: (f64, f64),
+        roi: (usize, usize, usize, usize),
+        moments: [f64; 3],
+        reach: f64,
+    ) -> Option<ProfileCentre> {
+        let coverage = Coverage::new([40.0, 0.0, 0.0], [190.0, 0.0, 0.0], (roi.0, roi.1), start);
+        let window = ProfileWindow {
+            coverage: &coverage,
+            roi,
+            start,
+            reach_px: reach,
+            moments,
+            edge_sigma_px: 2.0,
+        };
+        edge_profile_centre(img.view(), &window, &mut Vec::new())
+    }
+
+    /// From a start 0.2 px off, the fit settles on the disc's centre (within 0.005 px) and
+    /// states a positive, finite deviation; a circle of radius 6 px has moments r^2 / 4.
+    #[test]
+    fn the_fit_settles_on_the_centre_from_a_start_off_it() {
+        let (u, v, r) = (23.37, 24.81, 6.0);
+        let img = blurred_disc(u, v, r);
+        let moments = [r * r / 4.0, 0.0, r * r / 4.0];
+        let Some(c) = fit(&img, (u + 0.2, v - 0.15), (0, 0, SIDE, SIDE), moments, r + 7.0) else {
+            panic!("the fit did not settle")
+        };
+        assert!((c.u - u).hypot(c.v - v) < 0.005, "{c:?} against ({u}, {v})");
+        assert!(c.std_px.is_finite() && c.std_px > 0.0, "{c:?}");
+    }
+
+    /// Nothing to fit gives no centre, and no input panics: a flat frame, moments that are no
+    /// ellipse's, a window too small for a profile, a region cut by the frame's border, and a
+    /// start beyond the frame.
+    #[test]
+    fn degenerate_windows_give_no_centre_and_do_not_panic() {
+        let flat = GrayImage::new(SIDE, SIDE);
+        let disc = blurred_disc(23.5, 24.5, 6.0);
+        let circle = [9.0, 0.0, 9.0];
+        assert_eq!(fit(&flat, (23.5, 24.5), (0, 0, SIDE, SIDE), circle, 13.0), None);
+        for moments in [
+            [0.0; 3],
+            [-1.0, 0.0, 9.0],
+            [9.0, 9.0, 9.0],
+            [f64::NAN, 0.0, 9.0],
+            [f64::INFINITY, 0.0, 9.0],
+        ] {
+            assert_eq!(
+                fit(&disc, (23.5, 24.5), (0, 0, SIDE, SIDE), moments, 13.0),
+                None,
+                "{moments:?}"
+            );
+        }
+        for reach in [0.0, 1.0, -3.0, f64::NAN, f64::INFINITY] {
+            assert_eq!(
+                fit(&disc, (23.5, 24.5), (0, 0, SIDE, SIDE), circle, reach),
+                None,
+                "reach {reach}"
+            );
+        }
+        // The region cut: whatever comes back is finite.
+        for (start, roi) in [
+            ((23.5, 24.5), (20, 0, SIDE, SIDE)),
+            ((2.0, 3.0), (0, 0, SIDE, SIDE)),
+            ((-40.0, 90.0), (0, 0, SIDE, SIDE)),
+        ] {
+            if let Some(c) = fit(&disc, start, roi, circle, 13.0) {
+                assert!(c.u.is_finite() && c.v.is_finite() && c.std_px > 0.0, "{c:?}");
+            }
+        }
+    }
 }
